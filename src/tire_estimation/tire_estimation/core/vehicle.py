@@ -1,0 +1,176 @@
+"""Vehicle description shared by the simulator, the estimators and the bag tools.
+
+The description is read from ``vehicle.yaml`` next to a bag (or the bag's metadata custom data)
+under the top-level key ``vehicle``. Frames follow REP-103: ``base_link`` is x forward, y left,
+z up, with its origin at the centre of the rear axle on the ground.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from tire_estimation.core.validation import require_finite, require_range
+from tire_estimation.errors import VehicleConfigError
+
+DRIVES = ("front", "rear", "all")
+
+
+@dataclass(frozen=True)
+class VehicleParams:
+    """Geometry and inertia of the vehicle (SI units; ranges checked at construction).
+
+    Attributes:
+        name: free-text identity of the vehicle (used to match persisted estimates).
+        nominal_tire_radius_m: nominal effective rolling radius of every tyre, m.
+        track_width_m: lateral distance between the left and right wheel centres, m.
+        wheelbase_m: distance between front and rear axle, m; must equal lf + lr.
+        cg_to_front_axle_m: lf, longitudinal distance of the centre of gravity to the front axle.
+        cg_to_rear_axle_m: lr, longitudinal distance of the centre of gravity to the rear axle.
+        cg_height_m: height of the centre of gravity above the ground, m.
+        mass_kg: vehicle mass, kg.
+        yaw_inertia_kg_m2: yaw moment of inertia about the centre of gravity, kg m^2.
+        drive: driven axle, ``front``, ``rear`` or ``all``.
+        gnss_antenna_position_m: GNSS antenna position in ``base_link`` (x, y, z), m.
+        imu_position_m: IMU position in ``base_link`` (x, y, z), m.
+        steering_ratio: steering-wheel angle over road-wheel angle, 1 (for CAN conversion).
+        cornering_stiffness_front_n_rad: nominal front-axle cornering stiffness, N/rad.
+        cornering_stiffness_rear_n_rad: nominal rear-axle cornering stiffness, N/rad.
+        longitudinal_stiffness_front_n: nominal front-axle longitudinal stiffness, N per unit
+            slip.
+        longitudinal_stiffness_rear_n: nominal rear-axle longitudinal stiffness, N per unit
+            slip.
+    """
+
+    name: str = "vehicle"
+    nominal_tire_radius_m: float = 0.31
+    track_width_m: float = 1.55
+    wheelbase_m: float = 2.7
+    cg_to_front_axle_m: float = 1.1
+    cg_to_rear_axle_m: float = 1.6
+    cg_height_m: float = 0.55
+    mass_kg: float = 1500.0
+    yaw_inertia_kg_m2: float = 2500.0
+    drive: str = "front"
+    gnss_antenna_position_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    imu_position_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    steering_ratio: float = 15.0
+    cornering_stiffness_front_n_rad: float = 100_000.0
+    cornering_stiffness_rear_n_rad: float = 120_000.0
+    longitudinal_stiffness_front_n: float = 150_000.0
+    longitudinal_stiffness_rear_n: float = 150_000.0
+
+    def __post_init__(self) -> None:
+        err = VehicleConfigError
+        if not isinstance(self.name, str) or not self.name:
+            raise err("vehicle.name", self.name, "must be a non-empty string")
+        require_range("vehicle.nominal_tire_radius_m", self.nominal_tire_radius_m, 0.1, 1.5, err)
+        require_range("vehicle.track_width_m", self.track_width_m, 0.3, 3.5, err)
+        require_range("vehicle.wheelbase_m", self.wheelbase_m, 0.3, 8.0, err)
+        require_range("vehicle.cg_to_front_axle_m", self.cg_to_front_axle_m, 0.0, 8.0, err)
+        require_range("vehicle.cg_to_rear_axle_m", self.cg_to_rear_axle_m, 0.0, 8.0, err)
+        require_range("vehicle.cg_height_m", self.cg_height_m, 0.0, 3.0, err)
+        require_range("vehicle.mass_kg", self.mass_kg, 10.0, 60_000.0, err)
+        require_range("vehicle.yaw_inertia_kg_m2", self.yaw_inertia_kg_m2, 0.1, 1e6, err)
+        require_range("vehicle.steering_ratio", self.steering_ratio, 1.0, 50.0, err)
+        for field in (
+            "cornering_stiffness_front_n_rad",
+            "cornering_stiffness_rear_n_rad",
+            "longitudinal_stiffness_front_n",
+            "longitudinal_stiffness_rear_n",
+        ):
+            require_range(f"vehicle.{field}", getattr(self, field), 1.0, 1e7, err)
+        lf_lr = self.cg_to_front_axle_m + self.cg_to_rear_axle_m
+        if abs(lf_lr - self.wheelbase_m) > 0.02:
+            raise err(
+                "vehicle.wheelbase_m",
+                self.wheelbase_m,
+                f"must equal cg_to_front_axle_m + cg_to_rear_axle_m = {lf_lr:.3f} (within 2 cm)",
+            )
+        if self.drive not in DRIVES:
+            raise err("vehicle.drive", self.drive, f"must be one of {DRIVES}")
+        for field in ("gnss_antenna_position_m", "imu_position_m"):
+            value = getattr(self, field)
+            if len(value) != 3:
+                raise err(f"vehicle.{field}", value, "must be a list of 3 numbers [x, y, z]")
+            for i, v in enumerate(value):
+                require_finite(f"vehicle.{field}[{i}]", v, err)
+                if abs(v) > 20.0:
+                    raise err(f"vehicle.{field}[{i}]", v, "must be within 20 m of base_link")
+
+    @property
+    def lf_m(self) -> float:
+        """Distance from the centre of gravity to the front axle, m."""
+        return self.cg_to_front_axle_m
+
+    @property
+    def lr_m(self) -> float:
+        """Distance from the centre of gravity to the rear axle, m."""
+        return self.cg_to_rear_axle_m
+
+    def wheel_positions_m(self) -> tuple[tuple[float, float], ...]:
+        """(x, y) of each wheel centre in ``base_link``, in the order of ``core.wheels.WHEELS``."""
+        half = 0.5 * self.track_width_m
+        lb = self.wheelbase_m
+        return ((lb, half), (lb, -half), (0.0, half), (0.0, -half))
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> VehicleParams:
+        """Build from a mapping (the ``vehicle`` section of vehicle.yaml); unknown keys fail."""
+        if not isinstance(data, Mapping):
+            raise VehicleConfigError("vehicle", data, "must be a mapping")
+        names = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(data) - names)
+        if unknown:
+            raise VehicleConfigError(f"vehicle.{unknown[0]}", data[unknown[0]], "unknown key")
+        kwargs: dict[str, Any] = {}
+        for key, value in data.items():
+            if key in ("gnss_antenna_position_m", "imu_position_m"):
+                if not isinstance(value, (list, tuple)):
+                    raise VehicleConfigError(f"vehicle.{key}", value, "must be a list [x, y, z]")
+                value = tuple(float(v) if _is_number(v) else v for v in value)
+            elif key not in ("name", "drive") and _is_int(value):
+                value = float(value)
+            kwargs[key] = value
+        return cls(**kwargs)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The ``vehicle`` section of vehicle.yaml (plain YAML-serializable types)."""
+        out = dataclasses.asdict(self)
+        for key in ("gnss_antenna_position_m", "imu_position_m"):
+            out[key] = [float(v) for v in out[key]]
+        return out
+
+
+def _is_number(value: object) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _is_int(value: object) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def load_vehicle_yaml(path: str | Path) -> VehicleParams:
+    """Read ``vehicle.yaml``; raise :class:`VehicleConfigError` naming what is wrong."""
+    path = Path(path)
+    try:
+        data = yaml.safe_load(path.read_text())
+    except FileNotFoundError as exc:
+        raise VehicleConfigError("vehicle.yaml", str(path), "file not found") from exc
+    except yaml.YAMLError as exc:
+        raise VehicleConfigError("vehicle.yaml", str(path), f"not valid YAML: {exc}") from exc
+    if not isinstance(data, dict) or "vehicle" not in data:
+        raise VehicleConfigError("vehicle", None, f"{path} has no top-level 'vehicle' mapping")
+    return VehicleParams.from_dict(data["vehicle"])
+
+
+def dump_vehicle_yaml(vehicle: VehicleParams, path: str | Path, comment: str = "") -> None:
+    """Write ``vehicle.yaml`` with an optional leading comment (sources of the numbers)."""
+    header = "".join(f"# {line}\n" for line in comment.splitlines()) if comment else ""
+    text = yaml.safe_dump({"vehicle": vehicle.to_dict()}, sort_keys=False)
+    Path(path).write_text(header + text)

@@ -1,0 +1,1 @@
+"""Vehicle and sensor simulator (pure Python and NumPy; no ROS, no rosbags)."""
