@@ -25,7 +25,7 @@ setup(
         "console_scripts": [
             "tire-estimation = tire_estimation.cli:main",
             "estimator_node = tire_estimation.nodes.estimator_node:main",
-            "detector_node = tire_estimation.nodes.detector_node:main",
+            "bag_player = tire_estimation.nodes.bag_player:main",
         ],
     },
 )

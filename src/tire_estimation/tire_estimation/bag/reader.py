@@ -1,0 +1,584 @@
+"""Read a contract bag into the stream dataclasses of :mod:`tire_estimation.sim.streams`.
+
+:func:`read_bag` reads every (or the selected) contract topic of a rosbag2 bag (MCAP or sqlite3,
+compressed or not) and returns :class:`BagData`. Messages are decoded in bulk with
+:mod:`tire_estimation.bag.cdr` (NumPy over batches of same-layout messages), falling back to the
+``rosbags`` deserializer for messages that do not fit a batch layout. Stream times are header
+stamps (ns), sorted; samples with a repeated stamp are dropped (noted in :attr:`BagData.notes`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+from numpy.typing import NDArray
+from rosbags.rosbag2 import Reader
+
+from tire_estimation.bag import topics as tp
+from tire_estimation.bag.cdr import Batch, decode
+from tire_estimation.bag.mcap_raw import McapFormatError, read_mcap
+from tire_estimation.bag.typestore import get_typestore
+from tire_estimation.bag.writer import CUSTOM_EVENTS, CUSTOM_VEHICLE, SIM_CONFIG_FILE, VEHICLE_FILE
+from tire_estimation.core.vehicle import VehicleParams, load_vehicle_yaml
+from tire_estimation.core.wheels import STEERING_JOINT, WHEELS
+from tire_estimation.errors import BagError, VehicleConfigError
+from tire_estimation.sim.streams import (
+    GnssStream,
+    ImuStream,
+    SimEvent,
+    SteeringStream,
+    TireForceStream,
+    WheelSpeedStream,
+)
+
+F64 = NDArray[np.float64]
+I64 = NDArray[np.int64]
+_NS_PER_S = 1_000_000_000
+#: ``sensor_msgs/NavSatStatus.STATUS_NO_FIX``; such fixes are dropped.
+_STATUS_NO_FIX = -1
+
+
+@dataclass(frozen=True)
+class TopicInfo:
+    """A topic of the bag: message type and number of messages."""
+
+    msgtype: str
+    count: int
+
+
+@dataclass(frozen=True)
+class JointArrays:
+    """A JointState topic as arrays: ``values`` (M, len(names)) by name, NaN where absent."""
+
+    t_ns: I64
+    names: tuple[str, ...]
+    values: F64
+
+
+@dataclass(frozen=True)
+class OdometryArrays:
+    """An Odometry topic as arrays (pose in ``frame_id``, twist in ``child_frame_id``).
+
+    ``position_m`` (M, 3) m; ``orientation_xyzw`` (M, 4); ``yaw_rad`` (M,) rad (heading of x,
+    counter-clockwise from the frame's x axis); ``linear_velocity_m_s`` (M, 3) m/s;
+    ``angular_velocity_rad_s`` (M, 3) rad/s; covariances (M, 6, 6) in SI units squared.
+    """
+
+    t_ns: I64
+    position_m: F64
+    orientation_xyzw: F64
+    yaw_rad: F64
+    linear_velocity_m_s: F64
+    angular_velocity_rad_s: F64
+    pose_covariance: F64
+    twist_covariance: F64
+    frame_id: str
+    child_frame_id: str
+
+
+@dataclass(frozen=True)
+class BagData:
+    """Everything :func:`read_bag` found; a stream is None when its topic is absent/unread.
+
+    ``start_ns``: first log time of the bag, ns; ``duration_s``: last minus first log time, s.
+    ``topics``: every topic of the bag (read or not) with type and message count.
+    ``events``, ``scenario``, ``seed``, ``sim_config``: from ``sim_config.yaml`` (simulated bags).
+    ``notes``: human-readable remarks about data that was dropped while reading.
+    """
+
+    path: Path
+    vehicle: VehicleParams
+    start_ns: int
+    duration_s: float
+    topics: dict[str, TopicInfo]
+    wheel_speeds: WheelSpeedStream | None = None
+    steering: SteeringStream | None = None
+    imu: ImuStream | None = None
+    gnss: GnssStream | None = None
+    tire_forces: TireForceStream | None = None
+    truth_fix: GnssStream | None = None
+    truth_odometry: OdometryArrays | None = None
+    truth_wheel_radii: JointArrays | None = None
+    truth_tire_pressure: JointArrays | None = None
+    truth_stiffness: JointArrays | None = None
+    reference_odometry: OdometryArrays | None = None
+    events: tuple[SimEvent, ...] = ()
+    scenario: str | None = None
+    seed: int | None = None
+    sim_config: dict[str, Any] = field(default_factory=dict)
+    custom_data: dict[str, str] = field(default_factory=dict)
+    notes: tuple[str, ...] = ()
+
+    def t_s(self, t_ns: I64) -> F64:
+        """Seconds from the start of the bag."""
+        return (np.asarray(t_ns, dtype=np.int64) - self.start_ns) * 1e-9
+
+
+@dataclass
+class RawTopic:
+    """Undecoded messages of one topic, in bag (log-time) order."""
+
+    msgtype: str
+    log_ns: list[int] = field(default_factory=list)
+    data: list[bytes] = field(default_factory=list)
+
+
+# --------------------------------------------------------------------------- raw access
+
+
+def _bag_error(path: Path, exc: BaseException) -> BagError:
+    return BagError(f"cannot read bag {path}: {type(exc).__name__}: {exc}".replace("\n", " "))
+
+
+def open_reader(path: Path) -> Reader:
+    """Open ``path`` (bag directory, ``.mcap`` or ``.db3``) with rosbags; BagError otherwise."""
+    if not path.exists():
+        raise BagError(f"bag not found: {path}")
+    if path.is_dir() and not (path / "metadata.yaml").exists():
+        raise BagError(f"not a rosbag2 bag (no metadata.yaml): {path}")
+    try:
+        reader = Reader(path)
+        reader.open()
+    except Exception as exc:  # ReaderError, OSError, struct/zstd/lz4/sqlite errors of bad files
+        raise _bag_error(path, exc) from exc
+    return reader
+
+
+def mcap_files(path: Path) -> list[Path] | None:
+    """The MCAP files of a bag whose messages :mod:`.mcap_raw` can read (plain ``.mcap``
+    storage, no file- or message-level compression); None for any other bag."""
+    if path.is_file():
+        return [path] if path.suffix == ".mcap" else None
+    try:
+        info = yaml.safe_load((path / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+        if info.get("storage_identifier") != "mcap" or info.get("compression_mode") not in (
+            "",
+            None,
+        ):
+            return None
+        files = [path / str(name) for name in info["relative_file_paths"]]
+    except (OSError, yaml.YAMLError, KeyError, TypeError):
+        return None
+    return files if files and all(f.suffix == ".mcap" and f.is_file() for f in files) else None
+
+
+def read_raw_fast(path: Path, files: list[Path], topics: Iterable[str]) -> dict[str, RawTopic]:
+    """Like :func:`read_raw` but walking the MCAP files directly (see :mod:`.mcap_raw`)."""
+    wanted = tuple(topics)
+    out: dict[str, RawTopic] = {}
+    for file in files:
+        try:
+            part = read_mcap(file, wanted)
+        except (McapFormatError, OSError) as exc:
+            raise _bag_error(path, exc) from exc
+        for topic, msgs in part.items():
+            raw = out.setdefault(topic, RawTopic(msgs.msgtype))
+            raw.log_ns.extend(msgs.log_ns)
+            raw.data.extend(msgs.data)
+    return out
+
+
+def read_raw(reader: Reader, path: Path, topics: Iterable[str]) -> dict[str, RawTopic]:
+    """Serialized messages of ``topics`` (those present in the bag), grouped by topic."""
+    wanted = set(topics)
+    conns = [c for c in reader.connections if c.topic in wanted]
+    out: dict[str, RawTopic] = {}
+    for conn in conns:
+        out.setdefault(conn.topic, RawTopic(conn.msgtype))
+    if not conns:
+        return out
+    by_id = {id(c): out[c.topic] for c in conns}
+    try:
+        for conn, log_ns, data in reader.messages(connections=conns):
+            raw = by_id[id(conn)]
+            raw.log_ns.append(log_ns)
+            raw.data.append(data)
+    except Exception as exc:  # ReaderError, zstd errors, struct.error, EOF on truncated files
+        raise _bag_error(path, exc) from exc
+    return out
+
+
+# --------------------------------------------------------------------------- decoding helpers
+
+
+def _stamps(batch: Batch) -> I64:
+    sec = batch.arrays["header.stamp.sec"].astype(np.int64)
+    return sec * _NS_PER_S + batch.arrays["header.stamp.nanosec"].astype(np.int64)
+
+
+def _all_stamps(batches: list[Batch], count: int) -> I64:
+    t = np.zeros(count, dtype=np.int64)
+    for b in batches:
+        t[b.index] = _stamps(b)
+    return t
+
+
+def _column(batches: list[Batch], count: int, path: str, width: int | None = None) -> F64:
+    shape = (count,) if width is None else (count, width)
+    out = np.full(shape, np.nan)
+    for b in batches:
+        out[b.index] = b.arrays[path]
+    return out
+
+
+def _order(t_ns: I64, what: str, notes: list[str]) -> I64:
+    """Indices sorting ``t_ns`` (stable) and keeping the first of repeated stamps."""
+    order = np.argsort(t_ns, kind="stable")
+    t_sorted = t_ns[order]
+    keep = np.ones(t_sorted.size, dtype=bool)
+    keep[1:] = np.diff(t_sorted) > 0
+    dropped = int(t_sorted.size - keep.sum())
+    if dropped:
+        notes.append(f"{what}: dropped {dropped} messages with a repeated header stamp")
+    if np.any(np.diff(t_ns) < 0):
+        notes.append(f"{what}: messages were not in header-stamp order; sorted")
+    return order[keep]
+
+
+def _by_name(
+    batches: list[Batch],
+    count: int,
+    names_path: str,
+    value_paths: Sequence[str],
+    names: Sequence[str],
+    fill: float = np.nan,
+) -> list[F64]:
+    """Per-name columns of parallel arrays (JointState-like); absent names stay ``fill``."""
+    index = {n: i for i, n in enumerate(names)}
+    outs = [np.full((count, len(names)), fill) for _ in value_paths]
+    for b in batches:
+        msg_names = b.strings.get(names_path, ())
+        for out, path in zip(outs, value_paths, strict=True):
+            values = b.arrays[path]
+            if values.shape[1] != len(msg_names):
+                continue  # e.g. JointState without this field
+            for j, name in enumerate(msg_names):
+                if name in index:
+                    out[b.index, index[name]] = values[:, j]
+    return outs
+
+
+def joint_arrays(
+    batches: list[Batch],
+    count: int,
+    names: Sequence[str],
+    value: str,
+    what: str,
+    notes: list[str],
+) -> JointArrays:
+    """A JointState topic's ``value`` field (position/velocity/effort) matched by name."""
+    t = _all_stamps(batches, count)
+    (values,) = _by_name(batches, count, "name", [value], names)
+    keep = _order(t, what, notes)
+    return JointArrays(t[keep], tuple(names), values[keep])
+
+
+def imu_stream(batches: list[Batch], count: int, notes: list[str]) -> ImuStream:
+    """``sensor_msgs/Imu`` messages as :class:`ImuStream` (noise std from the covariances)."""
+    t = _all_stamps(batches, count)
+    gyro = np.column_stack([_column(batches, count, f"angular_velocity.{a}") for a in "xyz"])
+    acc = np.column_stack([_column(batches, count, f"linear_acceleration.{a}") for a in "xyz"])
+    keep = _order(t, tp.IMU_DATA, notes)
+
+    def std(path: str) -> float:
+        diag = batches[0].arrays[path][0][[0, 4, 8]]
+        return float(math.sqrt(np.mean(diag))) if np.all(diag > 0) else 0.0
+
+    return ImuStream(
+        t[keep],
+        gyro[keep],
+        acc[keep],
+        gyro_noise_std_rad_s=std("angular_velocity_covariance"),
+        accel_noise_std_m_s2=std("linear_acceleration_covariance"),
+    )
+
+
+def fix_stream(
+    batches: list[Batch],
+    count: int,
+    what: str,
+    notes: list[str],
+    velocity: tuple[I64, F64, F64] | None = None,
+) -> GnssStream | None:
+    """``sensor_msgs/NavSatFix`` messages as :class:`GnssStream` (no-fix messages dropped).
+
+    ``velocity`` (t_ns, (K, 3), (K, 3, 3)) is matched to the fixes by identical stamp; fixes
+    without a velocity get NaN rows.
+    """
+    t = _all_stamps(batches, count)
+    status = _column(batches, count, "status.status")
+    keep = _order(t, what, notes)
+    good = keep[status[keep] != _STATUS_NO_FIX]
+    if good.size < keep.size:
+        notes.append(f"{what}: dropped {keep.size - good.size} messages with STATUS_NO_FIX")
+    if good.size == 0:
+        return None
+    vel = vcov = None
+    if velocity is not None:
+        t_v, v, c = velocity
+        pos = np.clip(np.searchsorted(t_v, t[good]), 0, max(len(t_v) - 1, 0))
+        hit = (t_v[pos] == t[good]) if len(t_v) else np.zeros(good.size, dtype=bool)
+        vel = np.full((good.size, 3), np.nan)
+        vcov = np.full((good.size, 3, 3), np.nan)
+        vel[hit] = v[pos[hit]]
+        vcov[hit] = c[pos[hit]]
+        if not hit.all():
+            notes.append(f"{what}: {int((~hit).sum())} fixes have no velocity at their stamp")
+    return GnssStream(
+        t[good],
+        _column(batches, count, "latitude")[good],
+        _column(batches, count, "longitude")[good],
+        _column(batches, count, "altitude")[good],
+        _column(batches, count, "position_covariance", 9)[good].reshape(-1, 3, 3),
+        vel,
+        vcov,
+    )
+
+
+def velocity_arrays(batches: list[Batch], count: int, notes: list[str]) -> tuple[I64, F64, F64]:
+    """``/gnss/velocity`` as (t_ns, ENU velocity (K, 3) m/s, covariance (K, 3, 3) m^2/s^2)."""
+    t = _all_stamps(batches, count)
+    vel = np.column_stack([_column(batches, count, f"twist.twist.linear.{a}") for a in "xyz"])
+    cov = _column(batches, count, "twist.covariance", 36).reshape(-1, 6, 6)[:, :3, :3]
+    keep = _order(t, tp.GNSS_VELOCITY, notes)
+    return t[keep], vel[keep], np.ascontiguousarray(cov[keep])
+
+
+def tire_force_stream(batches: list[Batch], count: int, notes: list[str]) -> TireForceStream:
+    """``tire_estimation_msgs/TireForces`` by wheel name; absent wheels NaN and not valid."""
+    t = _all_stamps(batches, count)
+    fx, fy, fz = _by_name(batches, count, "wheel_names", ["fx_n", "fy_n", "fz_n"], WHEELS)
+    (valid,) = _by_name(batches, count, "wheel_names", ["valid"], WHEELS, fill=0.0)
+    keep = _order(t, tp.TIRE_FORCES_TOPIC, notes)
+    return TireForceStream(t[keep], fx[keep], fy[keep], fz[keep], valid[keep] > 0.5)
+
+
+def odometry_arrays(
+    batches: list[Batch], count: int, what: str, notes: list[str]
+) -> OdometryArrays:
+    """``nav_msgs/Odometry`` messages as :class:`OdometryArrays`."""
+    t = _all_stamps(batches, count)
+    pos = np.column_stack([_column(batches, count, f"pose.pose.position.{a}") for a in "xyz"])
+    quat = np.column_stack([_column(batches, count, f"pose.pose.orientation.{a}") for a in "xyzw"])
+    lin = np.column_stack([_column(batches, count, f"twist.twist.linear.{a}") for a in "xyz"])
+    ang = np.column_stack([_column(batches, count, f"twist.twist.angular.{a}") for a in "xyz"])
+    pcov = _column(batches, count, "pose.covariance", 36).reshape(-1, 6, 6)
+    tcov = _column(batches, count, "twist.covariance", 36).reshape(-1, 6, 6)
+    keep = _order(t, what, notes)
+    x, y, z, w = quat[keep].T
+    yaw = np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+    first = batches[0].strings
+    return OdometryArrays(
+        t[keep],
+        pos[keep],
+        quat[keep],
+        yaw,
+        lin[keep],
+        ang[keep],
+        pcov[keep],
+        tcov[keep],
+        str(first.get("header.frame_id", "")),
+        str(first.get("child_frame_id", "")),
+    )
+
+
+# --------------------------------------------------------------------------- metadata
+
+
+def _bag_dir(path: Path) -> Path:
+    return path if path.is_dir() else path.parent
+
+
+def _custom_data(path: Path) -> dict[str, str]:
+    meta = _bag_dir(path) / "metadata.yaml"
+    if not path.is_dir() or not meta.exists():
+        return {}
+    try:
+        info = yaml.safe_load(meta.read_text()) or {}
+        custom = info.get("rosbag2_bagfile_information", {}).get("custom_data") or {}
+    except (yaml.YAMLError, AttributeError):
+        return {}
+    return {str(k): str(v) for k, v in custom.items()}
+
+
+def find_vehicle(path: Path, custom: dict[str, str]) -> VehicleParams:
+    """Vehicle of the bag: ``vehicle.yaml`` in the bag directory, next to the bag, else the
+    ``tire_estimation.vehicle`` custom data of ``metadata.yaml``.
+
+    Raises:
+        BagError: no vehicle description at all.
+        VehicleConfigError: a description that is malformed or absurd (names the field).
+    """
+    candidates = (
+        [path / VEHICLE_FILE, path.parent / VEHICLE_FILE]
+        if path.is_dir()
+        else [path.parent / VEHICLE_FILE]
+    )
+    for candidate in candidates:
+        if candidate.is_file():
+            return load_vehicle_yaml(candidate)
+    if CUSTOM_VEHICLE in custom:
+        try:
+            data = yaml.safe_load(custom[CUSTOM_VEHICLE])
+        except yaml.YAMLError as exc:
+            raise VehicleConfigError(CUSTOM_VEHICLE, custom[CUSTOM_VEHICLE], str(exc)) from exc
+        if not isinstance(data, dict) or "vehicle" not in data:
+            raise VehicleConfigError("vehicle", None, f"{CUSTOM_VEHICLE} has no 'vehicle' key")
+        return VehicleParams.from_dict(data["vehicle"])
+    raise BagError(
+        f"no vehicle.yaml for bag {path} (looked in {', '.join(map(str, candidates))} and "
+        f"the metadata custom data key {CUSTOM_VEHICLE})"
+    )
+
+
+def _sim_config(path: Path, custom: dict[str, str]) -> tuple[dict[str, Any], tuple[SimEvent, ...]]:
+    config: dict[str, Any] = {}
+    cfg_path = _bag_dir(path) / SIM_CONFIG_FILE
+    if cfg_path.is_file():
+        try:
+            loaded = yaml.safe_load(cfg_path.read_text())
+        except yaml.YAMLError as exc:
+            raise BagError(f"{cfg_path} is not valid YAML: {exc}") from exc
+        config = loaded if isinstance(loaded, dict) else {}
+    raw_events = config.get("events")
+    if raw_events is None and CUSTOM_EVENTS in custom:
+        try:
+            raw_events = yaml.safe_load(custom[CUSTOM_EVENTS])
+        except yaml.YAMLError:
+            raw_events = None
+    events = tuple(
+        SimEvent(float(e["t_s"]), str(e["kind"]), dict(e.get("detail") or {}))
+        for e in raw_events or ()
+        if isinstance(e, dict) and "t_s" in e and "kind" in e
+    )
+    return config, events
+
+
+# --------------------------------------------------------------------------- read_bag
+
+#: Topics :func:`read_bag` decodes by default.
+READ_TOPICS = tp.INPUT_TOPICS + tp.TRUTH_TOPICS + tp.REFERENCE_TOPICS
+
+
+def read_bag(
+    path: Path | str,
+    *,
+    topics: Iterable[str] | None = None,
+    require: Iterable[str] = (),
+    fast: bool = True,
+) -> BagData:
+    """Read a contract bag.
+
+    Args:
+        path: bag directory (or a single ``.mcap`` / ``.db3`` file).
+        topics: contract topics to decode (default: all inputs, truth and reference); others
+            are listed in :attr:`BagData.topics` but not decoded.
+        require: topics that must be present (BagError naming the first missing one).
+        fast: decode with the bulk NumPy decoder (False: ``rosbags`` message by message).
+
+    Raises:
+        BagError: missing path, not a bag, unreadable/corrupt bag, a required topic missing,
+            a contract topic with the wrong message type, or no vehicle description.
+        VehicleConfigError: the vehicle description is malformed or absurd.
+    """
+    path = Path(path)
+    selected = tuple(READ_TOPICS if topics is None else topics)
+    unknown = [t for t in selected if t not in tp.TOPIC_TYPES or t not in READ_TOPICS]
+    if unknown:
+        raise BagError(f"read_bag cannot decode topic {unknown[0]}")
+    reader = open_reader(path)
+    try:
+        infos = {
+            name: TopicInfo(info.msgtype or "", int(info.msgcount))
+            for name, info in reader.topics.items()
+        }
+        for topic in require:
+            if topic not in infos or infos[topic].count == 0:
+                raise BagError(f"bag {path} has no messages on required topic {topic}")
+        for topic in selected:
+            if topic in infos and infos[topic].msgtype != tp.TOPIC_TYPES[topic]:
+                raise BagError(
+                    f"bag {path}: topic {topic} has type {infos[topic].msgtype}, "
+                    f"expected {tp.TOPIC_TYPES[topic]}"
+                )
+        custom = _custom_data(path)
+        vehicle = find_vehicle(path, custom)
+        config, events = _sim_config(path, custom)
+        start_ns = int(reader.start_time) if reader.message_count else 0
+        end_ns = int(reader.end_time) - 1 if reader.message_count else 0
+        files = mcap_files(path) if fast else None
+        if files is None:
+            raw = read_raw(reader, path, selected)
+    finally:
+        reader.close()
+    if files is not None:
+        raw = read_raw_fast(path, files, selected)
+
+    streams = decode_topics(raw, fast=fast)
+    seed = config.get("seed")
+    return BagData(
+        path=path,
+        vehicle=vehicle,
+        start_ns=start_ns,
+        duration_s=max(end_ns - start_ns, 0) * 1e-9,
+        topics=infos,
+        events=events,
+        scenario=config.get("scenario"),
+        seed=int(seed) if isinstance(seed, int) else None,
+        sim_config=config,
+        custom_data=custom,
+        **streams,
+    )
+
+
+def decode_topics(raw: dict[str, RawTopic], *, fast: bool = True) -> dict[str, Any]:
+    """Decode raw topics into the stream fields of :class:`BagData` (plus ``notes``)."""
+    store = get_typestore()
+    notes: list[str] = []
+    batches: dict[str, tuple[list[Batch], int]] = {}
+    for topic, rt in raw.items():
+        if rt.data:
+            try:
+                batches[topic] = (decode(store, rt.msgtype, rt.data, fast=fast), len(rt.data))
+            except BagError as exc:
+                raise BagError(f"topic {topic}: {exc}") from exc
+
+    out: dict[str, Any] = {}
+    if tp.WHEEL_SPEEDS in batches:
+        ja = joint_arrays(*batches[tp.WHEEL_SPEEDS], WHEELS, "velocity", tp.WHEEL_SPEEDS, notes)
+        out["wheel_speeds"] = WheelSpeedStream(ja.t_ns, ja.values)
+    if tp.STEERING in batches:
+        ja = joint_arrays(*batches[tp.STEERING], (STEERING_JOINT,), "position", tp.STEERING, notes)
+        out["steering"] = SteeringStream(ja.t_ns, ja.values[:, 0])
+    if tp.IMU_DATA in batches:
+        out["imu"] = imu_stream(*batches[tp.IMU_DATA], notes)
+    velocity = None
+    if tp.GNSS_VELOCITY in batches:
+        velocity = velocity_arrays(*batches[tp.GNSS_VELOCITY], notes)
+    if tp.GNSS_FIX in batches:
+        out["gnss"] = fix_stream(*batches[tp.GNSS_FIX], tp.GNSS_FIX, notes, velocity)
+    if tp.TIRE_FORCES_TOPIC in batches:
+        out["tire_forces"] = tire_force_stream(*batches[tp.TIRE_FORCES_TOPIC], notes)
+    if tp.TRUTH_FIX in batches:
+        out["truth_fix"] = fix_stream(*batches[tp.TRUTH_FIX], tp.TRUTH_FIX, notes)
+    for topic, key in (
+        (tp.TRUTH_ODOMETRY, "truth_odometry"),
+        (tp.REFERENCE_ODOMETRY, "reference_odometry"),
+    ):
+        if topic in batches:
+            out[key] = odometry_arrays(*batches[topic], topic, notes)
+    for topic, key, names in (
+        (tp.TRUTH_WHEEL_RADII, "truth_wheel_radii", WHEELS),
+        (tp.TRUTH_TIRE_PRESSURE, "truth_tire_pressure", WHEELS),
+        (tp.TRUTH_TIRE_STIFFNESS, "truth_stiffness", tp.STIFFNESS_NAMES),
+    ):
+        if topic in batches:
+            out[key] = joint_arrays(*batches[topic], names, "position", topic, notes)
+    out["notes"] = tuple(notes)
+    return out

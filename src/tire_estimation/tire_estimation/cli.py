@@ -1,0 +1,134 @@
+"""The ``tire-estimation`` command line: simulate, inspect, replay and convert bags.
+
+Every failure the package anticipates (bad path, corrupt bag, absurd vehicle.yaml, unknown
+scenario, ...) ends in one line ``tire-estimation: error: ...`` and exit status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+from tire_estimation.errors import TireEstimationError
+
+EXIT_ERROR = 2
+
+
+def _parse_option(text: str) -> tuple[str, Any]:
+    """``key=value`` with the value parsed as YAML (numbers, booleans, lists)."""
+    import yaml
+
+    if "=" not in text:
+        raise argparse.ArgumentTypeError(f"expected key=value, got {text!r}")
+    key, raw = text.split("=", 1)
+    return key.strip(), yaml.safe_load(raw)
+
+
+def _cmd_simulate(args: argparse.Namespace) -> int:
+    from tire_estimation.bag.writer import write_sim_bag
+    from tire_estimation.sim import simulate
+
+    options = dict(args.option or [])
+    t0 = time.perf_counter()
+    result = simulate(args.scenario, seed=args.seed, minutes=args.minutes, **options)
+    t1 = time.perf_counter()
+    path = write_sim_bag(result, args.out, overwrite=args.overwrite)
+    t2 = time.perf_counter()
+    print(
+        f"wrote {path} ({result.scenario}, seed {result.seed}, {result.duration_s / 60:.1f} min "
+        f"simulated in {t1 - t0:.1f} s, written in {t2 - t1:.1f} s)"
+    )
+    return 0
+
+
+def _cmd_scenarios(_: argparse.Namespace) -> int:
+    from tire_estimation.sim import SCENARIOS
+
+    width = max(len(name) for name in SCENARIOS)
+    for name, description in SCENARIOS.items():
+        print(f"{name:<{width}}  {description}")
+    return 0
+
+
+def _cmd_info(args: argparse.Namespace) -> int:
+    from tire_estimation.bag.describe import describe_bag
+
+    print(describe_bag(args.bag))
+    return 0
+
+
+def _cmd_replay(args: argparse.Namespace) -> int:
+    from tire_estimation.replay import run_replay
+
+    report = run_replay(
+        args.bag,
+        args.out,
+        config_path=args.config,
+        plots=not args.no_plots,
+        progress=not args.no_progress,
+    )
+    print(report.summary())
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser (exposed for tests and documentation)."""
+    parser = argparse.ArgumentParser(
+        prog="tire-estimation",
+        description="Online tire radius/stiffness estimation: simulate, replay, inspect bags.",
+    )
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    sim = sub.add_parser("simulate", help="write a simulated evaluation bag (MCAP)")
+    sim.add_argument("scenario", help="scenario name (see `tire-estimation scenarios`)")
+    sim.add_argument("--out", required=True, type=Path, help="bag directory to create")
+    sim.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    sim.add_argument("--minutes", type=float, default=None, help="duration (scenario default)")
+    sim.add_argument(
+        "--option",
+        action="append",
+        type=_parse_option,
+        metavar="KEY=VALUE",
+        help="scenario option, repeatable (e.g. deflate_wheel=wheel_rr)",
+    )
+    sim.add_argument("--overwrite", action="store_true", help="replace an existing bag")
+    sim.set_defaults(func=_cmd_simulate)
+
+    scen = sub.add_parser("scenarios", help="list the simulation scenarios")
+    scen.set_defaults(func=_cmd_scenarios)
+
+    info = sub.add_parser("info", help="print what a bag holds (topics, counts, vehicle)")
+    info.add_argument("bag", type=Path)
+    info.set_defaults(func=_cmd_info)
+
+    rep = sub.add_parser("replay", help="run the estimators over a bag and write a report")
+    rep.add_argument("bag", type=Path)
+    rep.add_argument("--out", required=True, type=Path, help="report directory")
+    rep.add_argument("--config", type=Path, default=None, help="estimator parameters (YAML)")
+    rep.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    rep.add_argument("--no-progress", action="store_true", help="no progress bar")
+    rep.set_defaults(func=_cmd_replay)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``tire-estimation`` console script."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    func: Callable[[argparse.Namespace], int] = args.func
+    try:
+        return func(args)
+    except TireEstimationError as exc:
+        print(f"tire-estimation: error: {exc}", file=sys.stderr)
+        return EXIT_ERROR
+    except KeyboardInterrupt:
+        print("tire-estimation: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

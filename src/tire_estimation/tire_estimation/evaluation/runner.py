@@ -1,0 +1,177 @@
+"""Drive one :class:`RadiusEstimator` over recorded streams in header-stamp order.
+
+This is the replay's inner loop; the ROS node drives the very same estimator object from its
+callbacks. The merge is by measurement time (stable: on equal stamps wheel speeds, then steering,
+then IMU, then GNSS), which is what the node's reorder buffer reproduces online.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from tire_estimation.core.radius_estimator import RadiusEstimator
+from tire_estimation.sim.streams import GnssStream, ImuStream, SteeringStream, WheelSpeedStream
+
+WHEEL, STEER, IMU, GNSS = 0, 1, 2, 3
+
+
+@dataclass
+class RadiusTrace:
+    """What the estimator reported over a run, sampled after every GNSS fix.
+
+    Shapes: ``t_ns`` (K,); per-wheel arrays (K, W) in the order of ``wheel_names``; ``pose``
+    (K, 3) [east m, north m, yaw rad] in the estimator's local ENU frame; ``pose_var`` (K, 3).
+    Innovations: ``innov_t_ns`` (J,), ``innov_m`` (J, 2) [east, north], ``innov_cov_m2``
+    (J, 2, 2), ``nis`` (J,), ``accepted`` (J,).
+    """
+
+    wheel_names: tuple[str, ...] = ()
+    t_ns: list[int] = field(default_factory=list)
+    radius_error_m: list[NDArray[np.float64]] = field(default_factory=list)
+    radius_error_std_m: list[NDArray[np.float64]] = field(default_factory=list)
+    radius_noise_std_m: list[NDArray[np.float64]] = field(default_factory=list)
+    active: list[NDArray[np.bool_]] = field(default_factory=list)
+    pose: list[NDArray[np.float64]] = field(default_factory=list)
+    pose_var: list[NDArray[np.float64]] = field(default_factory=list)
+    speed_m_s: list[float] = field(default_factory=list)
+    n_eff: list[float] = field(default_factory=list)
+    state: list[str] = field(default_factory=list)
+    baseline_radius_error_m: list[NDArray[np.float64]] = field(default_factory=list)
+    baseline_radius_error_std_m: list[NDArray[np.float64]] = field(default_factory=list)
+    innov_t_ns: list[int] = field(default_factory=list)
+    innov_m: list[NDArray[np.float64]] = field(default_factory=list)
+    innov_cov_m2: list[NDArray[np.float64]] = field(default_factory=list)
+    nis: list[float] = field(default_factory=list)
+    accepted: list[bool] = field(default_factory=list)
+    gnss_enu_m: list[NDArray[np.float64]] = field(default_factory=list)
+    dropped: dict[str, int] = field(default_factory=dict)
+    resample_count: int = 0
+    origin_lla: tuple[float, float, float] | None = None
+
+    def arrays(self) -> dict[str, NDArray[Any]]:
+        """The lists stacked into arrays (empty arrays when nothing was recorded)."""
+        w = len(self.wheel_names)
+
+        def stack(values: list[Any], shape: tuple[int, ...]) -> NDArray[Any]:
+            return np.asarray(values) if values else np.zeros((0, *shape))
+
+        return {
+            "t_ns": np.asarray(self.t_ns, dtype=np.int64),
+            "radius_error_m": stack(self.radius_error_m, (w,)),
+            "radius_error_std_m": stack(self.radius_error_std_m, (w,)),
+            "radius_noise_std_m": stack(self.radius_noise_std_m, (w,)),
+            "active": stack(self.active, (w,)),
+            "pose": stack(self.pose, (3,)),
+            "pose_var": stack(self.pose_var, (3,)),
+            "speed_m_s": np.asarray(self.speed_m_s, dtype=float),
+            "n_eff": np.asarray(self.n_eff, dtype=float),
+            "baseline_radius_error_m": stack(self.baseline_radius_error_m, (w,)),
+            "baseline_radius_error_std_m": stack(self.baseline_radius_error_std_m, (w,)),
+            "innov_t_ns": np.asarray(self.innov_t_ns, dtype=np.int64),
+            "innov_m": stack(self.innov_m, (2,)),
+            "innov_cov_m2": stack(self.innov_cov_m2, (2, 2)),
+            "nis": np.asarray(self.nis, dtype=float),
+            "accepted": np.asarray(self.accepted, dtype=bool),
+            "gnss_enu_m": stack(self.gnss_enu_m, (2,)),
+        }
+
+
+def merge_order(
+    wheel_speeds: WheelSpeedStream,
+    steering: SteeringStream | None,
+    imu: ImuStream | None,
+    gnss: GnssStream,
+) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """(stream id, row index) of every sample, sorted by stamp (stable on ties)."""
+    parts_t = [wheel_speeds.t_ns]
+    parts_s = [np.full(wheel_speeds.t_ns.size, WHEEL)]
+    parts_i = [np.arange(wheel_speeds.t_ns.size)]
+    for sid, stream in ((STEER, steering), (IMU, imu), (GNSS, gnss)):
+        if stream is None:
+            continue
+        parts_t.append(stream.t_ns)
+        parts_s.append(np.full(stream.t_ns.size, sid))
+        parts_i.append(np.arange(stream.t_ns.size))
+    t = np.concatenate(parts_t)
+    s = np.concatenate(parts_s)
+    i = np.concatenate(parts_i)
+    order = np.lexsort((s, t))
+    return s[order], i[order]
+
+
+def run_radius_estimator(
+    estimator: RadiusEstimator,
+    wheel_speeds: WheelSpeedStream,
+    gnss: GnssStream,
+    steering: SteeringStream | None = None,
+    imu: ImuStream | None = None,
+    progress: Callable[[int], None] | None = None,
+) -> RadiusTrace:
+    """Feed every sample to ``estimator`` in stamp order; record a trace after each fix.
+
+    ``progress`` (optional) is called with the number of samples processed, every 10 000.
+    """
+    streams, rows = merge_order(wheel_speeds, steering, imu, gnss)
+    trace = RadiusTrace()
+    w_t = wheel_speeds.t_ns.tolist()
+    w_v = wheel_speeds.wheel_speed_rad_s
+    g_t = gnss.t_ns.tolist()
+    g_cov = gnss.position_covariance_m2
+    lat, lon, alt = gnss.lat_deg.tolist(), gnss.lon_deg.tolist(), gnss.alt_m.tolist()
+    s_t = steering.t_ns.tolist() if steering is not None else []
+    s_v = steering.angle_rad.tolist() if steering is not None else []
+    i_t = imu.t_ns.tolist() if imu is not None else []
+    i_w = imu.angular_velocity_rad_s if imu is not None else None
+    i_a = imu.linear_acceleration_m_s2 if imu is not None else None
+    for n, (sid, row) in enumerate(zip(streams.tolist(), rows.tolist(), strict=True)):
+        if sid == WHEEL:
+            estimator.on_wheel_speeds(w_t[row], w_v[row])
+        elif sid == STEER:
+            estimator.on_steering(s_t[row], s_v[row])
+        elif sid == IMU:
+            estimator.on_imu(i_t[row], i_w[row], i_a[row])  # type: ignore[index]
+        else:
+            upd = estimator.on_gnss_fix(g_t[row], lat[row], lon[row], alt[row], g_cov[row])
+            _record(trace, estimator, upd, g_t[row])
+        if progress is not None and n % 10_000 == 0:
+            progress(n)
+    trace.dropped = dict(estimator.stats)
+    trace.origin_lla = getattr(estimator, "origin_lla", None)
+    return trace
+
+
+def _record(trace: RadiusTrace, estimator: RadiusEstimator, upd: Any, t_ns: int) -> None:
+    est = estimator.estimate()
+    if not trace.wheel_names:
+        trace.wheel_names = tuple(est.wheel_names)
+    if upd is not None and getattr(upd, "innovation_m", None) is not None:
+        trace.innov_t_ns.append(t_ns)
+        trace.innov_m.append(np.asarray(upd.innovation_m, dtype=float)[:2])
+        trace.innov_cov_m2.append(np.asarray(upd.innovation_cov_m2, dtype=float)[:2, :2])
+        trace.nis.append(float(upd.nis))
+        trace.accepted.append(bool(upd.accepted))
+        if getattr(upd, "measurement_enu_m", None) is not None:
+            trace.gnss_enu_m.append(np.asarray(upd.measurement_enu_m, dtype=float)[:2])
+    if est.state == "initializing":
+        return
+    trace.t_ns.append(t_ns)
+    trace.radius_error_m.append(np.asarray(est.radius_error_m, dtype=float))
+    trace.radius_error_std_m.append(np.asarray(est.radius_error_std_m, dtype=float))
+    trace.radius_noise_std_m.append(np.asarray(est.radius_noise_std_m, dtype=float))
+    trace.active.append(np.asarray(est.active, dtype=bool))
+    trace.pose.append(np.asarray(est.pose_mean, dtype=float))
+    trace.pose_var.append(np.diag(np.asarray(est.pose_cov, dtype=float)).copy())
+    trace.speed_m_s.append(float(est.speed_m_s))
+    trace.n_eff.append(float(est.n_eff))
+    trace.state.append(str(est.state))
+    trace.resample_count = int(est.resample_count)
+    if est.baseline is not None:
+        trace.baseline_radius_error_m.append(np.asarray(est.baseline.radius_error_m, dtype=float))
+        trace.baseline_radius_error_std_m.append(
+            np.asarray(est.baseline.radius_error_std_m, dtype=float)
+        )

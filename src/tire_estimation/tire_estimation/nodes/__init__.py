@@ -1,0 +1,1 @@
+"""Thin rclpy nodes over the pure-Python core (imports rclpy; never imported by core/)."""

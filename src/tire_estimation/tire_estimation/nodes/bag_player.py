@@ -1,0 +1,108 @@
+"""bag_player: publish a rosbag2 bag's messages over DDS with ``/clock`` (no ros2cli needed).
+
+``ros2 bag play`` is not installable from PyPI; this small player reads the raw CDR of each
+message with ``rosbags`` and publishes the bytes unchanged (``Publisher.publish(bytes)``), in
+log-time order, paced by ``rate`` (0 = as fast as possible). ``/clock`` follows the bag time so
+nodes with ``use_sim_time:=true`` see the recorded time.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import time
+from collections.abc import Iterable, Sequence
+from pathlib import Path
+from typing import Any
+
+import rclpy
+from rclpy.node import Node
+from rclpy.qos import QoSProfile, qos_profile_sensor_data
+from rosbags.rosbag2 import Reader
+from rosgraph_msgs.msg import Clock
+
+from tire_estimation.bag import topics as T
+from tire_estimation.errors import BagError
+
+#: Topics played by default: the estimator's inputs (never the truth).
+DEFAULT_TOPICS = T.INPUT_TOPICS
+
+
+def message_class(msgtype: str) -> type:
+    """``pkg/msg/Name`` -> the generated Python class (``pkg.msg.Name``)."""
+    pkg, kind, name = msgtype.split("/")
+    return getattr(importlib.import_module(f"{pkg}.{kind}"), name)
+
+
+class BagPlayer(Node):
+    """Publishes chosen topics of a bag; call :meth:`play` to run to the end."""
+
+    def __init__(self, bag: Path, topics: Iterable[str] = DEFAULT_TOPICS, **kwargs: Any) -> None:
+        super().__init__("bag_player", **kwargs)
+        self.bag = Path(bag)
+        if not self.bag.exists():
+            raise BagError(f"no bag at {self.bag}")
+        self.topics = tuple(topics)
+        self.clock_pub = self.create_publisher(Clock, "/clock", 10)
+        self.publishers_by_topic: dict[str, Any] = {}
+        self.published = 0
+
+    def play(self, rate: float = 1.0, qos: QoSProfile = qos_profile_sensor_data) -> int:
+        """Publish every message of the chosen topics; return how many were published."""
+        try:
+            reader = Reader(self.bag)
+            reader.open()
+        except Exception as exc:  # rosbags raises several types for unreadable bags
+            raise BagError(f"cannot open bag {self.bag}: {exc}") from exc
+        try:
+            conns = [c for c in reader.connections if c.topic in self.topics]
+            for conn in conns:
+                if conn.topic not in self.publishers_by_topic:
+                    self.publishers_by_topic[conn.topic] = self.create_publisher(
+                        message_class(conn.msgtype), conn.topic, qos
+                    )
+            wall0: float | None = None
+            bag0 = 0
+            clock = Clock()
+            for conn, t_ns, raw in reader.messages(connections=conns):
+                if wall0 is None:
+                    wall0, bag0 = time.monotonic(), t_ns
+                if rate > 0:
+                    delay = (t_ns - bag0) * 1e-9 / rate - (time.monotonic() - wall0)
+                    if delay > 0:
+                        time.sleep(delay)
+                clock.clock.sec, clock.clock.nanosec = divmod(t_ns, 1_000_000_000)
+                self.clock_pub.publish(clock)
+                self.publishers_by_topic[conn.topic].publish(bytes(raw))
+                self.published += 1
+        finally:
+            reader.close()
+        return self.published
+
+
+def main(argv: Sequence[str] | None = None) -> None:
+    """Console script ``bag_player BAG [--rate R] [--topic T ...]``."""
+    parser = argparse.ArgumentParser(prog="bag_player", description=__doc__.splitlines()[0])
+    parser.add_argument("bag", type=Path)
+    parser.add_argument("--rate", type=float, default=1.0, help="speed-up; 0 = no pacing")
+    parser.add_argument("--topic", action="append", help="topic to play (default: inputs)")
+    args, ros_args = parser.parse_known_args(argv)
+    rclpy.init(args=ros_args)
+    try:
+        player = BagPlayer(args.bag, args.topic or DEFAULT_TOPICS)
+        time.sleep(0.5)  # let discovery match subscribers before the first message
+        count = player.play(rate=args.rate)
+        print(f"bag_player: published {count} messages from {args.bag}")
+        player.destroy_node()
+    except BagError as exc:
+        print(f"bag_player: error: {exc}")
+        raise SystemExit(2) from exc
+    except KeyboardInterrupt:
+        pass
+    finally:
+        if rclpy.ok():
+            rclpy.shutdown()
+
+
+if __name__ == "__main__":
+    main()

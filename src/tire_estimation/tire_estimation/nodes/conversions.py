@@ -1,0 +1,113 @@
+"""Message <-> core conversions for the nodes (duck-typed: no message imports needed here).
+
+Each ``*_from_msg`` returns plain numbers/arrays or raises :class:`InputError` with a stable
+``kind`` that the node counts and reports on ``/diagnostics``.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from tire_estimation.core.wheels import STEERING_JOINT, WHEEL_INDEX
+from tire_estimation.errors import InputError
+
+
+def stamp_ns(header: Any) -> int:
+    """Header stamp as integer nanoseconds; a zero stamp is rejected (no measurement time)."""
+    t_ns = int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
+    if t_ns <= 0:
+        raise InputError("no_stamp", "header stamp is zero")
+    return t_ns
+
+
+def ns_to_stamp(t_ns: int, stamp: Any) -> Any:
+    """Fill a builtin_interfaces/Time from integer nanoseconds and return it."""
+    stamp.sec, stamp.nanosec = divmod(int(t_ns), 1_000_000_000)
+    return stamp
+
+
+def wheel_speeds_from_msg(msg: Any) -> tuple[int, np.ndarray]:
+    """JointState -> (t_ns, wheel speeds (4,) rad/s in WHEELS order, NaN where absent).
+
+    Names are matched, not positions (contract). Unknown names are ignored if at least one known
+    wheel is present; a message with no known wheel raises ``unknown_wheel``.
+    """
+    t_ns = stamp_ns(msg.header)
+    names = list(msg.name)
+    velocity = list(msg.velocity)
+    if not names or not velocity:
+        raise InputError("empty", "wheel speed JointState has no names or no velocities")
+    if len(names) != len(velocity):
+        raise InputError(
+            "wrong_length",
+            f"wheel speed JointState has {len(names)} names but {len(velocity)} velocities",
+        )
+    out = np.full(4, np.nan)
+    known = 0
+    for name, value in zip(names, velocity, strict=True):
+        idx = WHEEL_INDEX.get(name)
+        if idx is None:
+            continue
+        out[idx] = float(value)
+        known += 1
+    if known == 0:
+        raise InputError("unknown_wheel", f"no known wheel name in {names}")
+    return t_ns, out
+
+
+def steering_from_msg(msg: Any) -> tuple[int, float]:
+    """JointState with ``front_wheel_angle`` -> (t_ns, angle rad)."""
+    t_ns = stamp_ns(msg.header)
+    names = list(msg.name)
+    position = list(msg.position)
+    if len(names) != len(position):
+        raise InputError(
+            "wrong_length",
+            f"steering JointState has {len(names)} names but {len(position)} positions",
+        )
+    for name, value in zip(names, position, strict=True):
+        if name == STEERING_JOINT:
+            angle = float(value)
+            if not math.isfinite(angle):
+                raise InputError("nan", "steering angle is not finite")
+            return t_ns, angle
+    raise InputError("unknown_joint", f"no '{STEERING_JOINT}' in steering names {names}")
+
+
+def imu_from_msg(msg: Any) -> tuple[int, np.ndarray, np.ndarray]:
+    """Imu -> (t_ns, angular velocity (3,) rad/s, linear acceleration (3,) m/s^2)."""
+    t_ns = stamp_ns(msg.header)
+    w = msg.angular_velocity
+    a = msg.linear_acceleration
+    gyro = np.array([w.x, w.y, w.z], dtype=float)
+    acc = np.array([a.x, a.y, a.z], dtype=float)
+    if not (np.all(np.isfinite(gyro)) and np.all(np.isfinite(acc))):
+        raise InputError("nan", "IMU sample is not finite")
+    return t_ns, gyro, acc
+
+
+def gnss_from_msg(msg: Any) -> tuple[int, float, float, float, np.ndarray | None]:
+    """NavSatFix -> (t_ns, lat deg, lon deg, alt m, ENU covariance (3, 3) m^2 or None).
+
+    A fix with status < 0 (no fix) raises ``no_fix``; covariance type 0 (unknown) gives None so
+    the estimator applies its configured default.
+    """
+    t_ns = stamp_ns(msg.header)
+    if int(msg.status.status) < 0:
+        raise InputError("no_fix", "NavSatFix status reports no fix")
+    lat, lon, alt = float(msg.latitude), float(msg.longitude), float(msg.altitude)
+    if not (math.isfinite(lat) and math.isfinite(lon)):
+        raise InputError("nan", "GNSS latitude/longitude not finite")
+    if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
+        raise InputError("out_of_range", f"GNSS lat/lon out of range: {lat}, {lon}")
+    if not math.isfinite(alt):
+        alt = 0.0
+    cov: np.ndarray | None = None
+    if int(msg.position_covariance_type) != 0:
+        cov = np.asarray(msg.position_covariance, dtype=float).reshape(3, 3)
+        if not np.all(np.isfinite(cov)) or cov[0, 0] <= 0 or cov[1, 1] <= 0:
+            cov = None
+    return t_ns, lat, lon, alt, cov

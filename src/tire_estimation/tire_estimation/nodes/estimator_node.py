@@ -1,0 +1,383 @@
+"""estimator_node: thin rclpy adapter over :class:`tire_estimation.core.RadiusEstimator`.
+
+Subscribes (contract v1): ``/vehicle/wheel_speeds``, ``/vehicle/steering``, ``/imu/data``,
+``/gnss/fix``. Publishes ``/tire_estimation/odometry``, ``/tire_estimation/tire_radii`` and
+``/diagnostics``. Services: ``~/reset`` (std_srvs/Trigger) forgets the learned radii.
+
+The node converts messages, hands them to the same core object the bag replay drives, and
+publishes what the core estimates. Bad input never stops it: the sample is dropped, counted by
+kind and shown on ``/diagnostics``.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections import Counter
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from nav_msgs.msg import Odometry
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rclpy.node import Node
+from rclpy.qos import QoSProfile, qos_profile_sensor_data
+from sensor_msgs.msg import Imu, JointState, NavSatFix
+from std_srvs.srv import Trigger
+
+from tire_estimation_msgs.msg import TireRadii
+
+from tire_estimation.core.config import RadiusEstimatorConfig
+from tire_estimation.core.radius_estimator import RadiusEstimator
+from tire_estimation.core.vehicle import VehicleParams, load_vehicle_yaml
+from tire_estimation.errors import InputError, TireEstimationError
+from tire_estimation.nodes import conversions as conv
+from tire_estimation.params import ParameterSpec, build_config, parameter_specs
+from tire_estimation.persistence import Identity, delete_state, load_state, save_state
+
+RADIUS_PREFIX = "radius"
+VEHICLE_PREFIX = "vehicle"
+_STATE = {
+    "initializing": TireRadii.STATE_INITIALIZING,
+    "running": TireRadii.STATE_RUNNING,
+    "paused": TireRadii.STATE_PAUSED,
+}
+
+
+def _descriptor(spec: ParameterSpec) -> ParameterDescriptor:
+    text = spec.doc
+    if spec.unit:
+        text = f"[{spec.unit}] {text}"
+    if spec.choices:
+        text = f"{text} One of: {', '.join(spec.choices)}."
+    desc = ParameterDescriptor(description=text, read_only=True)
+    if spec.range is not None and spec.kind is float:
+        desc.floating_point_range = [
+            FloatingPointRange(from_value=spec.range[0], to_value=spec.range[1], step=0.0)
+        ]
+    elif spec.range is not None and spec.kind is int:
+        desc.integer_range = [
+            IntegerRange(from_value=int(spec.range[0]), to_value=int(spec.range[1]), step=1)
+        ]
+    return desc
+
+
+def _yaw_to_quaternion(yaw_rad: float) -> tuple[float, float, float, float]:
+    """(x, y, z, w) of a rotation about z by ``yaw_rad``."""
+    return 0.0, 0.0, math.sin(0.5 * yaw_rad), math.cos(0.5 * yaw_rad)
+
+
+class EstimatorNode(Node):
+    """ROS wrapper: parameters -> config dataclasses, messages -> core calls, core -> messages."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__("estimator_node", **kwargs)
+        self._declare_parameters()
+        self.vehicle = self._load_vehicle()
+        self.config = self._load_config()
+        rng = np.random.default_rng(self.config.seed)
+        self.estimator = RadiusEstimator(self.config, self.vehicle, rng)
+
+        self.dropped: Counter[str] = Counter()
+        self.received: Counter[str] = Counter()
+        self._rate_window: Counter[str] = Counter()
+        self._rate_t0 = time.monotonic()
+        self._input_rates_hz: dict[str, float] = {}
+        self._last_radii_pub_ns = 0
+        self._radii_period_ns = int(self.get_parameter("radii_publish_period_s").value * 1e9)
+        self._persist_note = "persistence disabled"
+        self._identity = Identity(self.vehicle.name, self.get_parameter("tire_set_id").value)
+        self._persist_path = self._persistence_path()
+        self._restore()
+
+        sensor_qos: QoSProfile = (
+            qos_profile_sensor_data
+            if self.get_parameter("sensor_qos").value == "sensor_data"
+            else QoSProfile(depth=100)
+        )
+        self.create_subscription(
+            JointState,
+            "/vehicle/wheel_speeds",
+            self._guard("wheel_speeds", self._on_wheels),
+            sensor_qos,
+        )
+        self.create_subscription(
+            JointState, "/vehicle/steering", self._guard("steering", self._on_steering), sensor_qos
+        )
+        self.create_subscription(Imu, "/imu/data", self._guard("imu", self._on_imu), sensor_qos)
+        self.create_subscription(
+            NavSatFix, "/gnss/fix", self._guard("gnss_fix", self._on_gnss), sensor_qos
+        )
+        self.pub_odom = self.create_publisher(Odometry, "/tire_estimation/odometry", 10)
+        self.pub_radii = self.create_publisher(TireRadii, "/tire_estimation/tire_radii", 10)
+        self.pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self.create_service(Trigger, "~/reset", self._on_reset)
+        self.create_timer(self.get_parameter("diagnostics_period_s").value, self._publish_diag)
+        period = self.get_parameter("persistence_period_s").value
+        if self._persist_path is not None and period > 0:
+            self.create_timer(period, self._save)
+        self.get_logger().info(
+            f"estimator_node up: vehicle {self.vehicle.name!r}, {self.config.n_particles} "
+            f"particles, wheels {self.config.wheels}; {self._persist_note}"
+        )
+
+    # --- parameters -------------------------------------------------------------------------
+    def _declare_parameters(self) -> None:
+        node_params: list[tuple[str, Any, str]] = [
+            ("vehicle_file", "", "path of a vehicle.yaml; empty = use the vehicle.* parameters"),
+            ("tire_set_id", "default", "identity of the mounted tire set for persistence"),
+            (
+                "persistence_file",
+                "~/.ros/tire_estimation/learned_radii.json",
+                "file the learned radii are saved to and restored from; empty = off",
+            ),
+            ("persistence_period_s", 60.0, "[s] save period; <= 0 saves only on shutdown"),
+            ("radii_publish_period_s", 0.1, "[s] minimum period of TireRadii messages"),
+            ("diagnostics_period_s", 1.0, "[s] period of /diagnostics"),
+            ("sensor_qos", "sensor_data", "QoS of the sensor subscriptions: sensor_data|reliable"),
+        ]
+        for name, default, doc in node_params:
+            self.declare_parameter(name, default, ParameterDescriptor(description=doc))
+        self._vehicle_specs = parameter_specs(VehicleParams, VEHICLE_PREFIX)
+        self._radius_specs = parameter_specs(RadiusEstimatorConfig, RADIUS_PREFIX)
+        for spec in (*self._vehicle_specs, *self._radius_specs):
+            if spec.default is None:
+                continue
+            self.declare_parameter(spec.name, spec.default, _descriptor(spec))
+
+    def _values(self, specs: Sequence[ParameterSpec]) -> dict[str, Any]:
+        return {
+            s.name: self.get_parameter(s.name).value for s in specs if self.has_parameter(s.name)
+        }
+
+    def _load_vehicle(self) -> VehicleParams:
+        path = self.get_parameter("vehicle_file").value
+        if path:
+            return load_vehicle_yaml(Path(path).expanduser())
+        return build_config(VehicleParams, VEHICLE_PREFIX, self._values(self._vehicle_specs))
+
+    def _load_config(self) -> RadiusEstimatorConfig:
+        return build_config(RadiusEstimatorConfig, RADIUS_PREFIX, self._values(self._radius_specs))
+
+    # --- persistence ------------------------------------------------------------------------
+    def _persistence_path(self) -> Path | None:
+        text = self.get_parameter("persistence_file").value
+        return Path(text).expanduser() if text else None
+
+    def _restore(self) -> None:
+        if self._persist_path is None:
+            return
+        state, reason = load_state(self._persist_path, self._identity)
+        if state is not None:
+            try:
+                self.estimator.load_state_dict(state)
+            except (TireEstimationError, KeyError, TypeError, ValueError) as exc:
+                reason = f"saved estimates rejected: {exc}"
+        self._persist_note = reason
+
+    def _save(self) -> None:
+        if self._persist_path is None:
+            return
+        try:
+            save_state(self._persist_path, self._identity, self.estimator.state_dict())
+        except OSError as exc:
+            self.dropped["persistence_write"] += 1
+            self.get_logger().warning(f"could not save estimates: {exc}")
+
+    def _on_reset(self, _: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        self.estimator.reset()
+        if self._persist_path is not None:
+            delete_state(self._persist_path)
+        response.success = True
+        response.message = "learned tire radii reset to the prior"
+        self.get_logger().info(response.message)
+        return response
+
+    def save_on_shutdown(self) -> None:
+        """Write the learned radii (called when the node stops)."""
+        self._save()
+
+    # --- inputs -----------------------------------------------------------------------------
+    def _guard(self, stream: str, handler: Callable[[Any], None]) -> Callable[[Any], None]:
+        """Wrap a callback: count the message, drop and count bad input, never raise."""
+
+        def callback(msg: Any) -> None:
+            self.received[stream] += 1
+            self._rate_window[stream] += 1
+            try:
+                handler(msg)
+            except InputError as exc:
+                self.dropped[f"{stream}:{exc.kind}"] += 1
+            except (TireEstimationError, ValueError, TypeError, AttributeError) as exc:
+                self.dropped[f"{stream}:invalid"] += 1
+                self.get_logger().warning(
+                    f"dropped a {stream} message: {exc}", throttle_duration_sec=5.0
+                )
+
+        return callback
+
+    def _on_wheels(self, msg: JointState) -> None:
+        t_ns, speeds = conv.wheel_speeds_from_msg(msg)
+        self.estimator.on_wheel_speeds(t_ns, speeds)
+        self._publish(t_ns)
+
+    def _on_steering(self, msg: JointState) -> None:
+        t_ns, angle = conv.steering_from_msg(msg)
+        self.estimator.on_steering(t_ns, angle)
+
+    def _on_imu(self, msg: Imu) -> None:
+        t_ns, gyro, acc = conv.imu_from_msg(msg)
+        self.estimator.on_imu(t_ns, gyro, acc)
+
+    def _on_gnss(self, msg: NavSatFix) -> None:
+        t_ns, lat, lon, alt, cov = conv.gnss_from_msg(msg)
+        self.estimator.on_gnss_fix(t_ns, lat, lon, alt, cov)
+
+    # --- outputs ----------------------------------------------------------------------------
+    def _publish(self, t_ns: int) -> None:
+        est = self.estimator.estimate()
+        if est.state != "initializing":
+            self.pub_odom.publish(self._odometry(est, t_ns))
+        if t_ns - self._last_radii_pub_ns >= self._radii_period_ns:
+            self._last_radii_pub_ns = t_ns
+            self.pub_radii.publish(self._radii(est, t_ns))
+
+    def _odometry(self, est: Any, t_ns: int) -> Odometry:
+        msg = Odometry()
+        conv.ns_to_stamp(t_ns, msg.header.stamp)
+        msg.header.frame_id = "map"
+        msg.child_frame_id = "base_link"
+        east, north, yaw = (float(v) for v in est.pose_mean)
+        msg.pose.pose.position.x = east
+        msg.pose.pose.position.y = north
+        qx, qy, qz, qw = _yaw_to_quaternion(yaw)
+        msg.pose.pose.orientation.x = qx
+        msg.pose.pose.orientation.y = qy
+        msg.pose.pose.orientation.z = qz
+        msg.pose.pose.orientation.w = qw
+        p = np.asarray(est.pose_cov, dtype=float)
+        cov = np.zeros((6, 6))
+        # REP-103 6x6 order (x, y, z, roll, pitch, yaw); z/roll/pitch are not estimated (planar)
+        idx = (0, 1, 5)
+        for i, a in enumerate(idx):
+            for j, b in enumerate(idx):
+                cov[a, b] = p[i, j]
+        cov[2, 2] = cov[3, 3] = cov[4, 4] = 1e6
+        msg.pose.covariance = cov.ravel().tolist()
+        msg.twist.twist.linear.x = float(est.speed_m_s)
+        msg.twist.twist.angular.z = float(est.yaw_rate_rad_s)
+        tw = np.zeros((6, 6))
+        tw[0, 0] = float(getattr(est, "speed_var_m2_s2", 0.01))
+        tw[5, 5] = float(getattr(est, "yaw_rate_var_rad2_s2", 1e-4))
+        tw[1, 1] = tw[2, 2] = 0.01
+        tw[3, 3] = tw[4, 4] = 1e6
+        msg.twist.covariance = tw.ravel().tolist()
+        return msg
+
+    def _radii(self, est: Any, t_ns: int) -> TireRadii:
+        msg = TireRadii()
+        conv.ns_to_stamp(t_ns, msg.header.stamp)
+        msg.header.frame_id = "base_link"
+        msg.nominal_radius_m = float(self.vehicle.nominal_tire_radius_m)
+        msg.wheel_names = list(est.wheel_names)
+        msg.radius_error_m = [float(v) for v in est.radius_error_m]
+        msg.radius_error_std_m = [float(v) for v in est.radius_error_std_m]
+        msg.radius_noise_std_m = [float(v) for v in est.radius_noise_std_m]
+        msg.active = [bool(v) for v in est.active]
+        msg.effective_sample_size = float(est.n_eff)
+        msg.state = _STATE.get(est.state, TireRadii.STATE_INITIALIZING)
+        msg.state_reason = str(est.state_reason)
+        return msg
+
+    def _publish_diag(self) -> None:
+        now = time.monotonic()
+        span = max(now - self._rate_t0, 1e-3)
+        self._input_rates_hz = {k: v / span for k, v in self._rate_window.items()}
+        self._rate_window.clear()
+        self._rate_t0 = now
+        arr = DiagnosticArray()
+        arr.header.stamp = self.get_clock().now().to_msg()
+        arr.status = self.diagnostic_statuses()
+        self.pub_diag.publish(arr)
+
+    def diagnostic_statuses(self) -> list[DiagnosticStatus]:
+        """One status for the estimator and one per wheel it covers."""
+        est = self.estimator.estimate()
+        core_dropped = dict(getattr(self.estimator, "stats", {}) or {})
+        statuses: list[DiagnosticStatus] = []
+        main = DiagnosticStatus()
+        main.name = "tire_estimation: radius estimator"
+        main.hardware_id = self.vehicle.name
+        if est.state == "running":
+            main.level, main.message = DiagnosticStatus.OK, "running"
+        elif est.state == "paused":
+            main.level, main.message = DiagnosticStatus.WARN, f"paused: {est.state_reason}"
+        else:
+            main.level, main.message = DiagnosticStatus.WARN, f"initializing: {est.state_reason}"
+        values = {
+            "state": est.state,
+            "reason": est.state_reason,
+            "effective_sample_size": f"{float(est.n_eff):.1f}",
+            "resample_count": str(int(est.resample_count)),
+            "particles": str(self.config.n_particles),
+            "persistence": self._persist_note,
+        }
+        for stream in ("wheel_speeds", "steering", "imu", "gnss_fix"):
+            values[f"rate_hz.{stream}"] = f"{self._input_rates_hz.get(stream, 0.0):.1f}"
+            values[f"received.{stream}"] = str(self.received.get(stream, 0))
+        for key, count in sorted(self.dropped.items()):
+            values[f"dropped.{key}"] = str(count)
+        for key, count in sorted(core_dropped.items()):
+            values[f"dropped.core.{key}"] = str(count)
+        if any(self.dropped.values()) and main.level == DiagnosticStatus.OK:
+            main.message = f"running; {sum(self.dropped.values())} input samples dropped"
+        main.values = [KeyValue(key=k, value=v) for k, v in values.items()]
+        statuses.append(main)
+        for i, wheel in enumerate(est.wheel_names):
+            st = DiagnosticStatus()
+            st.name = f"tire_estimation: {wheel}"
+            st.hardware_id = self.vehicle.name
+            active = bool(est.active[i])
+            st.level = DiagnosticStatus.OK
+            st.message = "learning" if active else "holding"
+            st.values = [
+                KeyValue(key="radius_error_mm", value=f"{1e3 * float(est.radius_error_m[i]):.3f}"),
+                KeyValue(
+                    key="radius_error_std_mm",
+                    value=f"{1e3 * float(est.radius_error_std_m[i]):.3f}",
+                ),
+                KeyValue(
+                    key="radius_noise_std_mm",
+                    value=f"{1e3 * float(est.radius_noise_std_m[i]):.4f}",
+                ),
+                KeyValue(key="active", value=str(active).lower()),
+            ]
+            statuses.append(st)
+        return statuses
+
+
+def main(args: list[str] | None = None) -> None:
+    """Console script ``estimator_node`` (what ``ros2 run tire_estimation estimator_node`` runs)."""
+    rclpy.init(args=args)
+    node: EstimatorNode | None = None
+    try:
+        node = EstimatorNode()
+        rclpy.spin(node)
+    except KeyboardInterrupt:
+        pass
+    except TireEstimationError as exc:
+        print(f"estimator_node: configuration error: {exc}")
+        raise SystemExit(2) from exc
+    finally:
+        if node is not None:
+            node.save_on_shutdown()
+            node.destroy_node()
+        if rclpy.ok():
+            rclpy.shutdown()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,142 @@
+"""Map frozen configuration dataclasses onto ROS parameters and back (no rclpy import here).
+
+A dataclass field becomes the parameter ``<prefix>.<field>``; its description, unit and range come
+from the field's ``metadata`` (keys ``doc``, ``unit``, ``range``) and its default from the
+dataclass. The node declares the parameters with descriptors built from :func:`parameter_specs`
+and rebuilds the dataclass with :func:`build_config`, so validation lives in one place.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import types
+import typing
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any, TypeVar
+
+from tire_estimation.errors import ConfigError
+
+T = TypeVar("T")
+
+
+@dataclass(frozen=True)
+class ParameterSpec:
+    """One ROS parameter derived from a dataclass field."""
+
+    name: str
+    field: str
+    default: Any
+    kind: type
+    doc: str
+    unit: str
+    range: tuple[float, float] | None
+    choices: tuple[str, ...] | None = None
+
+
+def attribute_docs(cls: type) -> dict[str, str]:
+    """Per-field text of a Google-style ``Attributes:`` section of ``cls``'s docstring."""
+    docs: dict[str, str] = {}
+    lines = (cls.__doc__ or "").splitlines()
+    inside = False
+    current: str | None = None
+    indent = 0
+    for line in lines:
+        stripped = line.strip()
+        if stripped == "Attributes:":
+            inside, indent = True, len(line) - len(line.lstrip())
+            continue
+        if not inside:
+            continue
+        if stripped and len(line) - len(line.lstrip()) <= indent:
+            break
+        head, sep, rest = stripped.partition(": ")
+        if sep and head.isidentifier() and len(line) - len(line.lstrip()) == indent + 4:
+            current = head
+            docs[current] = rest.strip()
+        elif current is not None and stripped:
+            docs[current] += " " + stripped
+    return docs
+
+
+def _field_kind(tp: Any, default: Any) -> type:
+    origin = typing.get_origin(tp)
+    if origin in (typing.Union, types.UnionType):
+        args = [a for a in typing.get_args(tp) if a is not type(None)]
+        tp = args[0] if args else str
+    if tp in (bool, int, float, str):
+        return tp
+    if isinstance(tp, str):
+        return {"bool": bool, "int": int, "float": float, "str": str}.get(
+            tp.split("|")[0].strip(), type(default)
+        )
+    if typing.get_origin(tp) is typing.Literal:
+        return str
+    return type(default)
+
+
+def parameter_specs(cls: type, prefix: str) -> list[ParameterSpec]:
+    """Specs of every scalar field of dataclass ``cls`` (nested dataclasses are not expanded)."""
+    hints = typing.get_type_hints(cls)
+    docs = attribute_docs(cls)
+    specs = []
+    for f in dataclasses.fields(cls):
+        if f.default is dataclasses.MISSING:
+            if f.default_factory is dataclasses.MISSING:  # type: ignore[misc]
+                continue
+            default = f.default_factory()  # type: ignore[misc]
+        else:
+            default = f.default
+        kind = _field_kind(hints.get(f.name, type(default)), default)
+        if kind is list:
+            kind = tuple
+        if kind not in (bool, int, float, str, tuple):
+            continue
+        if kind is tuple:
+            if not all(isinstance(v, (int, float)) for v in default):
+                continue
+            default = [float(v) for v in default]
+        meta = f.metadata
+        rng = meta.get("range")
+        choices = meta.get("choices")
+        specs.append(
+            ParameterSpec(
+                name=f"{prefix}.{f.name}" if prefix else f.name,
+                field=f.name,
+                default=default,
+                kind=kind,
+                doc=str(meta.get("doc", docs.get(f.name, ""))),
+                unit=str(meta.get("unit", "")),
+                range=(float(rng[0]), float(rng[1])) if rng else None,
+                choices=tuple(choices) if choices else None,
+            )
+        )
+    return specs
+
+
+def build_config(cls: type[T], prefix: str, values: Mapping[str, Any]) -> T:
+    """Build ``cls`` from parameter values keyed by full parameter name (missing = default).
+
+    Raises :class:`ConfigError` naming the parameter when a value has the wrong type; range and
+    consistency checks are the dataclass's own ``__post_init__``.
+    """
+    kwargs: dict[str, Any] = {}
+    for spec in parameter_specs(cls, prefix):
+        if spec.name not in values:
+            continue
+        value = values[spec.name]
+        if spec.kind is float and isinstance(value, int) and not isinstance(value, bool):
+            value = float(value)
+        if spec.kind is tuple:
+            if not isinstance(value, (list, tuple)) or not all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) for v in value
+            ):
+                raise ConfigError(spec.name, value, "must be a list of numbers")
+            kwargs[spec.field] = tuple(float(v) for v in value)
+            continue
+        if spec.default is None and value in ("", None):
+            value = None
+        elif not isinstance(value, spec.kind) or (spec.kind is int and isinstance(value, bool)):
+            raise ConfigError(spec.name, value, f"must be of type {spec.kind.__name__}")
+        kwargs[spec.field] = value
+    return cls(**kwargs)
