@@ -21,11 +21,11 @@ from rclpy.qos import QoSProfile, qos_profile_sensor_data
 from rosbags.rosbag2 import Reader
 from rosgraph_msgs.msg import Clock
 
-from tire_estimation.bag import topics as T
+from tire_estimation.bag import topics
 from tire_estimation.errors import BagError
 
 #: Topics played by default: the estimator's inputs (never the truth).
-DEFAULT_TOPICS = T.INPUT_TOPICS
+DEFAULT_TOPICS = topics.INPUT_TOPICS
 
 
 def message_class(msgtype: str) -> type:

@@ -28,8 +28,6 @@ from rclpy.qos import QoSProfile, qos_profile_sensor_data
 from sensor_msgs.msg import Imu, JointState, NavSatFix
 from std_srvs.srv import Trigger
 
-from tire_estimation_msgs.msg import TireRadii
-
 from tire_estimation.core.config import RadiusEstimatorConfig
 from tire_estimation.core.radius_estimator import RadiusEstimator
 from tire_estimation.core.vehicle import VehicleParams, load_vehicle_yaml
@@ -37,6 +35,7 @@ from tire_estimation.errors import InputError, TireEstimationError
 from tire_estimation.nodes import conversions as conv
 from tire_estimation.params import ParameterSpec, build_config, parameter_specs
 from tire_estimation.persistence import Identity, delete_state, load_state, save_state
+from tire_estimation_msgs.msg import TireRadii
 
 RADIUS_PREFIX = "radius"
 VEHICLE_PREFIX = "vehicle"
@@ -360,7 +359,7 @@ class EstimatorNode(Node):
 
 
 def main(args: list[str] | None = None) -> None:
-    """Console script ``estimator_node`` (what ``ros2 run tire_estimation estimator_node`` runs)."""
+    """Console script ``estimator_node`` (``ros2 run tire_estimation estimator_node``)."""
     rclpy.init(args=args)
     node: EstimatorNode | None = None
     try:
