@@ -112,6 +112,13 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     rep.add_argument("--no-progress", action="store_true", help="no progress bar")
     rep.set_defaults(func=_cmd_replay)
+
+    try:  # measured-data converters (tire_estimation.convert) register their own sub-commands
+        from tire_estimation.convert.cli import add_convert_parser
+    except ImportError:
+        pass
+    else:
+        add_convert_parser(sub)
     return parser
 
 

@@ -141,22 +141,22 @@ def run_radius_estimator(
         if progress is not None and n % 10_000 == 0:
             progress(n)
     trace.dropped = dict(estimator.stats)
-    trace.origin_lla = getattr(estimator, "origin_lla", None)
+    ltp = getattr(estimator, "_ltp", None)
+    if ltp is not None:
+        trace.origin_lla = (ltp.origin_lat_deg, ltp.origin_lon_deg, ltp.origin_alt_m)
     return trace
 
 
 def _record(trace: RadiusTrace, estimator: RadiusEstimator, upd: Any, t_ns: int) -> None:
     est = estimator.estimate()
     if not trace.wheel_names:
-        trace.wheel_names = tuple(est.wheel_names)
+        trace.wheel_names = tuple(est.wheels)
     if upd is not None and getattr(upd, "innovation_m", None) is not None:
         trace.innov_t_ns.append(t_ns)
         trace.innov_m.append(np.asarray(upd.innovation_m, dtype=float)[:2])
         trace.innov_cov_m2.append(np.asarray(upd.innovation_cov_m2, dtype=float)[:2, :2])
         trace.nis.append(float(upd.nis))
         trace.accepted.append(bool(upd.accepted))
-        if getattr(upd, "measurement_enu_m", None) is not None:
-            trace.gnss_enu_m.append(np.asarray(upd.measurement_enu_m, dtype=float)[:2])
     if est.state == "initializing":
         return
     trace.t_ns.append(t_ns)
@@ -164,7 +164,7 @@ def _record(trace: RadiusTrace, estimator: RadiusEstimator, upd: Any, t_ns: int)
     trace.radius_error_std_m.append(np.asarray(est.radius_error_std_m, dtype=float))
     trace.radius_noise_std_m.append(np.asarray(est.radius_noise_std_m, dtype=float))
     trace.active.append(np.asarray(est.active, dtype=bool))
-    trace.pose.append(np.asarray(est.pose_mean, dtype=float))
+    trace.pose.append(np.asarray(est.pose, dtype=float))
     trace.pose_var.append(np.diag(np.asarray(est.pose_cov, dtype=float)).copy())
     trace.speed_m_s.append(float(est.speed_m_s))
     trace.n_eff.append(float(est.n_eff))

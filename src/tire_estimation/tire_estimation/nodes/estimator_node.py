@@ -249,7 +249,7 @@ class EstimatorNode(Node):
         conv.ns_to_stamp(t_ns, msg.header.stamp)
         msg.header.frame_id = "map"
         msg.child_frame_id = "base_link"
-        east, north, yaw = (float(v) for v in est.pose_mean)
+        east, north, yaw = (float(v) for v in est.pose)
         msg.pose.pose.position.x = east
         msg.pose.pose.position.y = north
         qx, qy, qz, qw = _yaw_to_quaternion(yaw)
@@ -281,7 +281,7 @@ class EstimatorNode(Node):
         conv.ns_to_stamp(t_ns, msg.header.stamp)
         msg.header.frame_id = "base_link"
         msg.nominal_radius_m = float(self.vehicle.nominal_tire_radius_m)
-        msg.wheel_names = list(est.wheel_names)
+        msg.wheel_names = list(est.wheels)
         msg.radius_error_m = [float(v) for v in est.radius_error_m]
         msg.radius_error_std_m = [float(v) for v in est.radius_error_std_m]
         msg.radius_noise_std_m = [float(v) for v in est.radius_noise_std_m]
@@ -335,7 +335,7 @@ class EstimatorNode(Node):
             main.message = f"running; {sum(self.dropped.values())} input samples dropped"
         main.values = [KeyValue(key=k, value=v) for k, v in values.items()]
         statuses.append(main)
-        for i, wheel in enumerate(est.wheel_names):
+        for i, wheel in enumerate(est.wheels):
             st = DiagnosticStatus()
             st.name = f"tire_estimation: {wheel}"
             st.hardware_id = self.vehicle.name

@@ -1,0 +1,107 @@
+"""PNG plots a person looks at first after a replay (matplotlib, Agg backend)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+from numpy.typing import NDArray
+from scipy import stats
+
+F64 = NDArray[np.float64]
+
+
+def plot_radius_errors(
+    path: Path,
+    t_s: F64,
+    wheel_names: tuple[str, ...],
+    estimate_m: F64,
+    std_m: F64,
+    truth: tuple[F64, tuple[str, ...], F64] | None = None,
+    baseline_m: F64 | None = None,
+    events_s: list[tuple[float, str]] | None = None,
+) -> None:
+    """Radius error per wheel (mm) with a +-2 std band, the truth and the AUG-KF baseline.
+
+    ``truth`` = (t_s (T,), names, true radius error (T, W') in m).
+    """
+    n = len(wheel_names)
+    fig, axes = plt.subplots(n, 1, figsize=(10, 2.6 * n), sharex=True, squeeze=False)
+    for i, w in enumerate(wheel_names):
+        ax = axes[i, 0]
+        mm = 1e3 * estimate_m[:, i]
+        band = 2e3 * std_m[:, i]
+        ax.fill_between(t_s, mm - band, mm + band, color="C0", alpha=0.2, label="MPF ±2σ")
+        ax.plot(t_s, mm, color="C0", lw=1.2, label="MPF estimate")
+        if baseline_m is not None and baseline_m.size:
+            ax.plot(t_s, 1e3 * baseline_m[:, i], color="C2", lw=1.0, label="AUG-KF baseline")
+        if truth is not None and w in truth[1]:
+            j = truth[1].index(w)
+            ax.step(truth[0], 1e3 * truth[2][:, j], where="post", color="k", lw=1.2, label="truth")
+        for t_ev, label in events_s or []:
+            ax.axvline(t_ev, color="C3", ls="--", lw=0.8)
+            ax.text(t_ev, ax.get_ylim()[1], f" {label}", color="C3", va="top", fontsize=8)
+        ax.set_ylabel(f"{w}\nradius error [mm]")
+        ax.grid(alpha=0.3)
+        if i == 0:
+            ax.legend(loc="best", fontsize=8, ncol=4)
+    axes[-1, 0].set_xlabel("time since bag start [s]")
+    fig.suptitle("Effective rolling-radius error (estimate minus nominal)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def plot_trajectory(
+    path: Path, estimate_en_m: F64, gnss_en_m: F64, truth_en_m: F64 | None = None
+) -> None:
+    """Estimated path vs GNSS fixes and the truth/reference, in the local ENU frame."""
+    fig, ax = plt.subplots(figsize=(8, 8))
+    if gnss_en_m.size:
+        ax.plot(gnss_en_m[:, 0], gnss_en_m[:, 1], ".", ms=2, color="0.6", label="GNSS fixes")
+    if truth_en_m is not None and truth_en_m.size:
+        ax.plot(truth_en_m[:, 0], truth_en_m[:, 1], "k-", lw=1.0, label="truth / reference")
+    if estimate_en_m.size:
+        ax.plot(estimate_en_m[:, 0], estimate_en_m[:, 1], "C0-", lw=1.0, label="MPF estimate")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("east [m]")
+    ax.set_ylabel("north [m]")
+    ax.grid(alpha=0.3)
+    ax.legend(loc="best")
+    ax.set_title("Trajectory in the local ENU frame")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def plot_innovations(
+    path: Path, t_s: F64, innov_m: F64, innov_cov_m2: F64, nis: F64, accepted: NDArray[np.bool_]
+) -> None:
+    """GNSS innovations (east, north) with +-2 sqrt(S) bounds, and the NIS with chi2 bounds."""
+    fig, axes = plt.subplots(3, 1, figsize=(10, 8), sharex=True)
+    for k, name in enumerate(("east", "north")):
+        ax = axes[k]
+        sd = np.sqrt(np.maximum(innov_cov_m2[:, k, k], 0.0)) if innov_cov_m2.size else t_s
+        ax.plot(t_s, innov_m[:, k] if innov_m.size else t_s, ".", ms=1.5, color="C0")
+        ax.plot(t_s, 2 * sd, "C1-", lw=0.8, label="±2√S")
+        ax.plot(t_s, -2 * sd, "C1-", lw=0.8)
+        ax.set_ylabel(f"{name} innovation [m]")
+        ax.grid(alpha=0.3)
+    axes[0].legend(loc="upper right", fontsize=8)
+    ax = axes[2]
+    ax.semilogy(t_s[accepted], nis[accepted], ".", ms=1.5, color="C0", label="accepted")
+    if (~accepted).any():
+        ax.semilogy(t_s[~accepted], nis[~accepted], "x", ms=3, color="C3", label="rejected")
+    ax.axhline(stats.chi2.ppf(0.95, 2), color="C1", lw=0.8, label="χ²(2) 95 %")
+    ax.set_ylabel("NIS")
+    ax.set_xlabel("time since bag start [s]")
+    ax.grid(alpha=0.3)
+    ax.legend(loc="upper right", fontsize=8)
+    fig.suptitle("GNSS innovations")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
