@@ -140,3 +140,63 @@ def build_config(cls: type[T], prefix: str, values: Mapping[str, Any]) -> T:
             raise ConfigError(spec.name, value, f"must be of type {spec.kind.__name__}")
         kwargs[spec.field] = value
     return cls(**kwargs)
+
+
+def _yaml_value(value: Any) -> str:
+    import yaml
+
+    return (
+        yaml.safe_dump(value, default_flow_style=True, width=1000)
+        .strip()
+        .removesuffix("\n...")
+        .removesuffix(" ...")
+    )
+
+
+def render_params_yaml(node_name: str, sections: list[tuple[str, type, str]]) -> str:
+    """A ROS 2 parameters file documenting every parameter with unit and default.
+
+    ``sections``: (prefix, dataclass, title). The result is loadable with ``--params-file`` and
+    by ``tire-estimation replay --config``; every value is the dataclass default.
+    """
+    lines = [
+        f"# Parameters of {node_name}: every parameter with its default.",
+        "# Units are in the names (_m, _s, _m_s, _rad, ...) and in the comments.",
+        "# Generated from the configuration dataclasses by",
+        "#   python -m tire_estimation.params > src/tire_estimation/config/estimator.yaml",
+        "# (a test checks that this file matches the code).",
+        f"{node_name}:",
+        "  ros__parameters:",
+    ]
+    for prefix, cls, title in sections:
+        lines.append(f"    # --- {title}")
+        for spec in parameter_specs(cls, prefix):
+            doc = " ".join(spec.doc.split())
+            words = doc.split(" ")
+            line = "    #"
+            for word in words:
+                if len(line) + 1 + len(word) > 99:
+                    lines.append(line)
+                    line = "    #"
+                line += " " + word
+            if line.strip() != "#":
+                lines.append(line)
+            lines.append(f"    {spec.name}: {_yaml_value(spec.default)}")
+    return "\n".join(lines) + "\n"
+
+
+def estimator_sections() -> list[tuple[str, type, str]]:
+    """The parameter sections of ``estimator_node`` (node options, vehicle, radius filter)."""
+    from tire_estimation.core.config import RadiusEstimatorConfig
+    from tire_estimation.core.vehicle import VehicleParams
+    from tire_estimation.node_config import EstimatorNodeOptions
+
+    return [
+        ("", EstimatorNodeOptions, "node"),
+        ("vehicle", VehicleParams, "vehicle (ignored when vehicle_file is set)"),
+        ("radius", RadiusEstimatorConfig, "tire-radius MPF (Lundquist et al. 2014)"),
+    ]
+
+
+if __name__ == "__main__":
+    print(render_params_yaml("estimator_node", estimator_sections()), end="")

@@ -14,6 +14,9 @@ import numpy as np
 from tire_estimation.core.wheels import STEERING_JOINT, WHEEL_INDEX
 from tire_estimation.errors import InputError
 
+#: sensor_msgs/NavSatStatus.STATUS_NO_FIX
+STATUS_NO_FIX = -1
+
 
 def stamp_ns(header: Any) -> int:
     """Header stamp as integer nanoseconds; a zero stamp is rejected (no measurement time)."""
@@ -92,11 +95,12 @@ def imu_from_msg(msg: Any) -> tuple[int, np.ndarray, np.ndarray]:
 def gnss_from_msg(msg: Any) -> tuple[int, float, float, float, np.ndarray | None]:
     """NavSatFix -> (t_ns, lat deg, lon deg, alt m, ENU covariance (3, 3) m^2 or None).
 
-    A fix with status < 0 (no fix) raises ``no_fix``; covariance type 0 (unknown) gives None so
-    the estimator applies its configured default.
+    A fix with status STATUS_NO_FIX (-1) raises ``no_fix``; STATUS_UNKNOWN (-2, the message
+    default, left by many drivers) is accepted. Covariance type 0 (unknown) gives None so the
+    estimator applies its configured default.
     """
     t_ns = stamp_ns(msg.header)
-    if int(msg.status.status) < 0:
+    if int(msg.status.status) == STATUS_NO_FIX:
         raise InputError("no_fix", "NavSatFix status reports no fix")
     lat, lon, alt = float(msg.latitude), float(msg.longitude), float(msg.altitude)
     if not (math.isfinite(lat) and math.isfinite(lon)):

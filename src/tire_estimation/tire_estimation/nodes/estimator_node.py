@@ -29,16 +29,22 @@ from sensor_msgs.msg import Imu, JointState, NavSatFix
 from std_srvs.srv import Trigger
 
 from tire_estimation.core.config import RadiusEstimatorConfig
+from tire_estimation.core.ordering import StampOrderedDispatcher
 from tire_estimation.core.radius_estimator import RadiusEstimator
 from tire_estimation.core.vehicle import VehicleParams, load_vehicle_yaml
 from tire_estimation.errors import InputError, TireEstimationError
+from tire_estimation.node_config import EstimatorNodeOptions
 from tire_estimation.nodes import conversions as conv
-from tire_estimation.params import ParameterSpec, build_config, parameter_specs
+from tire_estimation.params import (
+    ParameterSpec,
+    build_config,
+    estimator_sections,
+    parameter_specs,
+)
 from tire_estimation.persistence import Identity, delete_state, load_state, save_state
 from tire_estimation_msgs.msg import TireRadii
 
-RADIUS_PREFIX = "radius"
-VEHICLE_PREFIX = "vehicle"
+SECTIONS = estimator_sections()
 _STATE = {
     "initializing": TireRadii.STATE_INITIALIZING,
     "running": TireRadii.STATE_RUNNING,
@@ -75,10 +81,12 @@ class EstimatorNode(Node):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("estimator_node", **kwargs)
         self._declare_parameters()
+        self.options = build_config(EstimatorNodeOptions, "", self._values(self._specs[""]))
         self.vehicle = self._load_vehicle()
         self.config = self._load_config()
         rng = np.random.default_rng(self.config.seed)
         self.estimator = RadiusEstimator(self.config, self.vehicle, rng)
+        self.dispatcher = StampOrderedDispatcher("wheel_speeds")
 
         self.dropped: Counter[str] = Counter()
         self.received: Counter[str] = Counter()
@@ -86,15 +94,17 @@ class EstimatorNode(Node):
         self._rate_t0 = time.monotonic()
         self._input_rates_hz: dict[str, float] = {}
         self._last_radii_pub_ns = 0
-        self._radii_period_ns = int(self.get_parameter("radii_publish_period_s").value * 1e9)
+        self._last_odom_pub_ns = 0
+        self._radii_period_ns = int(self.options.radii_publish_period_s * 1e9)
+        self._odom_period_ns = int(self.options.odometry_publish_period_s * 1e9)
         self._persist_note = "persistence disabled"
-        self._identity = Identity(self.vehicle.name, self.get_parameter("tire_set_id").value)
+        self._identity = Identity(self.vehicle.name, self.options.tire_set_id)
         self._persist_path = self._persistence_path()
         self._restore()
 
         sensor_qos: QoSProfile = (
             qos_profile_sensor_data
-            if self.get_parameter("sensor_qos").value == "sensor_data"
+            if self.options.sensor_qos == "sensor_data"
             else QoSProfile(depth=100)
         )
         self.create_subscription(
@@ -114,8 +124,8 @@ class EstimatorNode(Node):
         self.pub_radii = self.create_publisher(TireRadii, "/tire_estimation/tire_radii", 10)
         self.pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self.create_service(Trigger, "~/reset", self._on_reset)
-        self.create_timer(self.get_parameter("diagnostics_period_s").value, self._publish_diag)
-        period = self.get_parameter("persistence_period_s").value
+        self.create_timer(self.options.diagnostics_period_s, self._publish_diag)
+        period = self.options.persistence_period_s
         if self._persist_path is not None and period > 0:
             self.create_timer(period, self._save)
         self.get_logger().info(
@@ -125,27 +135,10 @@ class EstimatorNode(Node):
 
     # --- parameters -------------------------------------------------------------------------
     def _declare_parameters(self) -> None:
-        node_params: list[tuple[str, Any, str]] = [
-            ("vehicle_file", "", "path of a vehicle.yaml; empty = use the vehicle.* parameters"),
-            ("tire_set_id", "default", "identity of the mounted tire set for persistence"),
-            (
-                "persistence_file",
-                "~/.ros/tire_estimation/learned_radii.json",
-                "file the learned radii are saved to and restored from; empty = off",
-            ),
-            ("persistence_period_s", 60.0, "[s] save period; <= 0 saves only on shutdown"),
-            ("radii_publish_period_s", 0.1, "[s] minimum period of TireRadii messages"),
-            ("diagnostics_period_s", 1.0, "[s] period of /diagnostics"),
-            ("sensor_qos", "sensor_data", "QoS of the sensor subscriptions: sensor_data|reliable"),
-        ]
-        for name, default, doc in node_params:
-            self.declare_parameter(name, default, ParameterDescriptor(description=doc))
-        self._vehicle_specs = parameter_specs(VehicleParams, VEHICLE_PREFIX)
-        self._radius_specs = parameter_specs(RadiusEstimatorConfig, RADIUS_PREFIX)
-        for spec in (*self._vehicle_specs, *self._radius_specs):
-            if spec.default is None:
-                continue
-            self.declare_parameter(spec.name, spec.default, _descriptor(spec))
+        self._specs = {prefix: parameter_specs(cls, prefix) for prefix, cls, _ in SECTIONS}
+        for specs in self._specs.values():
+            for spec in specs:
+                self.declare_parameter(spec.name, spec.default, _descriptor(spec))
 
     def _values(self, specs: Sequence[ParameterSpec]) -> dict[str, Any]:
         return {
@@ -153,17 +146,16 @@ class EstimatorNode(Node):
         }
 
     def _load_vehicle(self) -> VehicleParams:
-        path = self.get_parameter("vehicle_file").value
-        if path:
-            return load_vehicle_yaml(Path(path).expanduser())
-        return build_config(VehicleParams, VEHICLE_PREFIX, self._values(self._vehicle_specs))
+        if self.options.vehicle_file:
+            return load_vehicle_yaml(Path(self.options.vehicle_file).expanduser())
+        return build_config(VehicleParams, "vehicle", self._values(self._specs["vehicle"]))
 
     def _load_config(self) -> RadiusEstimatorConfig:
-        return build_config(RadiusEstimatorConfig, RADIUS_PREFIX, self._values(self._radius_specs))
+        return build_config(RadiusEstimatorConfig, "radius", self._values(self._specs["radius"]))
 
     # --- persistence ------------------------------------------------------------------------
     def _persistence_path(self) -> Path | None:
-        text = self.get_parameter("persistence_file").value
+        text = self.options.persistence_file
         return Path(text).expanduser() if text else None
 
     def _restore(self) -> None:
@@ -220,27 +212,46 @@ class EstimatorNode(Node):
 
     def _on_wheels(self, msg: JointState) -> None:
         t_ns, speeds = conv.wheel_speeds_from_msg(msg)
-        self.estimator.on_wheel_speeds(t_ns, speeds)
-        self._publish(t_ns)
+        self._dispatch(t_ns, "wheel_speeds", speeds)
 
     def _on_steering(self, msg: JointState) -> None:
         t_ns, angle = conv.steering_from_msg(msg)
-        self.estimator.on_steering(t_ns, angle)
+        self._dispatch(t_ns, "steering", angle)
 
     def _on_imu(self, msg: Imu) -> None:
         t_ns, gyro, acc = conv.imu_from_msg(msg)
-        self.estimator.on_imu(t_ns, gyro, acc)
+        self._dispatch(t_ns, "imu", (gyro, acc))
 
     def _on_gnss(self, msg: NavSatFix) -> None:
         t_ns, lat, lon, alt, cov = conv.gnss_from_msg(msg)
-        self.estimator.on_gnss_fix(t_ns, lat, lon, alt, cov)
+        self._dispatch(t_ns, "gnss_fix", (lat, lon, alt, cov))
+
+    def _dispatch(self, t_ns: int, kind: str, payload: Any) -> None:
+        """Hand samples to the core in header-stamp order (see core.ordering)."""
+        for t, k, value in self.dispatcher.push(t_ns, kind, payload):
+            if k == "wheel_speeds":
+                self.estimator.on_wheel_speeds(t, value)
+                self._publish(t)
+            elif k == "steering":
+                self.estimator.on_steering(t, value)
+            elif k == "imu":
+                self.estimator.on_imu(t, value[0], value[1])
+            else:
+                self.estimator.on_gnss_fix(t, *value)
 
     # --- outputs ----------------------------------------------------------------------------
     def _publish(self, t_ns: int) -> None:
+        """Publish odometry and radii when their periods (in header time) have elapsed."""
+        odom_due = t_ns - self._last_odom_pub_ns >= self._odom_period_ns
+        radii_due = t_ns - self._last_radii_pub_ns >= self._radii_period_ns
+        if not (odom_due or radii_due):
+            return
         est = self.estimator.estimate()
-        if est.state != "initializing":
-            self.pub_odom.publish(self._odometry(est, t_ns))
-        if t_ns - self._last_radii_pub_ns >= self._radii_period_ns:
+        if odom_due:
+            self._last_odom_pub_ns = t_ns
+            if est.state != "initializing":
+                self.pub_odom.publish(self._odometry(est, t_ns))
+        if radii_due:
             self._last_radii_pub_ns = t_ns
             self.pub_radii.publish(self._radii(est, t_ns))
 

@@ -1,0 +1,56 @@
+"""Node-level options of the estimator node (the estimator itself is configured by
+:class:`~tire_estimation.core.config.RadiusEstimatorConfig`, the vehicle by
+:class:`~tire_estimation.core.vehicle.VehicleParams`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from tire_estimation.core.validation import (
+    require_finite,
+    require_non_negative,
+    require_positive,
+)
+from tire_estimation.errors import ConfigError
+
+SENSOR_QOS = ("sensor_data", "reliable")
+
+
+@dataclass(frozen=True)
+class EstimatorNodeOptions:
+    """ROS-side options of ``estimator_node``.
+
+    Attributes:
+        vehicle_file: path of a vehicle.yaml; empty = use the ``vehicle.*`` parameters.
+        tire_set_id: identity of the mounted tire set; saved radii are restored only for the
+            same vehicle name and tire set. Default ``default``.
+        persistence_file: file the learned radii are saved to and restored from; empty = off.
+            Default ``~/.ros/tire_estimation/learned_radii.json``.
+        persistence_period_s: save period, s; <= 0 saves only on shutdown. Default 60.
+        odometry_publish_period_s: minimum period between Odometry messages (header time), s;
+            0 publishes after every wheel-speed sample. Default 0.02.
+        radii_publish_period_s: minimum period between TireRadii messages (header time), s.
+            Default 0.1.
+        diagnostics_period_s: period of /diagnostics, s (wall or sim time). Default 1.
+        sensor_qos: QoS of the sensor subscriptions, ``sensor_data`` (best effort, default) or
+            ``reliable``.
+    """
+
+    vehicle_file: str = ""
+    tire_set_id: str = "default"
+    persistence_file: str = "~/.ros/tire_estimation/learned_radii.json"
+    persistence_period_s: float = 60.0
+    odometry_publish_period_s: float = 0.02
+    radii_publish_period_s: float = 0.1
+    diagnostics_period_s: float = 1.0
+    sensor_qos: str = "sensor_data"
+
+    def __post_init__(self) -> None:
+        if not self.tire_set_id:
+            raise ConfigError("tire_set_id", self.tire_set_id, "must not be empty")
+        require_finite("persistence_period_s", self.persistence_period_s)
+        require_non_negative("odometry_publish_period_s", self.odometry_publish_period_s)
+        require_positive("radii_publish_period_s", self.radii_publish_period_s)
+        require_positive("diagnostics_period_s", self.diagnostics_period_s)
+        if self.sensor_qos not in SENSOR_QOS:
+            raise ConfigError("sensor_qos", self.sensor_qos, f"must be one of {SENSOR_QOS}")

@@ -1,0 +1,400 @@
+"""detector_node: thin rclpy adapter over the core ``DeflationDetector``.
+
+Subscribes ``/tire_estimation/tire_radii`` (TireRadii) and ``/tire_estimation/odometry``
+(nav_msgs/Odometry: speed from ``twist.linear.x``; braking = deceleration between odometry
+samples at least ``braking_window_s`` apart above ``braking_decel_m_s2``). Publishes
+``/tire_estimation/deflation`` (DeflationStatus) for every accepted TireRadii and
+``/diagnostics`` (one status per wheel plus one for the detector). Service ``~/recalibrate``
+(std_srvs/Trigger) forgets the calibration and the latched alarms.
+
+The calibration, CUSUM sums and latched alarms persist across restarts in ``persistence_file``,
+keyed by vehicle name and ``tire_set_id``. Bad input never stops the node: it is dropped,
+counted by kind and shown on ``/diagnostics``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from nav_msgs.msg import Odometry
+from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
+from rclpy.node import Node
+from std_srvs.srv import Trigger
+
+from tire_estimation.core.deflation import (
+    DeflationDetector,
+    DeflationDetectorConfig,
+    DeflationStatusData,
+    Level,
+    WheelDeflationData,
+)
+from tire_estimation.core.vehicle import load_vehicle_yaml
+from tire_estimation.errors import InputError, TireEstimationError
+from tire_estimation.nodes import conversions as conv
+from tire_estimation.params import ParameterSpec, build_config, parameter_specs
+from tire_estimation.persistence import Identity, load_state, save_state
+from tire_estimation_msgs.msg import DeflationStatus, TireRadii, WheelDeflation
+
+DETECTOR_PREFIX = "detector"
+_DIAG_LEVEL = {
+    Level.OK: DiagnosticStatus.OK,
+    Level.WARN: DiagnosticStatus.WARN,
+    Level.ALARM: DiagnosticStatus.ERROR,
+    Level.STALE: DiagnosticStatus.STALE,
+}
+_LEVEL_TEXT = {
+    Level.OK: "ok",
+    Level.WARN: "CUSUM above half the threshold",
+    Level.ALARM: "DEFLATION ALARM",
+    Level.STALE: "no radius estimate",
+}
+
+
+def _parameter_descriptor(spec: ParameterSpec) -> ParameterDescriptor:
+    text = f"[{spec.unit}] {spec.doc}" if spec.unit else spec.doc
+    desc = ParameterDescriptor(description=text, read_only=True)
+    if spec.range is not None and spec.kind is float:
+        low, high = spec.range
+        desc.floating_point_range = [FloatingPointRange(from_value=low, to_value=high, step=0.0)]
+    return desc
+
+
+class DetectorNode(Node):
+    """ROS wrapper: parameters -> DeflationDetectorConfig, TireRadii/Odometry -> detector."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__("detector_node", **kwargs)
+        self._declare_parameters()
+        self.config = build_config(
+            DeflationDetectorConfig, DETECTOR_PREFIX, self._values(self._specs)
+        )
+        self.detector = DeflationDetector(self.config)
+        self.received: Counter[str] = Counter()
+        self.dropped: Counter[str] = Counter()
+        self.events: Counter[str] = Counter()
+
+        self._braking_decel = float(self.get_parameter("braking_decel_m_s2").value)
+        self._braking_window_ns = int(float(self.get_parameter("braking_window_s").value) * 1e9)
+        self._odom_timeout_ns = int(float(self.get_parameter("odometry_timeout_s").value) * 1e9)
+        self._odom_t_ns: int | None = None
+        self._speed: float | None = None
+        self._braking = False
+        self._brake_ref: tuple[int, float] | None = None
+        self._last_radii_ns: int | None = None  # stamp of the last TireRadii
+        self._last_radii_clock_ns = 0  # node clock when it arrived
+        self._last_status: DeflationStatusData | None = None
+
+        self._identity = Identity(self._vehicle_name(), self.get_parameter("tire_set_id").value)
+        text = self.get_parameter("persistence_file").value
+        self._persist_path = Path(text).expanduser() if text else None
+        self._persist_note = "persistence disabled"
+        self._restore()
+
+        # the guarded callbacks (public: tests feed long sequences without DDS)
+        self.on_tire_radii = self._guard("tire_radii", self._on_radii)
+        self.on_odometry = self._guard("odometry", self._on_odometry)
+        self.create_subscription(TireRadii, "/tire_estimation/tire_radii", self.on_tire_radii, 50)
+        self.create_subscription(Odometry, "/tire_estimation/odometry", self.on_odometry, 50)
+        self.pub_status = self.create_publisher(DeflationStatus, "/tire_estimation/deflation", 10)
+        self.pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self.create_service(Trigger, "~/recalibrate", self._on_recalibrate)
+        self.create_timer(self.get_parameter("diagnostics_period_s").value, self.publish_diag)
+        period = self.get_parameter("persistence_period_s").value
+        if self._persist_path is not None and period > 0:
+            self.create_timer(period, self._save)
+        self.get_logger().info(
+            f"detector_node up: vehicle {self._identity.vehicle_name!r}, tire set "
+            f"{self._identity.tire_set_id!r}, calibration {self.detector.calibration_state.name}; "
+            f"{self._persist_note}"
+        )
+
+    # --- parameters -------------------------------------------------------------------------
+    def _declare_parameters(self) -> None:
+        node_params: list[tuple[str, Any, str]] = [
+            (
+                "vehicle_file",
+                "",
+                "path of a vehicle.yaml giving the vehicle name; empty = use vehicle.name",
+            ),
+            ("vehicle.name", "vehicle", "identity of the vehicle for persistence"),
+            ("tire_set_id", "default", "identity of the mounted tire set for persistence"),
+            (
+                "persistence_file",
+                "~/.ros/tire_estimation/deflation_detector.json",
+                "file the calibration and alarms are saved to and restored from; empty = off",
+            ),
+            ("persistence_period_s", 60.0, "[s] save period; <= 0 saves only on events/shutdown"),
+            ("diagnostics_period_s", 1.0, "[s] period of /diagnostics"),
+            ("braking_decel_m_s2", 1.0, "[m/s^2] deceleration above which the car is braking"),
+            ("braking_window_s", 0.5, "[s] odometry span over which the deceleration is taken"),
+            (
+                "odometry_timeout_s",
+                1.0,
+                "[s] speed older than this (vs the radius stamp) is unknown",
+            ),
+        ]
+        for name, default, doc in node_params:
+            self.declare_parameter(name, default, ParameterDescriptor(description=doc))
+        self._specs = parameter_specs(DeflationDetectorConfig, DETECTOR_PREFIX)
+        for spec in self._specs:
+            self.declare_parameter(spec.name, spec.default, _parameter_descriptor(spec))
+
+    def _values(self, specs: Sequence[ParameterSpec]) -> dict[str, Any]:
+        return {
+            s.name: self.get_parameter(s.name).value for s in specs if self.has_parameter(s.name)
+        }
+
+    def _vehicle_name(self) -> str:
+        path = self.get_parameter("vehicle_file").value
+        if path:
+            return load_vehicle_yaml(Path(path).expanduser()).name
+        return str(self.get_parameter("vehicle.name").value)
+
+    # --- persistence ------------------------------------------------------------------------
+    def _restore(self) -> None:
+        if self._persist_path is None:
+            return
+        state, reason = load_state(self._persist_path, self._identity)
+        if state is not None:
+            try:
+                self.detector.load_state_dict(state)
+            except (TireEstimationError, KeyError, TypeError, ValueError) as exc:
+                reason = f"saved detector state rejected: {exc}"
+        self._persist_note = reason
+
+    def _save(self) -> None:
+        if self._persist_path is None:
+            return
+        try:
+            save_state(self._persist_path, self._identity, self.detector.state_dict())
+        except OSError as exc:
+            self.dropped["persistence_write"] += 1
+            self.get_logger().warning(f"could not save the detector state: {exc}")
+
+    def save_on_shutdown(self) -> None:
+        """Write the calibration and alarms (called when the node stops)."""
+        self._save()
+
+    def _on_recalibrate(self, _: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        self.detector.recalibrate()
+        self._save()
+        self._last_status = self.detector.status()
+        if self._last_radii_ns is not None:
+            self.pub_status.publish(self._status_msg(self._last_status))
+        response.success = True
+        response.message = "deflation detector recalibration started; alarms cleared"
+        self.get_logger().info(response.message)
+        return response
+
+    # --- inputs -----------------------------------------------------------------------------
+    def _guard(self, stream: str, handler: Callable[[Any], None]) -> Callable[[Any], None]:
+        """Wrap a callback: count the message, drop and count bad input, never raise."""
+
+        def callback(msg: Any) -> None:
+            self.received[stream] += 1
+            try:
+                handler(msg)
+            except InputError as exc:
+                self.dropped[f"{stream}:{exc.kind}"] += 1
+            except (TireEstimationError, ValueError, TypeError, AttributeError) as exc:
+                self.dropped[f"{stream}:invalid"] += 1
+                self.get_logger().warning(
+                    f"dropped a {stream} message: {exc}", throttle_duration_sec=5.0
+                )
+
+        return callback
+
+    def _on_odometry(self, msg: Odometry) -> None:
+        t_ns = conv.stamp_ns(msg.header)
+        speed = float(msg.twist.twist.linear.x)
+        if not math.isfinite(speed):
+            raise InputError("nan", "odometry speed is not finite")
+        if self._odom_t_ns is not None and t_ns <= self._odom_t_ns:
+            raise InputError("out_of_order", "odometry stamp is not newer than the last one")
+        if self._odom_t_ns is not None and t_ns - self._odom_t_ns > self._odom_timeout_ns:
+            self._brake_ref = None  # a gap: restart the deceleration estimate
+            self._braking = False
+        ref = self._brake_ref
+        if ref is None:
+            self._brake_ref = (t_ns, speed)
+        elif t_ns - ref[0] >= self._braking_window_ns:
+            decel = (ref[1] - speed) / ((t_ns - ref[0]) * 1e-9)
+            self._braking = decel > self._braking_decel
+            self._brake_ref = (t_ns, speed)
+        self._odom_t_ns = t_ns
+        self._speed = speed
+
+    def _on_radii(self, msg: TireRadii) -> None:
+        t_ns = conv.stamp_ns(msg.header)
+        speed = self._speed
+        if self._odom_t_ns is None or abs(t_ns - self._odom_t_ns) > self._odom_timeout_ns:
+            speed = None
+            self.events["radii_without_odometry"] += 1
+        before = self.detector.calibration_state
+        alarms_before = {w.wheel_name for w in self.detector.status().wheels if w.alarm}
+        status = self.detector.step(
+            t_ns,
+            list(msg.wheel_names),
+            list(msg.radius_error_m),
+            list(msg.radius_error_std_m),
+            list(msg.active),
+            speed,
+            self._braking,
+        )
+        if not status.accepted:
+            return
+        self._last_radii_ns = t_ns
+        self._last_radii_clock_ns = self.get_clock().now().nanoseconds
+        self._last_status = status
+        self.pub_status.publish(self._status_msg(status))
+        new_alarms = [w for w in status.wheels if w.alarm and w.wheel_name not in alarms_before]
+        for w in new_alarms:
+            self.get_logger().error(
+                f"tyre deflation alarm on {w.wheel_name}: radius "
+                f"{1e3 * w.radius_change_m:.2f} mm smaller than calibrated"
+            )
+        if new_alarms or status.calibration_state != before:
+            self._save()
+
+    # --- outputs ----------------------------------------------------------------------------
+    def _status_msg(self, status: DeflationStatusData) -> DeflationStatus:
+        msg = DeflationStatus()
+        if status.t_ns is not None:
+            conv.ns_to_stamp(status.t_ns, msg.header.stamp)
+        msg.header.frame_id = "base_link"
+        msg.calibration_state = int(status.calibration_state)
+        msg.calibration_progress = float(status.calibration_progress)
+        msg.calibrated_driving_time_s = float(status.calibrated_driving_time_s)
+        msg.any_alarm = bool(status.any_alarm)
+        for w in status.wheels:
+            entry = WheelDeflation()
+            entry.wheel_name = w.wheel_name
+            entry.level = int(w.level)
+            entry.radius_change_m = float(w.radius_change_m)
+            entry.cusum = float(w.cusum_m)
+            entry.threshold = float(w.threshold_m)
+            entry.alarm = bool(w.alarm)
+            entry.alarm_time_s = 0.0 if w.alarm_t_ns is None else w.alarm_t_ns * 1e-9
+            msg.wheels.append(entry)
+        return msg
+
+    def _now_stamp_ns(self) -> int | None:
+        """The present on the clock of the radius stamps: last stamp + time since its arrival."""
+        if self._last_radii_ns is None:
+            return None
+        elapsed = self.get_clock().now().nanoseconds - self._last_radii_clock_ns
+        return self._last_radii_ns + max(0, elapsed)
+
+    def publish_diag(self) -> None:
+        """Publish /diagnostics (timer callback; public so tests can trigger it)."""
+        arr = DiagnosticArray()
+        arr.header.stamp = self.get_clock().now().to_msg()
+        arr.status = self.diagnostic_statuses()
+        self.pub_diag.publish(arr)
+
+    def diagnostic_statuses(self) -> list[DiagnosticStatus]:
+        """One status for the detector and one per wheel it monitors."""
+        now = self._now_stamp_ns()
+        status = self.detector.check_stale(now) if now is not None else self.detector.status()
+        hw = self._identity.vehicle_name
+        main = DiagnosticStatus(name="tire_estimation: deflation detector", hardware_id=hw)
+        calib = status.calibration_state.name.lower()
+        if self._last_radii_ns is None:
+            main.level, main.message = DiagnosticStatus.WARN, "waiting for tire radii"
+        elif now is not None and now - self._last_radii_ns > self.config.stale_timeout_s * 1e9:
+            main.level, main.message = DiagnosticStatus.STALE, "tire radii stopped arriving"
+        else:
+            main.level = DiagnosticStatus.OK
+            main.message = f"calibration {calib} ({100 * status.calibration_progress:.0f} %)"
+        alarmed = [w.wheel_name for w in status.wheels if w.alarm]
+        if alarmed:
+            main.message += f"; deflation alarm on {', '.join(alarmed)}"
+        dropped = dict(self.dropped)
+        for kind, count in self.detector.dropped.items():
+            dropped[f"tire_radii:{kind}"] = dropped.get(f"tire_radii:{kind}", 0) + count
+        if dropped:
+            main.message += f"; {sum(dropped.values())} input messages dropped"
+        values = {
+            "calibration_state": calib,
+            "calibration_progress": f"{status.calibration_progress:.3f}",
+            "calibrated_driving_time_s": f"{status.calibrated_driving_time_s:.1f}",
+            "calibration_required_s": f"{self.config.calibration_time_s:.1f}",
+            "speed_m_s": "unknown" if self._speed is None else f"{self._speed:.2f}",
+            "braking": str(self._braking).lower(),
+            "tire_set_id": self._identity.tire_set_id,
+            "persistence": self._persist_note,
+        }
+        for stream in ("tire_radii", "odometry"):
+            values[f"received.{stream}"] = str(self.received.get(stream, 0))
+        for key, count in sorted(self.events.items()):
+            values[f"events.{key}"] = str(count)
+        for key, count in sorted(dropped.items()):
+            values[f"dropped.{key}"] = str(count)
+        main.values = [KeyValue(key=k, value=v) for k, v in values.items()]
+        statuses = [main]
+        statuses.extend(self._wheel_status(w, now) for w in status.wheels)
+        return statuses
+
+    def _wheel_status(self, w: WheelDeflationData, now: int | None) -> DiagnosticStatus:
+        st = DiagnosticStatus(
+            name=f"tire_estimation: deflation {w.wheel_name}",
+            hardware_id=self._identity.vehicle_name,
+        )
+        st.level = _DIAG_LEVEL[w.level]
+        st.message = _LEVEL_TEXT[w.level] if w.calibrated or w.alarm else "calibrating"
+        if w.level == Level.STALE:
+            st.message = _LEVEL_TEXT[Level.STALE]
+        since_cal = ""
+        if w.calibration_t_ns is not None and now is not None:
+            since_cal = f"{max(0.0, (now - w.calibration_t_ns) * 1e-9):.1f}"
+        age = ""
+        if w.last_estimate_t_ns is not None and now is not None:
+            age = f"{max(0.0, (now - w.last_estimate_t_ns) * 1e-9):.1f}"
+        values = {
+            "radius_change_mm": f"{1e3 * w.radius_change_m:.3f}",
+            "cusum_g_mm": f"{1e3 * w.cusum_m:.3f}",
+            "threshold_mm": f"{1e3 * w.threshold_m:.3f}",
+            "calibrated": str(w.calibrated).lower(),
+            "calibration_progress": f"{w.calibration_progress:.3f}",
+            "time_since_calibration_s": since_cal,
+            "calibrated_radius_error_mm": (
+                ""
+                if w.calibrated_radius_error_m is None
+                else f"{1e3 * w.calibrated_radius_error_m:.3f}"
+            ),
+            "alarm": str(w.alarm).lower(),
+            "alarm_time_s": "" if w.alarm_t_ns is None else f"{w.alarm_t_ns * 1e-9:.3f}",
+            "estimate_age_s": age,
+        }
+        st.values = [KeyValue(key=k, value=v) for k, v in values.items()]
+        return st
+
+
+def main(args: list[str] | None = None) -> None:
+    """Console script ``detector_node`` (``ros2 run tire_estimation detector_node``)."""
+    rclpy.init(args=args)
+    node: DetectorNode | None = None
+    try:
+        node = DetectorNode()
+        rclpy.spin(node)
+    except KeyboardInterrupt:
+        pass
+    except TireEstimationError as exc:
+        print(f"detector_node: configuration error: {exc}")
+        raise SystemExit(2) from exc
+    finally:
+        if node is not None:
+            node.save_on_shutdown()
+            node.destroy_node()
+        if rclpy.ok():
+            rclpy.shutdown()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,175 @@
+"""estimator_node: parameters, bad input never kills it, persistence, reset, diagnostics."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from tests.conftest import import_ros
+
+pytestmark = pytest.mark.ros
+
+WHEELS = ["wheel_fl", "wheel_fr", "wheel_rl", "wheel_rr"]
+LAT0, LON0 = 58.4, 15.6
+
+
+@pytest.fixture
+def ros() -> Any:
+    (rclpy,) = import_ros("rclpy")
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    yield rclpy, context
+    rclpy.shutdown(context=context)
+
+
+def _node(ros: Any, tmp_path: Path, **params: Any) -> Any:
+    rclpy, context = ros
+    from rclpy.parameter import Parameter
+
+    from tire_estimation.nodes.estimator_node import EstimatorNode
+
+    values = {
+        "persistence_file": str(tmp_path / "radii.json"),
+        "radius.n_particles": 200,
+        "vehicle.name": "test_car",
+        **params,
+    }
+    overrides = [Parameter(k, value=v) for k, v in values.items()]
+    return EstimatorNode(context=context, parameter_overrides=overrides)
+
+
+def _callbacks(node: Any) -> dict[str, Any]:
+    return {sub.topic_name: sub.callback for sub in node.subscriptions}
+
+
+def _wheels(t_ns: int, speeds: list[float], names: list[str] | None = None) -> Any:
+    from sensor_msgs.msg import JointState
+
+    msg = JointState()
+    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(t_ns, 1_000_000_000)
+    msg.name = names if names is not None else list(WHEELS)
+    msg.velocity = [float(v) for v in speeds]
+    return msg
+
+
+def _fix(t_ns: int, east_m: float, north_m: float) -> Any:
+    from sensor_msgs.msg import NavSatFix
+
+    from tire_estimation.core.geodesy import LocalTangentPlane
+
+    lat, lon, alt = LocalTangentPlane(LAT0, LON0, 100.0).to_lla(east_m, north_m, 0.0)
+    msg = NavSatFix()
+    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(t_ns, 1_000_000_000)
+    msg.latitude, msg.longitude, msg.altitude = float(lat), float(lon), float(alt)
+    msg.position_covariance = [2.25, 0, 0, 0, 2.25, 0, 0, 0, 4.0]
+    msg.position_covariance_type = NavSatFix.COVARIANCE_TYPE_DIAGONAL_KNOWN
+    return msg
+
+
+def _drive(cb: dict[str, Any], t0_ns: int, seconds: float, speed_m_s: float = 20.0) -> int:
+    """Straight drive east at constant speed: wheel speeds at 100 Hz, GNSS at 10 Hz."""
+    omega = speed_m_s / 0.31
+    t_ns = t0_ns
+    for k in range(int(seconds * 100)):
+        t_ns = t0_ns + k * 10_000_000
+        cb["/vehicle/wheel_speeds"](_wheels(t_ns, [omega] * 4))
+        if k % 10 == 0:
+            east = speed_m_s * (t_ns - 1_000_000_000_000) * 1e-9
+            cb["/gnss/fix"](_fix(t_ns, east, 0.0))
+    return t_ns
+
+
+def _diag_values(node: Any) -> dict[str, str]:
+    statuses = node.diagnostic_statuses()
+    return {kv.key: kv.value for kv in statuses[0].values}
+
+
+def test_parameters_map_onto_config_and_reject_bad_values(ros: Any, tmp_path: Path) -> None:
+    from tire_estimation.errors import ConfigError
+
+    node = _node(ros, tmp_path, **{"radius.n_particles": 123, "vehicle.track_width_m": 1.6})
+    assert node.config.n_particles == 123
+    assert node.vehicle.track_width_m == pytest.approx(1.6)
+    described = node.describe_parameters(["radius.n_particles"])[0]
+    assert "particles" in described.description
+    node.destroy_node()
+    with pytest.raises(ConfigError, match="n_particles"):
+        _node(ros, tmp_path, **{"radius.n_particles": 1})
+
+
+def test_bad_input_is_dropped_counted_and_reported(ros: Any, tmp_path: Path) -> None:
+    node = _node(ros, tmp_path)
+    cb = _callbacks(node)
+    t0 = 1_000_000_000_000
+    t = _drive(cb, t0, 30.0)
+    good = node.estimator.estimate()
+    assert good.state in ("running", "paused")
+
+    from sensor_msgs.msg import JointState, NavSatFix
+
+    cb["/vehicle/wheel_speeds"](_wheels(t + 10_000_000, [math.nan] * 4))  # NaN
+    cb["/vehicle/wheel_speeds"](_wheels(t - 500_000_000, [64.5] * 4))  # out of order
+    cb["/vehicle/wheel_speeds"](_wheels(t, [64.5] * 4))  # duplicate stamp
+    cb["/vehicle/wheel_speeds"](JointState())  # no stamp at all
+    cb["/vehicle/wheel_speeds"](_wheels(t + 15_000_000, [], names=[]))  # empty
+    cb["/vehicle/wheel_speeds"](_wheels(t + 20_000_000, [1.0, 2.0], names=WHEELS))  # length
+    cb["/vehicle/wheel_speeds"](_wheels(t + 30_000_000, [1.0], names=["wheel_xx"]))  # unknown
+    cb["/vehicle/wheel_speeds"](_wheels(t + 40_000_000, [math.inf] * 4))  # inf
+    jump = _fix(t + 50_000_000, 20.0 * 30.0 + 500.0, 0.0)  # 500 m GNSS jump
+    cb["/gnss/fix"](jump)
+    no_fix = _fix(t + 60_000_000, 0.0, 0.0)
+    no_fix.status.status = NavSatFix().status.STATUS_NO_FIX
+    cb["/gnss/fix"](no_fix)
+    # fixes stamped ahead of the last wheel speed wait for it (stamp order), then are used
+    cb["/vehicle/wheel_speeds"](_wheels(t + 70_000_000, [64.5] * 4))
+
+    values = _diag_values(node)
+    dropped = {k: int(v) for k, v in values.items() if k.startswith("dropped.")}
+    assert dropped.get("dropped.wheel_speeds:no_stamp") == 1
+    assert dropped.get("dropped.wheel_speeds:empty") == 1
+    assert dropped.get("dropped.wheel_speeds:wrong_length") == 1
+    assert dropped.get("dropped.wheel_speeds:unknown_wheel") == 1
+    assert dropped.get("dropped.gnss_fix:no_fix") == 1
+    core = {k.removeprefix("dropped.core."): v for k, v in dropped.items() if ".core." in k}
+    assert core.get("nan", 0) >= 2  # NaN and inf samples
+    assert core.get("out_of_order", 0) + core.get("duplicate", 0) >= 2
+    assert core.get("gnss_outlier", 0) >= 1
+
+    # a gap of ten minutes, then driving on: still finite, still running
+    t = _drive(cb, t + 600_000_000_000, 20.0)
+    est = node.estimator.estimate()
+    assert np.all(np.isfinite(est.radius_error_m))
+    assert np.all(np.isfinite(est.pose)) and np.all(np.isfinite(est.pose_cov))
+    assert int(values["received.wheel_speeds"]) >= 3000
+    node.destroy_node()
+
+
+def test_radii_persist_across_restarts_and_reset_forgets(ros: Any, tmp_path: Path) -> None:
+    node = _node(ros, tmp_path)
+    cb = _callbacks(node)
+    _drive(cb, 1_000_000_000_000, 20.0)
+    learned = node.estimator.state_dict()
+    node.save_on_shutdown()
+    node.destroy_node()
+    assert (tmp_path / "radii.json").is_file()
+
+    again = _node(ros, tmp_path)
+    assert "restored" in again._persist_note
+    restored = again.estimator.state_dict()
+    assert restored.keys() == learned.keys()
+    other = _node(ros, tmp_path, tire_set_id="winter")
+    assert "tire set" in other._persist_note
+    other.destroy_node()
+
+    from std_srvs.srv import Trigger
+
+    response = again._on_reset(Trigger.Request(), Trigger.Response())
+    assert response.success
+    assert not (tmp_path / "radii.json").exists()
+    est = again.estimator.estimate()
+    assert np.allclose(est.radius_error_m, 0.0, atol=1e-12)
+    again.destroy_node()
