@@ -26,6 +26,7 @@ setup(
             "tire-estimation = tire_estimation.cli:main",
             "estimator_node = tire_estimation.nodes.estimator_node:main",
             "bag_player = tire_estimation.nodes.bag_player:main",
+            "detector_node = tire_estimation.nodes.detector_node:main",
         ],
     },
 )

@@ -29,12 +29,25 @@ def _parse_option(text: str) -> tuple[str, Any]:
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
+    import dataclasses
+
     from tire_estimation.bag.writer import write_sim_bag
-    from tire_estimation.sim import simulate
+    from tire_estimation.errors import ConfigError
+    from tire_estimation.sim import SensorConfig, simulate
 
     options = dict(args.option or [])
+    sensor_fields = {f.name for f in dataclasses.fields(SensorConfig)}
+    sensor_values = dict(args.sensor or [])
+    for key, value in sensor_values.items():
+        if key not in sensor_fields:
+            raise ConfigError(f"--sensor {key}", value, "unknown sensor setting")
+        if isinstance(value, list):
+            sensor_values[key] = tuple(value)
+    sensors = SensorConfig(**sensor_values)
     t0 = time.perf_counter()
-    result = simulate(args.scenario, seed=args.seed, minutes=args.minutes, **options)
+    result = simulate(
+        args.scenario, seed=args.seed, minutes=args.minutes, sensors=sensors, **options
+    )
     t1 = time.perf_counter()
     path = write_sim_bag(result, args.out, overwrite=args.overwrite)
     t2 = time.perf_counter()
@@ -94,6 +107,13 @@ def build_parser() -> argparse.ArgumentParser:
         type=_parse_option,
         metavar="KEY=VALUE",
         help="scenario option, repeatable (e.g. deflate_wheel=wheel_rr)",
+    )
+    sim.add_argument(
+        "--sensor",
+        action="append",
+        type=_parse_option,
+        metavar="KEY=VALUE",
+        help="sensor setting (SensorConfig field), repeatable (e.g. gnss_rate_hz=1)",
     )
     sim.add_argument("--overwrite", action="store_true", help="replace an existing bag")
     sim.set_defaults(func=_cmd_simulate)

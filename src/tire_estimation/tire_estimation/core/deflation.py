@@ -1,0 +1,636 @@
+"""Tyre deflation detector: calibration phase + per-wheel CUSUM (Lundquist et al. 2014, IV-B).
+
+The detector watches the radius-error estimates mu_{i,k} of the radius estimator. After a
+calibration phase (ECE R-64: at least 20 min of driving between 40 and 120 km/h, braking
+excluded) it remembers each wheel's calibrated radius error and runs, per wheel, the CUSUM test
+of Table II on the difference "calibrated minus current" (positive = the tyre got smaller):
+
+    x_{i,k}    = mu_cal_i - mu_{i,k}
+    xbar_{i,k} = LP rate limit(x_{i,k})                (Table II, line 3)
+    g_{i,k}    = max(0, g_{i,k-1} + xbar_{i,k} - nu)   (Table II, lines 4-5)
+    alarm when g_{i,k} > rho_th                        (Table II, line 6)
+
+Units. The paper's mu is a radius error in metres (Fig. 4 reaches about 1.5 mm), so its
+nu = 0.4e-3 is in m and its rho_th = 9e-3 is in m summed over samples ("m x samples"). The paper
+does not state the CUSUM sample period; the radius estimate receives new information at the GPS
+measurement updates, 0.5 Hz in the ECE R-64 data of Section IV-B. Because our estimator may
+publish at any rate, each CUSUM increment here is weighted by dt / T_ref with
+``reference_sample_period_s`` T_ref = 2 s: g and rho stay in metres exactly as in the paper
+when one sample arrives every T_ref, and the test does not change with the publishing rate.
+
+Tuning note: with the paper's nu = 0.4 mm the detector tolerates about 0.15 mm (std) of slowly
+varying (~1 min correlated) error in the radius estimate without false alarms over hours; at
+0.2 mm it starts to raise them (tests/core/test_deflation.py). The ECE R-64 campaign should
+confirm nu and rho on real estimator output.
+
+Only driving time inside the speed window and without braking counts, for the calibration and
+for the detection alike (Section IV-B); outside it the filters and g are held. Alarms latch
+until :meth:`DeflationDetector.recalibrate`. Bad samples are dropped and counted in
+:attr:`DeflationDetector.stats`; :meth:`DeflationDetector.step` never raises.
+
+:func:`run_detector_over_trace` runs the same detector offline over arrays of estimates (for the
+ECE R-64 campaign).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from enum import IntEnum
+from typing import Any
+
+import numpy as np
+
+from tire_estimation.core.validation import (
+    require_non_negative,
+    require_positive,
+    require_range,
+)
+from tire_estimation.core.wheels import WHEEL_INDEX, WHEELS
+from tire_estimation.errors import ConfigError, InputError
+
+KMH = 1.0 / 3.6  # m/s per km/h
+STATE_VERSION = 1
+#: keys of :attr:`DeflationDetector.stats` that count events, not dropped samples
+INFO_STATS = frozenset({"accepted", "no_speed", "recalibrations"})
+
+
+class CalibrationState(IntEnum):
+    """Calibration phase; values equal the ``DeflationStatus.CALIBRATION_*`` constants."""
+
+    NOT_STARTED = 0
+    IN_PROGRESS = 1
+    DONE = 2
+
+
+class Level(IntEnum):
+    """Per-wheel level; values equal the ``WheelDeflation.LEVEL_*`` constants."""
+
+    OK = 0
+    WARN = 1
+    ALARM = 2
+    STALE = 3
+
+
+@dataclass(frozen=True)
+class DeflationDetectorConfig:
+    """Configuration of :class:`DeflationDetector` (validated at construction).
+
+    Attributes:
+        drift_m: CUSUM drift nu, m; the filtered radius decrease must exceed it to accumulate.
+            Default 0.4e-3 (paper).
+        threshold_m: CUSUM alarm threshold rho_th, m (m summed per reference sample).
+            Default 9e-3 (paper).
+        reference_sample_period_s: T_ref, s; every CUSUM increment is weighted by dt / T_ref so
+            nu and rho keep the paper's per-sample meaning at any input rate. Default 2.0 (the
+            0.5 Hz GPS update of the paper's ECE R-64 data).
+        lowpass_time_constant_s: time constant of the first-order low-pass filter on the radius
+            change, s; 0 disables. Default 30.
+        rate_limit_m_s: largest rate of change of the filtered radius change, m/s; 0 disables.
+            Default 2e-5 (1.2 mm/min).
+        adaptive_threshold: scale rho_th by the estimate's reported std, rho_k = rho_th *
+            clip(std / adaptive_reference_std_m, 1, adaptive_max_factor). Default True.
+        adaptive_reference_std_m: estimate std at or below which rho_th is used unchanged, m.
+            Default 1e-3.
+        adaptive_max_factor: largest factor the adaptive threshold applies to rho_th, 1.
+            Default 4.
+        min_speed_m_s: lower end of the speed window in which driving time counts, m/s.
+            Default 11.111 (40 km/h, ECE R-64).
+        max_speed_m_s: upper end of the speed window, m/s. Default 33.333 (120 km/h, ECE R-64).
+        exclude_braking: driving time while braking does not count (ECE R-64). Default True.
+        calibration_time_s: driving time in the window (braking excluded) that completes the
+            calibration of a wheel, s. Default 1200 (20 min, ECE R-64).
+        calibration_average_s: the calibrated radius error is the time-weighted mean of the
+            estimate over the last this-many seconds of the calibration driving time, s
+            (0 = the value at its end). Default 300.
+        stale_timeout_s: a wheel with no estimate for longer than this is STALE, s. Default 5.
+        max_sample_gap_s: the driving time credited to one sample is capped at this, s, so a
+            gap in the estimates does not count as driving. Default 1.
+        warn_fraction: WARN when g exceeds this fraction of the threshold, 1. Default 0.5.
+    """
+
+    drift_m: float = field(default=0.4e-3, metadata={"unit": "m"})
+    threshold_m: float = field(default=9e-3, metadata={"unit": "m"})
+    reference_sample_period_s: float = field(default=2.0, metadata={"unit": "s"})
+    lowpass_time_constant_s: float = field(default=30.0, metadata={"unit": "s"})
+    rate_limit_m_s: float = field(default=2e-5, metadata={"unit": "m/s"})
+    adaptive_threshold: bool = True
+    adaptive_reference_std_m: float = field(default=1e-3, metadata={"unit": "m"})
+    adaptive_max_factor: float = field(default=4.0, metadata={"unit": "1"})
+    min_speed_m_s: float = field(default=40.0 * KMH, metadata={"unit": "m/s"})
+    max_speed_m_s: float = field(default=120.0 * KMH, metadata={"unit": "m/s"})
+    exclude_braking: bool = True
+    calibration_time_s: float = field(default=1200.0, metadata={"unit": "s"})
+    calibration_average_s: float = field(default=300.0, metadata={"unit": "s"})
+    stale_timeout_s: float = field(default=5.0, metadata={"unit": "s"})
+    max_sample_gap_s: float = field(default=1.0, metadata={"unit": "s"})
+    warn_fraction: float = field(default=0.5, metadata={"unit": "1"})
+
+    def __post_init__(self) -> None:
+        require_range("drift_m", self.drift_m, 0.0, 0.05)
+        require_range("threshold_m", self.threshold_m, 1e-9, 10.0)
+        require_positive("reference_sample_period_s", self.reference_sample_period_s)
+        require_non_negative("lowpass_time_constant_s", self.lowpass_time_constant_s)
+        require_non_negative("rate_limit_m_s", self.rate_limit_m_s)
+        for name in ("adaptive_threshold", "exclude_braking"):
+            if not isinstance(getattr(self, name), bool):
+                raise ConfigError(name, getattr(self, name), "must be a bool")
+        require_range("adaptive_reference_std_m", self.adaptive_reference_std_m, 1e-9, 0.1)
+        require_range("adaptive_max_factor", self.adaptive_max_factor, 1.0, 1e6)
+        require_non_negative("min_speed_m_s", self.min_speed_m_s)
+        require_positive("max_speed_m_s", self.max_speed_m_s)
+        if self.max_speed_m_s <= self.min_speed_m_s:
+            raise ConfigError(
+                "max_speed_m_s",
+                self.max_speed_m_s,
+                f"must be > min_speed_m_s={self.min_speed_m_s}",
+            )
+        require_non_negative("calibration_time_s", self.calibration_time_s)
+        require_non_negative("calibration_average_s", self.calibration_average_s)
+        if self.calibration_average_s > self.calibration_time_s:
+            raise ConfigError(
+                "calibration_average_s",
+                self.calibration_average_s,
+                f"must be <= calibration_time_s={self.calibration_time_s}",
+            )
+        require_positive("stale_timeout_s", self.stale_timeout_s)
+        require_positive("max_sample_gap_s", self.max_sample_gap_s)
+        require_range("warn_fraction", self.warn_fraction, 0.0, 1.0)
+
+
+@dataclass(frozen=True)
+class WheelDeflationData:
+    """Detector state of one wheel (mirrors ``WheelDeflation.msg``)."""
+
+    wheel_name: str
+    level: Level
+    radius_change_m: float  # filtered xbar: calibrated minus current (positive = smaller tyre)
+    raw_radius_change_m: float  # unfiltered x of the last detection step
+    cusum_m: float
+    threshold_m: float
+    alarm: bool
+    alarm_t_ns: int | None
+    calibrated: bool
+    calibrated_radius_error_m: float | None
+    calibration_t_ns: int | None
+    calibration_progress: float
+    last_estimate_t_ns: int | None
+
+
+@dataclass(frozen=True)
+class DeflationStatusData:
+    """Detector output for one instant (mirrors ``DeflationStatus.msg``)."""
+
+    t_ns: int | None
+    accepted: bool  # False when the sample handed to step() was dropped
+    calibration_state: CalibrationState
+    calibration_progress: float
+    calibrated_driving_time_s: float
+    wheels: tuple[WheelDeflationData, ...]
+    any_alarm: bool
+
+    def wheel(self, name: str) -> WheelDeflationData:
+        """Entry of wheel ``name`` (KeyError when the detector has not seen it)."""
+        for w in self.wheels:
+            if w.wheel_name == name:
+                return w
+        raise KeyError(name)
+
+
+@dataclass
+class _Wheel:
+    """Mutable per-wheel state."""
+
+    calib_time_s: float = 0.0
+    calib_sum_w: float = 0.0
+    calib_sum_wx: float = 0.0
+    calibrated_m: float | None = None
+    calibration_t_ns: int | None = None
+    lp_m: float = 0.0
+    xbar_m: float = 0.0
+    raw_m: float = 0.0
+    g_m: float = 0.0
+    threshold_m: float = 0.0
+    alarm_t_ns: int | None = None
+    last_estimate_m: float | None = None
+    last_seen_ns: int | None = None
+
+    _PERSISTED = (
+        "calib_time_s",
+        "calib_sum_w",
+        "calib_sum_wx",
+        "calibrated_m",
+        "calibration_t_ns",
+        "lp_m",
+        "xbar_m",
+        "raw_m",
+        "g_m",
+        "threshold_m",
+        "alarm_t_ns",
+        "last_estimate_m",
+    )
+
+    def to_dict(self) -> dict[str, Any]:
+        return {k: getattr(self, k) for k in self._PERSISTED}
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> _Wheel:
+        w = cls()
+        for key in cls._PERSISTED:
+            value = data.get(key)
+            if key in ("calibrated_m", "last_estimate_m"):
+                setattr(w, key, None if value is None else _finite_float(key, value))
+            elif key in ("calibration_t_ns", "alarm_t_ns"):
+                setattr(w, key, _optional_int(key, value))
+            else:
+                setattr(w, key, 0.0 if value is None else _finite_float(key, value))
+        return w
+
+
+def _optional_int(key: str, value: Any) -> int | None:
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise InputError("bad_state", f"saved detector state {key}={value!r} is not an integer")
+    return value
+
+
+def _finite_float(key: str, value: Any) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise InputError("bad_state", f"saved detector state {key}={value!r} is not a number")
+    out = float(value)
+    if not math.isfinite(out):
+        raise InputError("bad_state", f"saved detector state {key}={value!r} is not finite")
+    return out
+
+
+class DeflationDetector:
+    """Per-wheel calibration + CUSUM deflation detector over radius-error estimates."""
+
+    def __init__(self, config: DeflationDetectorConfig | None = None) -> None:
+        self.config = config if config is not None else DeflationDetectorConfig()
+        self.stats: Counter[str] = Counter()
+        self._wheels: dict[str, _Wheel] = {}
+        self._driving_time_s = 0.0
+        self._t_prev_ns: int | None = None
+        self._t_resume_ns: int | None = None  # last sample time before a restore
+
+    # --- public API -----------------------------------------------------------------------
+    def step(
+        self,
+        t_ns: int,
+        wheel_names: Sequence[str],
+        radius_error_m: Sequence[float],
+        radius_error_std_m: Sequence[float],
+        active: Sequence[bool],
+        speed_m_s: float | None,
+        braking: bool,
+    ) -> DeflationStatusData:
+        """Consume one TireRadii-like sample; return the status at ``t_ns``.
+
+        ``radius_error_m`` is the estimator's mu (effective minus nominal radius, m) per wheel of
+        ``wheel_names``; ``speed_m_s`` None means unknown (the sample then only refreshes the
+        staleness clock). A bad sample is dropped and counted in :attr:`stats`; never raises.
+        """
+        try:
+            t, names, mu, std, act, speed = self._validate(
+                t_ns, wheel_names, radius_error_m, radius_error_std_m, active, speed_m_s
+            )
+        except InputError as exc:
+            self.stats[exc.kind] += 1
+            return self._status(self._t_prev_ns, accepted=False)
+        self.stats["accepted"] += 1
+        dt = 0.0
+        t_prev = self._t_prev_ns if self._t_prev_ns is not None else self._t_resume_ns
+        if t_prev is not None and t > t_prev:
+            dt = min((t - t_prev) * 1e-9, self.config.max_sample_gap_s)
+        self._t_prev_ns = t
+        self._t_resume_ns = None
+        valid = speed is not None and self._driving_counts(speed, bool(braking))
+        if speed is None:
+            self.stats["no_speed"] += 1
+        if valid:
+            self._driving_time_s += dt
+        for name, m, s, a in zip(names, mu, std, act, strict=True):
+            w = self._wheels.setdefault(name, _Wheel(threshold_m=self.config.threshold_m))
+            w.last_seen_ns = t
+            w.last_estimate_m = m
+            if not (valid and a and dt > 0.0):
+                continue
+            if w.calibrated_m is None:
+                self._calibrate(w, t, m, dt)
+            else:
+                self._detect(w, t, m, s, dt)
+        return self._status(t, accepted=True)
+
+    def check_stale(self, now_ns: int) -> DeflationStatusData:
+        """Status at ``now_ns`` (same clock as the sample stamps); late wheels become STALE."""
+        return self._status(int(now_ns), accepted=True)
+
+    def status(self) -> DeflationStatusData:
+        """Status at the last accepted sample."""
+        return self._status(self._t_prev_ns, accepted=True)
+
+    def recalibrate(self) -> None:
+        """Forget calibration, CUSUM sums and latched alarms; start a new calibration."""
+        for name, old in self._wheels.items():
+            fresh = _Wheel(threshold_m=self.config.threshold_m)
+            fresh.last_seen_ns = old.last_seen_ns
+            fresh.last_estimate_m = old.last_estimate_m
+            self._wheels[name] = fresh
+        self._driving_time_s = 0.0
+        self.stats["recalibrations"] += 1
+
+    @property
+    def dropped(self) -> dict[str, int]:
+        """Counts of dropped samples by kind (``nan``, ``wrong_length``, ``out_of_order``, ...)."""
+        return {k: v for k, v in sorted(self.stats.items()) if k not in INFO_STATS}
+
+    @property
+    def calibration_state(self) -> CalibrationState:
+        """NOT_STARTED before any counted driving, DONE when every seen wheel is calibrated."""
+        if self._wheels and all(w.calibrated_m is not None for w in self._wheels.values()):
+            return CalibrationState.DONE
+        if self._driving_time_s > 0.0 or any(w.calib_time_s > 0 for w in self._wheels.values()):
+            return CalibrationState.IN_PROGRESS
+        return CalibrationState.NOT_STARTED
+
+    def state_dict(self) -> dict[str, Any]:
+        """JSON-able state for persistence (calibration, filters, CUSUM sums, alarms)."""
+        return {
+            "version": STATE_VERSION,
+            "driving_time_s": self._driving_time_s,
+            "t_last_ns": self._t_prev_ns if self._t_prev_ns is not None else self._t_resume_ns,
+            "wheels": {name: w.to_dict() for name, w in self._wheels.items()},
+        }
+
+    def load_state_dict(self, state: Mapping[str, Any]) -> None:
+        """Restore :meth:`state_dict` output; raises InputError (kind ``bad_state``) if malformed.
+
+        Sample ordering and staleness restart with the next sample, so a restarted node accepts
+        stamps older than those before the restart (e.g. a bag replayed again); a sample newer
+        than the saved last one is credited the driving time since it (at most
+        ``max_sample_gap_s``), so a save/restore continues exactly.
+        """
+        if not isinstance(state, Mapping) or state.get("version") != STATE_VERSION:
+            raise InputError("bad_state", "saved detector state has an unknown version")
+        raw_wheels = state.get("wheels")
+        if not isinstance(raw_wheels, Mapping):
+            raise InputError("bad_state", "saved detector state has no wheels mapping")
+        wheels: dict[str, _Wheel] = {}
+        for name, data in raw_wheels.items():
+            if name not in WHEEL_INDEX or not isinstance(data, Mapping):
+                raise InputError("bad_state", f"saved detector state has a bad wheel {name!r}")
+            wheels[name] = _Wheel.from_dict(data)
+        driving = _finite_float("driving_time_s", state.get("driving_time_s", 0.0))
+        t_last = _optional_int("t_last_ns", state.get("t_last_ns"))
+        self._wheels = wheels
+        self._driving_time_s = driving
+        self._t_prev_ns = None
+        self._t_resume_ns = t_last
+
+    # --- internals ------------------------------------------------------------------------
+    def _validate(
+        self,
+        t_ns: Any,
+        wheel_names: Any,
+        radius_error_m: Any,
+        radius_error_std_m: Any,
+        active: Any,
+        speed_m_s: Any,
+    ) -> tuple[int, list[str], list[float], list[float], list[bool], float | None]:
+        try:
+            if isinstance(t_ns, bool):
+                raise TypeError
+            t = int(t_ns)
+            names = [str(n) for n in wheel_names]
+            mu = [float(v) for v in radius_error_m]
+            std = [float(v) for v in radius_error_std_m]
+            act = [bool(v) for v in active]
+            speed = None if speed_m_s is None else float(speed_m_s)
+        except (TypeError, ValueError) as exc:
+            raise InputError("invalid", f"malformed sample: {exc}") from exc
+        if t <= 0:
+            raise InputError("no_stamp", "sample time is not positive")
+        if self._t_prev_ns is not None and t <= self._t_prev_ns:
+            raise InputError("out_of_order", "sample is not newer than the previous one")
+        if not names:
+            raise InputError("empty", "sample has no wheels")
+        if not len(names) == len(mu) == len(std) == len(act):
+            raise InputError("wrong_length", "wheel_names and value arrays differ in length")
+        if len(set(names)) != len(names):
+            raise InputError("duplicate_wheel", f"duplicate wheel names {names}")
+        if any(n not in WHEEL_INDEX for n in names):
+            raise InputError("unknown_wheel", f"wheel names {names} not among {WHEELS}")
+        if not all(math.isfinite(v) for v in (*mu, *std)):
+            raise InputError("nan", "radius error or std is not finite")
+        if any(s < 0.0 for s in std):
+            raise InputError("negative_std", "radius error std is negative")
+        if speed is not None and not math.isfinite(speed):
+            raise InputError("nan", "speed is not finite")
+        return t, names, mu, std, act, speed
+
+    def _driving_counts(self, speed_m_s: float, braking: bool) -> bool:
+        cfg = self.config
+        if cfg.exclude_braking and braking:
+            return False
+        return cfg.min_speed_m_s <= speed_m_s <= cfg.max_speed_m_s
+
+    def _calibrate(self, w: _Wheel, t_ns: int, mu_m: float, dt: float) -> None:
+        cfg = self.config
+        avg_start = cfg.calibration_time_s - cfg.calibration_average_s
+        before = w.calib_time_s
+        w.calib_time_s = before + dt
+        # time-weighted mean of mu over the last calibration_average_s of calibration time
+        weight = min(dt, max(0.0, w.calib_time_s - avg_start))
+        if weight > 0.0:
+            w.calib_sum_w += weight
+            w.calib_sum_wx += weight * mu_m
+        if w.calib_time_s >= cfg.calibration_time_s:
+            w.calibrated_m = w.calib_sum_wx / w.calib_sum_w if w.calib_sum_w > 0 else mu_m
+            w.calibration_t_ns = t_ns
+            w.lp_m = w.xbar_m = w.raw_m = w.g_m = 0.0
+            w.threshold_m = cfg.threshold_m
+
+    def _detect(self, w: _Wheel, t_ns: int, mu_m: float, std_m: float, dt: float) -> None:
+        cfg = self.config
+        if w.calibrated_m is None:
+            return
+        # x_k = mu_cal - mu_k: radius decrease since calibration (positive = smaller tyre)
+        x = w.calibrated_m - mu_m
+        w.raw_m = x
+        # Table II line 3, LP: y_k = y_{k-1} + (1 - exp(-dt / tau)) (x_k - y_{k-1})
+        if cfg.lowpass_time_constant_s > 0.0:
+            w.lp_m += (1.0 - math.exp(-dt / cfg.lowpass_time_constant_s)) * (x - w.lp_m)
+        else:
+            w.lp_m = x
+        # Table II line 3, rate limit: xbar_k = xbar_{k-1} + clip(y_k - xbar_{k-1}, +-r dt)
+        if cfg.rate_limit_m_s > 0.0:
+            step = cfg.rate_limit_m_s * dt
+            w.xbar_m += min(step, max(-step, w.lp_m - w.xbar_m))
+        else:
+            w.xbar_m = w.lp_m
+        # Table II line 4: g_k = g_{k-1} + xbar_k - nu (weighted by dt / T_ref)
+        g = w.g_m + (w.xbar_m - cfg.drift_m) * dt / cfg.reference_sample_period_s
+        # Table II line 5: g_k = 0 if g_k < 0
+        w.g_m = max(0.0, g)
+        # adaptive rho_th: scaled up while the estimator reports a large std
+        w.threshold_m = self._threshold(std_m)
+        # Table II line 6: alarm if g_k > rho_th (latched until recalibrate)
+        if w.alarm_t_ns is None and w.g_m > w.threshold_m:
+            w.alarm_t_ns = t_ns
+
+    def _threshold(self, std_m: float) -> float:
+        cfg = self.config
+        if not cfg.adaptive_threshold:
+            return cfg.threshold_m
+        factor = min(cfg.adaptive_max_factor, max(1.0, std_m / cfg.adaptive_reference_std_m))
+        return cfg.threshold_m * factor
+
+    def _wheel_progress(self, w: _Wheel) -> float:
+        if w.calibrated_m is not None:
+            return 1.0
+        if self.config.calibration_time_s <= 0.0:
+            return 0.0
+        return min(1.0, w.calib_time_s / self.config.calibration_time_s)
+
+    def _level(self, w: _Wheel, now_ns: int | None) -> Level:
+        if w.alarm_t_ns is not None:
+            return Level.ALARM
+        timeout_ns = self.config.stale_timeout_s * 1e9
+        if now_ns is not None and (w.last_seen_ns is None or now_ns - w.last_seen_ns > timeout_ns):
+            return Level.STALE
+        if w.calibrated_m is not None and w.g_m > self.config.warn_fraction * w.threshold_m:
+            return Level.WARN
+        return Level.OK
+
+    def _status(self, now_ns: int | None, accepted: bool) -> DeflationStatusData:
+        entries = []
+        for name in sorted(self._wheels, key=WHEEL_INDEX.__getitem__):
+            w = self._wheels[name]
+            entries.append(
+                WheelDeflationData(
+                    wheel_name=name,
+                    level=self._level(w, now_ns),
+                    radius_change_m=w.xbar_m,
+                    raw_radius_change_m=w.raw_m,
+                    cusum_m=w.g_m,
+                    threshold_m=w.threshold_m,
+                    alarm=w.alarm_t_ns is not None,
+                    alarm_t_ns=w.alarm_t_ns,
+                    calibrated=w.calibrated_m is not None,
+                    calibrated_radius_error_m=w.calibrated_m,
+                    calibration_t_ns=w.calibration_t_ns,
+                    calibration_progress=self._wheel_progress(w),
+                    last_estimate_t_ns=w.last_seen_ns,
+                )
+            )
+        progress = min((e.calibration_progress for e in entries), default=0.0)
+        return DeflationStatusData(
+            t_ns=now_ns,
+            accepted=accepted,
+            calibration_state=self.calibration_state,
+            calibration_progress=progress,
+            calibrated_driving_time_s=self._driving_time_s,
+            wheels=tuple(entries),
+            any_alarm=any(e.alarm for e in entries),
+        )
+
+
+@dataclass(frozen=True)
+class TraceResult:
+    """Output of :func:`run_detector_over_trace`; arrays are ``(K,)`` or ``(K, W)``.
+
+    Entries of a wheel the detector has not seen yet, and of dropped rows, are NaN.
+    """
+
+    alarms: list[tuple[str, int]]  # (wheel, alarm t_ns), in time order
+    wheel_names: tuple[str, ...]
+    t_ns: np.ndarray
+    cusum_m: np.ndarray
+    threshold_m: np.ndarray
+    radius_change_m: np.ndarray
+    calibration_state: np.ndarray  # (K,) int, CalibrationState values
+    calibration_done_t_ns: int | None
+    stats: dict[str, int]
+
+
+def run_detector_over_trace(
+    config: DeflationDetectorConfig,
+    t_ns: Sequence[int] | np.ndarray,
+    wheel_names: Sequence[str],
+    radius_error_m: np.ndarray,
+    radius_error_std_m: np.ndarray,
+    speed_m_s: np.ndarray,
+    braking: np.ndarray,
+    active: np.ndarray | None = None,
+) -> TraceResult:
+    """Run a fresh :class:`DeflationDetector` offline over a trace of radius estimates.
+
+    ``radius_error_m``, ``radius_error_std_m`` (and ``active``, default all True) are ``(K, W)``
+    with columns in ``wheel_names`` order; ``t_ns``, ``speed_m_s`` (NaN = unknown) and
+    ``braking`` are ``(K,)``. A wheel whose value or std is NaN in a row is left out of that row.
+    """
+    times = np.asarray(t_ns, dtype=np.int64).reshape(-1)
+    mu = np.asarray(radius_error_m, dtype=float)
+    std = np.asarray(radius_error_std_m, dtype=float)
+    speed = np.asarray(speed_m_s, dtype=float).reshape(-1)
+    brake = np.asarray(braking, dtype=bool).reshape(-1)
+    names = tuple(wheel_names)
+    k, n_w = len(times), len(names)
+    act = np.ones((k, n_w), dtype=bool) if active is None else np.asarray(active, dtype=bool)
+    for label, arr, shape in (
+        ("radius_error_m", mu, (k, n_w)),
+        ("radius_error_std_m", std, (k, n_w)),
+        ("active", act, (k, n_w)),
+        ("speed_m_s", speed, (k,)),
+        ("braking", brake, (k,)),
+    ):
+        if arr.shape != shape:
+            raise InputError("wrong_shape", f"{label} has shape {arr.shape}, expected {shape}")
+    detector = DeflationDetector(config)
+    cusum = np.full((k, n_w), np.nan)
+    threshold = np.full((k, n_w), np.nan)
+    change = np.full((k, n_w), np.nan)
+    calib = np.zeros(k, dtype=int)
+    alarms: list[tuple[str, int]] = []
+    alarmed: set[str] = set()
+    done_t: int | None = None
+    for i in range(k):
+        cols = [j for j in range(n_w) if math.isfinite(mu[i, j]) and math.isfinite(std[i, j])]
+        sp = float(speed[i]) if math.isfinite(speed[i]) else None
+        status = detector.step(
+            int(times[i]),
+            [names[j] for j in cols],
+            [float(mu[i, j]) for j in cols],
+            [float(std[i, j]) for j in cols],
+            [bool(act[i, j]) for j in cols],
+            sp,
+            bool(brake[i]),
+        )
+        calib[i] = int(status.calibration_state)
+        if done_t is None and status.calibration_state == CalibrationState.DONE:
+            done_t = int(times[i])
+        if not status.accepted:
+            continue
+        for entry in status.wheels:
+            j = names.index(entry.wheel_name)
+            cusum[i, j] = entry.cusum_m
+            threshold[i, j] = entry.threshold_m
+            change[i, j] = entry.radius_change_m
+            if entry.alarm and entry.wheel_name not in alarmed and entry.alarm_t_ns is not None:
+                alarmed.add(entry.wheel_name)
+                alarms.append((entry.wheel_name, entry.alarm_t_ns))
+    return TraceResult(
+        alarms=alarms,
+        wheel_names=names,
+        t_ns=times,
+        cusum_m=cusum,
+        threshold_m=threshold,
+        radius_change_m=change,
+        calibration_state=calib,
+        calibration_done_t_ns=done_t,
+        stats=dict(detector.stats),
+    )
