@@ -1,4 +1,5 @@
-"""Write a simulated drive (:class:`~tire_estimation.sim.streams.SimResult`) as a contract bag.
+"""Write contract bags: a simulated drive (:func:`write_sim_bag`) or any topic series
+(:func:`write_contract_bag`, used by the measured-data converters).
 
 The bag is a rosbag2 directory (format version 9, MCAP storage, zstd chunk compression by
 default) holding the input, truth topics of contract v1, plus ``vehicle.yaml`` and
@@ -27,10 +28,10 @@ from tire_estimation.bag import messages as mb
 from tire_estimation.bag import topics as tp
 from tire_estimation.bag.cdr import Encoder, iter_rows
 from tire_estimation.bag.typestore import get_typestore
-from tire_estimation.core.vehicle import dump_vehicle_yaml
+from tire_estimation.core.vehicle import VehicleParams, dump_vehicle_yaml
 from tire_estimation.core.wheels import WHEELS
 from tire_estimation.errors import BagError
-from tire_estimation.sim.streams import SimResult
+from tire_estimation.sim.streams import ImuStream, SimResult
 
 _NS_PER_S = 1_000_000_000
 
@@ -113,13 +114,14 @@ def reduced_rate_rows(
     return np.asarray(keep, dtype=np.int64)
 
 
-def _joint_series(
+def joint_series(
     topic: str,
     t_ns: NDArray[np.int64],
     names: tuple[str, ...],
     field: str,
     data: NDArray[np.float64],
 ) -> TopicSeries:
+    """JointState series whose ``field`` (position, velocity or effort) is ``data`` (M, names)."""
     data = np.ascontiguousarray(data, dtype=np.float64).reshape(len(t_ns), len(names))
 
     def build(i: int) -> Any:
@@ -128,7 +130,7 @@ def _joint_series(
     return TopicSeries(topic, tp.JOINT_STATE, t_ns, build(0), {field: data}, build)
 
 
-def _fix_series(
+def fix_series(
     topic: str,
     t_ns: NDArray[np.int64],
     lat: NDArray[np.float64],
@@ -137,6 +139,7 @@ def _fix_series(
     cov: NDArray[np.float64],
     frame_id: str,
 ) -> TopicSeries:
+    """NavSatFix series (deg, deg, m) with ENU covariance ``cov`` (M, 3, 3) m^2."""
     cov9 = np.ascontiguousarray(cov, dtype=np.float64).reshape(len(t_ns), 9)
 
     def build(i: int) -> Any:
@@ -151,19 +154,10 @@ def _fix_series(
     return TopicSeries(topic, tp.NAV_SAT_FIX, t_ns, build(0), values, build)
 
 
-def sim_topic_series(result: SimResult) -> list[TopicSeries]:
-    """Every topic of the contract bag of ``result`` (inputs, then truth)."""
-    out: list[TopicSeries] = []
-    ws = result.wheel_speeds
-    out.append(_joint_series(tp.WHEEL_SPEEDS, ws.t_ns, WHEELS, "velocity", ws.wheel_speed_rad_s))
-    st = result.steering
-    out.append(
-        _joint_series(tp.STEERING, st.t_ns, ("front_wheel_angle",), "position", st.angle_rad)
-    )
+def imu_series(imu: ImuStream, topic: str = tp.IMU_DATA) -> TopicSeries:
+    """Imu series of ``imu`` (base_link axes, diagonal covariances from the noise std)."""
 
-    imu = result.imu
-
-    def build_imu(i: int) -> Any:
+    def build(i: int) -> Any:
         return mb.imu(
             int(imu.t_ns[i]),
             imu.angular_velocity_rad_s[i],
@@ -173,7 +167,7 @@ def sim_topic_series(result: SimResult) -> list[TopicSeries]:
         )
 
     gyro, acc = imu.angular_velocity_rad_s, imu.linear_acceleration_m_s2
-    imu_values = {
+    values = {
         "angular_velocity.x": gyro[:, 0],
         "angular_velocity.y": gyro[:, 1],
         "angular_velocity.z": gyro[:, 2],
@@ -181,11 +175,110 @@ def sim_topic_series(result: SimResult) -> list[TopicSeries]:
         "linear_acceleration.y": acc[:, 1],
         "linear_acceleration.z": acc[:, 2],
     }
-    out.append(TopicSeries(tp.IMU_DATA, tp.IMU, imu.t_ns, build_imu(0), imu_values, build_imu))
+    return TopicSeries(topic, tp.IMU, imu.t_ns, build(0), values, build)
+
+
+def velocity_series(
+    topic: str,
+    t_ns: NDArray[np.int64],
+    velocity_m_s: NDArray[np.float64],
+    covariance_m2_s2: NDArray[np.float64] | None = None,
+    *,
+    frame_id: str = tp.MAP,
+) -> TopicSeries | None:
+    """TwistWithCovarianceStamped series of a linear velocity (M, 3) m/s in ``frame_id`` axes.
+
+    Rows with a non-finite velocity are dropped (None when none is left); the angular part is
+    unmeasured (variance :data:`messages.UNKNOWN_ANGULAR_VARIANCE`).
+    """
+    vcov = np.zeros((len(t_ns), 3, 3)) if covariance_m2_s2 is None else covariance_m2_s2
+    rows = np.flatnonzero(np.all(np.isfinite(velocity_m_s), axis=1))
+    if not rows.size:
+        return None
+    t_v = t_ns[rows]
+    vel_r = np.ascontiguousarray(velocity_m_s[rows], dtype=np.float64)
+    vcov_r = np.ascontiguousarray(vcov[rows], dtype=np.float64).reshape(-1, 9)
+
+    def build(i: int) -> Any:
+        return mb.twist_with_covariance_stamped(
+            int(t_v[i]), vel_r[i], vcov_r[i], frame_id=frame_id
+        )
+
+    cov36 = np.zeros((rows.size, 6, 6))
+    cov36[:, :3, :3] = vcov_r.reshape(-1, 3, 3)
+    cov36[:, 3:, 3:] = np.eye(3) * mb.UNKNOWN_ANGULAR_VARIANCE
+    values = {
+        "twist.twist.linear.x": vel_r[:, 0],
+        "twist.twist.linear.y": vel_r[:, 1],
+        "twist.twist.linear.z": vel_r[:, 2],
+        "twist.covariance": cov36.reshape(-1, 36),
+    }
+    return TopicSeries(topic, tp.TWIST_WITH_COVARIANCE_STAMPED, t_v, build(0), values, build)
+
+
+def odometry_series(
+    topic: str,
+    t_ns: NDArray[np.int64],
+    position_m: NDArray[np.float64],
+    orientation_xyzw: NDArray[np.float64],
+    linear_m_s: NDArray[np.float64],
+    angular_rad_s: NDArray[np.float64],
+    *,
+    pose_covariance: NDArray[np.float64] | None = None,
+    twist_covariance: NDArray[np.float64] | None = None,
+) -> TopicSeries:
+    """Odometry series: pose (M, 3) m and (M, 4) xyzw in ``map``, twist (M, 3) in base_link.
+
+    Covariances are (M, 6, 6) or None (zero, as on the truth topics).
+    """
+    n = len(t_ns)
+    pos = np.ascontiguousarray(position_m, dtype=np.float64).reshape(n, 3)
+    quat = np.ascontiguousarray(orientation_xyzw, dtype=np.float64).reshape(n, 4)
+    lin = np.ascontiguousarray(linear_m_s, dtype=np.float64).reshape(n, 3)
+    ang = np.ascontiguousarray(angular_rad_s, dtype=np.float64).reshape(n, 3)
+    pcov = None if pose_covariance is None else np.asarray(pose_covariance).reshape(n, 36)
+    tcov = None if twist_covariance is None else np.asarray(twist_covariance).reshape(n, 36)
+
+    def build(i: int) -> Any:
+        return mb.odometry(
+            int(t_ns[i]),
+            pos[i],
+            quat[i],
+            lin[i],
+            ang[i],
+            pose_covariance=None if pcov is None else pcov[i],
+            twist_covariance=None if tcov is None else tcov[i],
+        )
+
+    values: dict[str, NDArray[Any]] = {}
+    for k, axis in enumerate("xyz"):
+        values[f"pose.pose.position.{axis}"] = pos[:, k]
+        values[f"twist.twist.linear.{axis}"] = lin[:, k]
+        values[f"twist.twist.angular.{axis}"] = ang[:, k]
+    for k, axis in enumerate("xyzw"):
+        values[f"pose.pose.orientation.{axis}"] = quat[:, k]
+    if pcov is not None:
+        values["pose.covariance"] = np.ascontiguousarray(pcov, dtype=np.float64)
+    if tcov is not None:
+        values["twist.covariance"] = np.ascontiguousarray(tcov, dtype=np.float64)
+    return TopicSeries(topic, tp.ODOMETRY, t_ns, build(0), values, build)
+
+
+def sim_topic_series(result: SimResult) -> list[TopicSeries]:
+    """Every topic of the contract bag of ``result`` (inputs, then truth)."""
+    out: list[TopicSeries] = []
+    ws = result.wheel_speeds
+    out.append(joint_series(tp.WHEEL_SPEEDS, ws.t_ns, WHEELS, "velocity", ws.wheel_speed_rad_s))
+    st = result.steering
+    out.append(
+        joint_series(tp.STEERING, st.t_ns, ("front_wheel_angle",), "position", st.angle_rad)
+    )
+
+    out.append(imu_series(result.imu))
 
     g = result.gnss
     out.append(
-        _fix_series(
+        fix_series(
             tp.GNSS_FIX,
             g.t_ns,
             g.lat_deg,
@@ -196,40 +289,11 @@ def sim_topic_series(result: SimResult) -> list[TopicSeries]:
         )
     )
     if g.velocity_enu_m_s is not None:
-        vel = g.velocity_enu_m_s
-        vcov = (
-            np.zeros((len(g.t_ns), 3, 3))
-            if g.velocity_covariance_m2_s2 is None
-            else g.velocity_covariance_m2_s2
+        vel_series = velocity_series(
+            tp.GNSS_VELOCITY, g.t_ns, g.velocity_enu_m_s, g.velocity_covariance_m2_s2
         )
-        rows = np.flatnonzero(np.all(np.isfinite(vel), axis=1))
-        if rows.size:
-            t_v = g.t_ns[rows]
-            vel_r = np.ascontiguousarray(vel[rows])
-            vcov_r = np.ascontiguousarray(vcov[rows]).reshape(-1, 9)
-
-            def build_vel(i: int) -> Any:
-                return mb.twist_with_covariance_stamped(int(t_v[i]), vel_r[i], vcov_r[i])
-
-            cov36 = np.zeros((rows.size, 6, 6))
-            cov36[:, :3, :3] = vcov_r.reshape(-1, 3, 3)
-            cov36[:, 3:, 3:] = np.eye(3) * mb.UNKNOWN_ANGULAR_VARIANCE
-            vel_values = {
-                "twist.twist.linear.x": vel_r[:, 0],
-                "twist.twist.linear.y": vel_r[:, 1],
-                "twist.twist.linear.z": vel_r[:, 2],
-                "twist.covariance": cov36.reshape(-1, 36),
-            }
-            out.append(
-                TopicSeries(
-                    tp.GNSS_VELOCITY,
-                    tp.TWIST_WITH_COVARIANCE_STAMPED,
-                    t_v,
-                    build_vel(0),
-                    vel_values,
-                    build_vel,
-                )
-            )
+        if vel_series is not None:
+            out.append(vel_series)
 
     if result.tire_forces is not None:
         tf = result.tire_forces
@@ -249,33 +313,14 @@ def sim_topic_series(result: SimResult) -> list[TopicSeries]:
     tr = result.truth
     zeros = np.zeros((len(tr.t_ns), 3, 3))
     out.append(
-        _fix_series(tp.TRUTH_FIX, tr.t_ns, tr.lat_deg, tr.lon_deg, tr.alt_m, zeros, tp.BASE_LINK)
+        fix_series(tp.TRUTH_FIX, tr.t_ns, tr.lat_deg, tr.lon_deg, tr.alt_m, zeros, tp.BASE_LINK)
     )
     half = 0.5 * tr.yaw_rad
     quat = np.stack([np.zeros_like(half), np.zeros_like(half), np.sin(half), np.cos(half)], 1)
     linear = np.column_stack([tr.velocity_m_s[:, 0], tr.velocity_m_s[:, 1], np.zeros(len(half))])
     angular = np.column_stack([np.zeros((len(half), 2)), tr.yaw_rate_rad_s])
-
-    def build_odom(i: int) -> Any:
-        return mb.odometry(
-            int(tr.t_ns[i]),
-            tr.position_enu_m[i],
-            mb.yaw_to_quaternion(float(tr.yaw_rad[i])),
-            linear[i],
-            angular[i],
-        )
-
-    odom_values: dict[str, NDArray[Any]] = {}
-    for k, axis in enumerate("xyz"):
-        odom_values[f"pose.pose.position.{axis}"] = tr.position_enu_m[:, k]
-        odom_values[f"twist.twist.linear.{axis}"] = linear[:, k]
-        odom_values[f"twist.twist.angular.{axis}"] = angular[:, k]
-    for k, axis in enumerate("xyzw"):
-        odom_values[f"pose.pose.orientation.{axis}"] = quat[:, k]
     out.append(
-        TopicSeries(
-            tp.TRUTH_ODOMETRY, tp.ODOMETRY, tr.t_ns, build_odom(0), odom_values, build_odom
-        )
+        odometry_series(tp.TRUTH_ODOMETRY, tr.t_ns, tr.position_enu_m, quat, linear, angular)
     )
 
     stiff_tol = TRUTH_STIFFNESS_REL_TOL * np.maximum(np.nanmax(np.abs(tr.stiffness), axis=0), 1.0)
@@ -285,7 +330,7 @@ def sim_topic_series(result: SimResult) -> list[TopicSeries]:
         (tp.TRUTH_TIRE_STIFFNESS, tp.STIFFNESS_NAMES, tr.stiffness, stiff_tol),
     ):
         rows = reduced_rate_rows(tr.t_ns, data, tol)
-        out.append(_joint_series(topic, tr.t_ns[rows], tuple(names), "position", data[rows]))
+        out.append(joint_series(topic, tr.t_ns[rows], tuple(names), "position", data[rows]))
     return out
 
 
@@ -330,6 +375,28 @@ def _check_target(out_dir: Path, overwrite: bool) -> None:
         raise BagError(f"{out_dir} is a non-empty directory that is not a bag; not overwriting")
 
 
+def _place_bag(out_dir: Path, overwrite: bool, fill: Callable[[Path], None]) -> Path:
+    """Create the bag directory ``out_dir`` with ``fill(tmp_bag)`` in a hidden staging directory
+    and rename it into place only when complete (replacing an old bag when ``overwrite``)."""
+    _check_target(out_dir, overwrite)
+    out_dir.parent.mkdir(parents=True, exist_ok=True)
+    staging = out_dir.parent / f".{out_dir.name}.tmp-{os.getpid()}-{uuid.uuid4().hex[:8]}"
+    staging.mkdir()
+    try:
+        bag = staging / out_dir.name
+        fill(bag)
+        if out_dir.exists():
+            _check_target(out_dir, overwrite)
+            trash = staging / f"{out_dir.name}.old"
+            out_dir.rename(trash)
+        bag.rename(out_dir)
+    except OSError as exc:
+        raise BagError(f"cannot write bag {out_dir}: {exc}") from exc
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+    return out_dir
+
+
 def write_sim_bag(
     result: SimResult,
     out_dir: Path | str,
@@ -351,14 +418,17 @@ def write_sim_bag(
     Raises:
         BagError: ``out_dir`` exists (without ``overwrite``) or the bag cannot be written.
     """
-    out_dir = Path(out_dir)
-    _check_target(out_dir, overwrite)
-    out_dir.parent.mkdir(parents=True, exist_ok=True)
-    staging = out_dir.parent / f".{out_dir.name}.tmp-{os.getpid()}-{uuid.uuid4().hex[:8]}"
-    staging.mkdir()
-    try:
-        bag = staging / out_dir.name
-        _write_bag(result, bag, compression=compression, fast=fast)
+    custom = {
+        CUSTOM_CONTRACT: "v1",
+        CUSTOM_VEHICLE: yaml.safe_dump({"vehicle": result.vehicle.to_dict()}, sort_keys=False),
+        CUSTOM_SCENARIO: result.scenario,
+        CUSTOM_SEED: str(int(result.seed)),
+        CUSTOM_ORIGIN: yaml.safe_dump([float(v) for v in result.origin_lla]),
+        CUSTOM_EVENTS: yaml.safe_dump(sim_config_dict(result)["events"], sort_keys=False),
+    }
+
+    def fill(bag: Path) -> None:
+        _write_bag(bag, sim_topic_series(result), custom, compression=compression, fast=fast)
         dump_vehicle_yaml(
             result.vehicle,
             bag / VEHICLE_FILE,
@@ -367,21 +437,73 @@ def write_sim_bag(
         (bag / SIM_CONFIG_FILE).write_text(
             yaml.safe_dump(sim_config_dict(result), sort_keys=False)
         )
-        if out_dir.exists():
-            _check_target(out_dir, overwrite)
-            trash = staging / f"{out_dir.name}.old"
-            out_dir.rename(trash)
-        bag.rename(out_dir)
-    except OSError as exc:
-        raise BagError(f"cannot write bag {out_dir}: {exc}") from exc
-    finally:
-        shutil.rmtree(staging, ignore_errors=True)
-    return out_dir
+
+    return _place_bag(Path(out_dir), overwrite, fill)
 
 
-def _write_bag(result: SimResult, bag: Path, *, compression: bool, fast: bool) -> None:
+def write_contract_bag(
+    out_dir: Path | str,
+    vehicle: VehicleParams,
+    series: list[TopicSeries],
+    *,
+    vehicle_comment: str = "",
+    custom_data: Mapping[str, str] | None = None,
+    extra_files: Mapping[str, str | bytes] | None = None,
+    overwrite: bool = False,
+    compression: bool = True,
+    fast: bool = True,
+) -> Path:
+    """Write any set of topic series as a contract bag directory ``out_dir``; return its path.
+
+    Args:
+        out_dir: bag directory to create (``metadata.yaml``, ``<name>.mcap``, ``vehicle.yaml``
+            and the ``extra_files``).
+        vehicle: written to ``vehicle.yaml`` (with ``vehicle_comment`` as its header comment)
+            and to the ``tire_estimation.vehicle`` custom data.
+        series: the topics (see :class:`TopicSeries`); header stamps = log times.
+        custom_data: more ``metadata.yaml`` custom data (string values); the contract version
+            and the vehicle are added.
+        extra_files: file name -> content of more files in the bag directory (text or bytes).
+        overwrite, compression, fast: as in :func:`write_sim_bag`.
+
+    Raises:
+        BagError: ``out_dir`` exists (without ``overwrite``), a topic is given twice, a file
+            name is not a plain name, or the bag cannot be written.
+    """
+    topics = [s.topic for s in series]
+    if len(set(topics)) != len(topics):
+        raise BagError(f"write_contract_bag: duplicate topic in {topics}")
+    files = dict(extra_files or {})
+    for name in files:
+        if Path(name).name != name or name in (VEHICLE_FILE, "metadata.yaml"):
+            raise BagError(f"write_contract_bag: invalid extra file name {name!r}")
+    custom = {
+        CUSTOM_CONTRACT: "v1",
+        CUSTOM_VEHICLE: yaml.safe_dump({"vehicle": vehicle.to_dict()}, sort_keys=False),
+        **{str(k): str(v) for k, v in (custom_data or {}).items()},
+    }
+
+    def fill(bag: Path) -> None:
+        _write_bag(bag, series, custom, compression=compression, fast=fast)
+        dump_vehicle_yaml(vehicle, bag / VEHICLE_FILE, comment=vehicle_comment)
+        for name, content in files.items():
+            if isinstance(content, bytes):
+                (bag / name).write_bytes(content)
+            else:
+                (bag / name).write_text(content)
+
+    return _place_bag(Path(out_dir), overwrite, fill)
+
+
+def _write_bag(
+    bag: Path,
+    series: list[TopicSeries],
+    custom: Mapping[str, str],
+    *,
+    compression: bool,
+    fast: bool,
+) -> None:
     store = get_typestore()
-    series = sim_topic_series(result)
     payloads = [s.serialize(fast=fast) for s in series]
     times = np.concatenate([s.t_ns for s in series])
     topic_idx = np.concatenate([np.full(len(s.t_ns), k) for k, s in enumerate(series)])
@@ -391,16 +513,8 @@ def _write_bag(result: SimResult, bag: Path, *, compression: bool, fast: bool) -
     writer = Writer(bag, version=9, storage_plugin=StoragePlugin.MCAP)
     if compression:
         writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
-    writer.set_custom_data(CUSTOM_CONTRACT, "v1")
-    writer.set_custom_data(
-        CUSTOM_VEHICLE, yaml.safe_dump({"vehicle": result.vehicle.to_dict()}, sort_keys=False)
-    )
-    writer.set_custom_data(CUSTOM_SCENARIO, result.scenario)
-    writer.set_custom_data(CUSTOM_SEED, str(int(result.seed)))
-    writer.set_custom_data(CUSTOM_ORIGIN, yaml.safe_dump([float(v) for v in result.origin_lla]))
-    writer.set_custom_data(
-        CUSTOM_EVENTS, yaml.safe_dump(sim_config_dict(result)["events"], sort_keys=False)
-    )
+    for key, value in custom.items():
+        writer.set_custom_data(key, value)
     try:
         writer.open()
         conns = [writer.add_connection(s.topic, s.msgtype, typestore=store) for s in series]

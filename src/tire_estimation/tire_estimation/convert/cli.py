@@ -1,0 +1,71 @@
+"""``tire-estimation convert comma2k19|revs250lm ...``: measured data to contract bags."""
+
+from __future__ import annotations
+
+import argparse
+import shlex
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+
+def _command(args: argparse.Namespace, dataset: str, source: Path) -> str:
+    parts = ["tire-estimation", "convert", dataset, str(source), "--out", str(args.out)]
+    if args.overwrite:
+        parts.append("--overwrite")
+    return shlex.join(parts)
+
+
+def _cmd_comma2k19(args: argparse.Namespace) -> int:
+    from tire_estimation.convert.comma2k19 import convert_comma2k19
+
+    t0 = time.perf_counter()
+    command = _command(args, "comma2k19", args.segment_dir)
+    path = convert_comma2k19(args.segment_dir, args.out, overwrite=args.overwrite, command=command)
+    print(f"wrote {path} ({_size_mb(path):.1f} MB in {time.perf_counter() - t0:.1f} s)")
+    return 0
+
+
+def _cmd_revs250lm(args: argparse.Namespace) -> int:
+    from tire_estimation.convert.revs250lm import convert_revs250lm
+
+    t0 = time.perf_counter()
+    command = _command(args, "revs250lm", args.data_dir)
+    path = convert_revs250lm(args.data_dir, args.out, overwrite=args.overwrite, command=command)
+    print(f"wrote {path} ({_size_mb(path):.1f} MB in {time.perf_counter() - t0:.1f} s)")
+    return 0
+
+
+def _size_mb(path: Path) -> float:
+    return sum(p.stat().st_size for p in Path(path).rglob("*") if p.is_file()) / 1e6
+
+
+def add_convert_parser(subparsers: Any) -> argparse.ArgumentParser:
+    """Add ``convert`` (with ``comma2k19`` and ``revs250lm``) to the main CLI's sub-parsers."""
+    conv = subparsers.add_parser("convert", help="convert measured data to a contract bag")
+    sub = conv.add_subparsers(dest="dataset", required=True, metavar="DATASET")
+
+    comma = sub.add_parser(
+        "comma2k19",
+        help="a comma2k19 segment folder (CAN, IMU, u-blox GNSS, global_pose reference)",
+    )
+    comma.add_argument("segment_dir", type=Path, metavar="SEGMENT_DIR")
+    comma.add_argument("--out", required=True, type=Path, help="bag directory to create")
+    comma.add_argument("--overwrite", action="store_true", help="replace an existing bag")
+    comma.set_defaults(func=_cmd_comma2k19)
+
+    revs = sub.add_parser(
+        "revs250lm", help="the Revs Ferrari 250 LM text export (steering, IMU, INS velocities)"
+    )
+    revs.add_argument("data_dir", type=Path, metavar="DATA_DIR")
+    revs.add_argument("--out", required=True, type=Path, help="bag directory to create")
+    revs.add_argument("--overwrite", action="store_true", help="replace an existing bag")
+    revs.set_defaults(func=_cmd_revs250lm)
+    return conv
+
+
+if __name__ == "__main__":  # pragma: no cover - use the main entry point
+    from tire_estimation.cli import main
+
+    sys.exit(main(["convert", *sys.argv[1:]]))
