@@ -1,0 +1,168 @@
+"""Virtual tyre sensors: the lateral force of a wheel without a sensor (Tuononen 2009, 3.2).
+
+The missing wheel of an axle is estimated from the sensor wheel of the *same axle* by the
+"similarity method": both tyres run at (nearly) the same slip angle, so
+
+* (a) the inverse Magic Formula (eq. 11) gives the slip angle of the sensor tyre from its
+  measured (Fy, Fz), and the same formula gives the virtual tyre's force at that slip angle
+  and its own load; or
+* (b) the normalized lateral force (eq. 14) of the sensor tyre is applied to the virtual
+  tyre's load (eq. 15).
+
+The virtual tyre's vertical load comes from the measured load change (eq. 12-13).
+
+Units: forces N, slip angles rad. Functions are scalar (called once per axle and sample).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import cached_property
+
+from scipy.optimize import brentq
+
+#: Fraction of the peak force above which the measured force is treated as saturated.
+SATURATION_FRACTION = 0.999
+#: Smallest vertical load used by the virtual sensors (a lifted wheel), N.
+MIN_LOAD_N = 50.0
+
+
+def _shape(x: float, e: float) -> float:
+    """phi(x) = x - E (x - atan x), the inner argument of eq. (11) for x = B alpha."""
+    return x - e * (x - math.atan(x))
+
+
+def magic_formula(alpha_rad: float, b_1_rad: float, c: float, d_n: float, e: float) -> float:
+    """Lateral force of eq. (11), N, for slip angle ``alpha_rad`` (rad).
+
+    Args:
+        alpha_rad: slip angle, rad.
+        b_1_rad: stiffness factor B, 1/rad.
+        c: shape factor C, 1.
+        d_n: peak factor D (= mu Fz), N.
+        e: curvature factor E, 1.
+    """
+    x = b_1_rad * alpha_rad
+    # Tuononen 2009 eq. (11): Fy = D sin(C atan(B a - E (B a - atan(B a))))
+    return d_n * math.sin(c * math.atan(_shape(x, e)))
+
+
+def peak_slip_factor(c: float, e: float) -> float:
+    """x* = B alpha* at the force peak of eq. (11) (C atan(phi(x*)) = pi/2); needs 1 < C < 2.
+
+    phi is strictly increasing for E < 1, so x* is the root of phi(x) = tan(pi / (2 C)).
+    """
+    target = math.tan(math.pi / (2.0 * c))
+    hi = max(1.0, 2.0 * target)
+    while _shape(hi, e) < target:
+        hi *= 2.0
+    return float(brentq(lambda x: _shape(x, e) - target, 0.0, hi, xtol=1e-12))
+
+
+def inverse_magic_formula(
+    fy_n: float, b_1_rad: float, c: float, d_n: float, e: float, x_peak: float | None = None
+) -> float:
+    """Slip angle (rad) on the rising branch of eq. (11) that gives ``fy_n``.
+
+    Solved numerically (Brent's method on eq. 11 over [0, alpha_peak]); eq. (11) is odd in the
+    slip angle, so the sign of the force is carried over. A force at or above the peak D
+    (sensor noise, or a tyre beyond its peak) returns the peak slip angle.
+
+    Args:
+        fy_n: lateral force, N.
+        b_1_rad, c, d_n, e: Magic Formula factors (B 1/rad, C, D N, E); ``d_n`` > 0.
+        x_peak: B alpha at the peak (from :func:`peak_slip_factor`); computed when None.
+    """
+    xp = peak_slip_factor(c, e) if x_peak is None else x_peak
+    alpha_peak = xp / b_1_rad
+    f_abs = abs(fy_n)
+    f_max = d_n  # sin(C atan(phi(x*))) = 1
+    if f_abs >= SATURATION_FRACTION * f_max:
+        return math.copysign(alpha_peak, fy_n)
+    if f_abs == 0.0:
+        return 0.0
+    # Tuononen 2009 eq. (11) solved for alpha: D sin(C atan(phi(B alpha))) - |Fy| = 0
+    alpha = brentq(
+        lambda a: magic_formula(a, b_1_rad, c, d_n, e) - f_abs, 0.0, alpha_peak, xtol=1e-10
+    )
+    return math.copysign(float(alpha), fy_n)
+
+
+def virtual_load(
+    fz_measured_n: float, fz_measured_static_n: float, fz_virtual_static_n: float
+) -> float:
+    """Vertical load of the virtual tyre, N (longitudinal load transfer neglected).
+
+    Args:
+        fz_measured_n: measured vertical load Fz,1 of the sensor tyre, N.
+        fz_measured_static_n: static load Fz,1,static of the sensor tyre, N.
+        fz_virtual_static_n: static load Fz,2,static of the virtual tyre, N.
+    """
+    # Tuononen 2009 eq. (12): dFz,1 = Fz,1 - Fz,1,static
+    delta_fz = fz_measured_n - fz_measured_static_n
+    # Tuononen 2009 eq. (13): Fz,2 = Fz,2,static - dFz,1
+    return max(MIN_LOAD_N, fz_virtual_static_n - delta_fz)
+
+
+def virtual_force_normalized(
+    fy_measured_n: float, fz_measured_n: float, fz_virtual_n: float
+) -> float:
+    """Virtual tyre lateral force by the normalized lateral force, N."""
+    # Tuononen 2009 eq. (14): mu_f = Fy,1 / Fz,1
+    mu_f = fy_measured_n / max(MIN_LOAD_N, fz_measured_n)
+    # Tuononen 2009 eq. (15): Fy,2 = mu_f Fz,2
+    return mu_f * fz_virtual_n
+
+
+@dataclass(frozen=True)
+class MagicFormulaTyre:
+    """Lateral Magic Formula of one axle's tyres, with D = mu Fz (similarity in the load).
+
+    ``b_1_rad`` None: B is set per load so that the small-slip stiffness B C D equals
+    ``cornering_stiffness_n_rad`` (load-independent cornering stiffness, as the simulator's
+    tyre). A number: constant B (the paper's assumption; then the stiffness scales with Fz).
+
+    Attributes:
+        c: shape factor C, 1 (in (1, 2)).
+        e: curvature factor E, 1 (< 1).
+        mu: peak friction coefficient, D = mu Fz, 1.
+        cornering_stiffness_n_rad: small-slip stiffness of one tyre, N/rad (used if B is None).
+        b_1_rad: constant stiffness factor B, 1/rad, or None.
+    """
+
+    c: float
+    e: float
+    mu: float
+    cornering_stiffness_n_rad: float
+    b_1_rad: float | None = None
+
+    @cached_property
+    def x_peak(self) -> float:
+        """B alpha at the force peak, 1."""
+        return peak_slip_factor(self.c, self.e)
+
+    def factors(self, fz_n: float) -> tuple[float, float]:
+        """(B 1/rad, D N) at vertical load ``fz_n`` (N)."""
+        d = self.mu * max(MIN_LOAD_N, fz_n)
+        if self.b_1_rad is not None:
+            return self.b_1_rad, d
+        # small-slip slope dFy/dalpha = B C D = cornering stiffness
+        return self.cornering_stiffness_n_rad / (self.c * d), d
+
+    def force(self, alpha_rad: float, fz_n: float) -> float:
+        """Eq. (11) at slip angle ``alpha_rad`` (rad) and load ``fz_n`` (N): Fy, N."""
+        b, d = self.factors(fz_n)
+        return magic_formula(alpha_rad, b, self.c, d, self.e)
+
+    def slip_angle(self, fy_n: float, fz_n: float) -> float:
+        """Inverse of eq. (11): slip angle (rad) for lateral force ``fy_n`` at load ``fz_n``."""
+        b, d = self.factors(fz_n)
+        return inverse_magic_formula(fy_n, b, self.c, d, self.e, self.x_peak)
+
+    def virtual_force(
+        self, fy_measured_n: float, fz_measured_n: float, fz_virtual_n: float
+    ) -> float:
+        """Virtual tyre lateral force, N, at the sensor tyre's slip angle (method a)."""
+        alpha = self.slip_angle(fy_measured_n, fz_measured_n)
+        return self.force(alpha, fz_virtual_n)
