@@ -1,0 +1,190 @@
+"""Frozen, validated configuration of the tyre-radius estimators.
+
+Every field is checked at construction; a bad value raises
+:class:`~tire_estimation.errors.ConfigError` naming the field and the value.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from tire_estimation.core.resampling import RESAMPLERS
+from tire_estimation.core.validation import (
+    require_int_range,
+    require_non_negative,
+    require_positive,
+    require_range,
+)
+from tire_estimation.errors import ConfigError
+
+WHEEL_MODES = ("rear", "all")
+
+
+@dataclass(frozen=True)
+class RadiusEstimatorConfig:
+    """Configuration of :class:`~tire_estimation.core.radius_estimator.RadiusEstimator`.
+
+    Equation numbers refer to Lundquist et al., IEEE T-ITS 2014.
+
+    Attributes:
+        n_particles: number of particles N of the MPF. Default 500.
+        resampler: ``systematic`` (default), ``stratified``, ``multinomial`` or ``residual``.
+        resample_threshold: resample when N_eff / N falls below this, (0, 1]. Default 0.5.
+        forgetting_factor: lambda of the NiW time update (eq. 24), per wheel-speed sample; the
+            statistics cover about ``1 / (1 - lambda)`` samples. Default 0.9998 (50 s at 100 Hz).
+        prior_radius_error_m: initial mean radius error of every estimated wheel, m. Default 0.
+        prior_radius_error_std_m: prior standard deviation of the mean radius error, m
+            (sets gamma_0 of eq. 22b). Default 0.003.
+        prior_radius_noise_std_m: prior expected fast radius variation (sqrt of E[Sigma],
+            eq. 22c), m. Default 0.001.
+        prior_dof: prior inverse-Wishart degrees of freedom nu_0 (> d + 1). Default 10.
+        radius_random_walk_m_sqrt_s: random walk of every particle's NiW mean radius error,
+            m/sqrt(s) (beyond the paper: artificial dynamics that keep the radius hypotheses
+            diverse after resampling; 0 disables). Default 5e-5.
+        kernel_shrinkage: Liu-West shrinkage ``a`` applied to the NiW means at each resampling
+            (beyond the paper; keeps the mean and covariance of the cloud of means, refreshes
+            duplicates), in [0, 1); 0 disables. Default 0.98.
+        position_process_noise_m_sqrt_s: additive random walk on east/north, m/sqrt(s).
+            Default 0.01.
+        yaw_process_noise_rad_sqrt_s: additive random walk on the heading, rad/sqrt(s).
+            Default 0.002.
+        gnss_default_std_m: horizontal GNSS std used when a fix has no covariance, m.
+            Default 1.5.
+        gnss_gate_probability: chi-square (2 dof) probability of the innovation gate; fixes
+            with a larger NIS are rejected as outliers. Default 0.9999 (NIS 18.4).
+        gnss_max_rejections: after this many consecutive rejected fixes the pose is
+            re-initialized from GNSS (a genuine relocation). Default 5.
+        gnss_max_gap_s: a fix arriving more than this after the last accepted one
+            re-initializes the pose, s. Default 30.
+        max_gap_s: a wheel-speed gap longer than this re-initializes the pose prediction (the
+            learned radii are kept), s. Default 2.
+        init_min_distance_m: distance between the two GNSS fixes that initialize the heading,
+            m. Default 10.
+        min_speed_m_s: the radius estimation pauses below this speed, m/s. Default 7 (paper).
+        steering_heading_speed_m_s: below this speed the heading is propagated from the steer
+            angle (eq. 31a) instead of the wheel-speed difference, m/s. Default 11 (paper).
+        max_abs_ax_m_s2: pause when |longitudinal acceleration| exceeds this, m/s^2 (IMU when
+            present, else derivative of the wheel speed). Default 2.0.
+        max_abs_ay_m_s2: pause when |lateral acceleration| exceeds this, m/s^2 (IMU when
+            present, else speed^2 tan(steer) / wheelbase, else estimated yaw rate x speed).
+            Default 4.0.
+        braking_decel_m_s2: a deceleration above this is treated as braking and pauses, m/s^2.
+            Default 1.0.
+        imu_timeout_s: IMU samples older than this are ignored by the gates, s. Default 0.5.
+        accel_filter_time_constant_s: low-pass time constant of the wheel-speed derivative, s.
+            Default 0.3.
+        non_increasing_after_calibration: after ``calibration_time_s`` of active estimation
+            the radii may only decrease (deflation, as in Section IV-B). Default False.
+        calibration_time_s: active estimation time that ends the calibration, s. Default 1200.
+        non_increasing_margin_m: tolerance above the calibrated radius error, m. Default 2e-4.
+        wheels: ``rear`` (default, the paper) or ``all`` (adds the front radii, see
+            ``radius_estimator``).
+        run_aug_kf: also run the AUG-KF baseline (eq. 10-11). Default False.
+        aug_kf_radius_random_walk_m_sqrt_s: random walk of the radius errors in the AUG-KF
+            state, m/sqrt(s). Default 2e-5.
+        seed: seed for the node's ``np.random.Generator``. Default 0.
+    """
+
+    n_particles: int = 500
+    resampler: str = "systematic"
+    resample_threshold: float = 0.5
+    forgetting_factor: float = 0.9998
+    prior_radius_error_m: float = 0.0
+    prior_radius_error_std_m: float = 0.003
+    prior_radius_noise_std_m: float = 0.001
+    prior_dof: float = 10.0
+    radius_random_walk_m_sqrt_s: float = 5e-5
+    kernel_shrinkage: float = 0.98
+    position_process_noise_m_sqrt_s: float = 0.01
+    yaw_process_noise_rad_sqrt_s: float = 0.002
+    gnss_default_std_m: float = 1.5
+    gnss_gate_probability: float = 0.9999
+    gnss_max_rejections: int = 5
+    gnss_max_gap_s: float = 30.0
+    max_gap_s: float = 2.0
+    init_min_distance_m: float = 10.0
+    min_speed_m_s: float = 7.0
+    steering_heading_speed_m_s: float = 11.0
+    max_abs_ax_m_s2: float = 2.0
+    max_abs_ay_m_s2: float = 4.0
+    braking_decel_m_s2: float = 1.0
+    imu_timeout_s: float = 0.5
+    accel_filter_time_constant_s: float = 0.3
+    non_increasing_after_calibration: bool = False
+    calibration_time_s: float = 1200.0
+    non_increasing_margin_m: float = 2e-4
+    wheels: str = "rear"
+    run_aug_kf: bool = False
+    aug_kf_radius_random_walk_m_sqrt_s: float = 2e-5
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        require_int_range("n_particles", self.n_particles, 10, 1_000_000)
+        if self.resampler not in RESAMPLERS:
+            raise ConfigError("resampler", self.resampler, f"must be one of {tuple(RESAMPLERS)}")
+        require_range("resample_threshold", self.resample_threshold, 1e-6, 1.0)
+        require_range("forgetting_factor", self.forgetting_factor, 0.5, 1.0)
+        require_range("prior_radius_error_m", self.prior_radius_error_m, -0.05, 0.05)
+        require_range("prior_radius_error_std_m", self.prior_radius_error_std_m, 1e-6, 0.05)
+        require_range("prior_radius_noise_std_m", self.prior_radius_noise_std_m, 1e-7, 0.05)
+        require_range("prior_dof", self.prior_dof, 6.0, 1e9)
+        require_range("radius_random_walk_m_sqrt_s", self.radius_random_walk_m_sqrt_s, 0.0, 0.01)
+        require_range("kernel_shrinkage", self.kernel_shrinkage, 0.0, 0.999999)
+        require_non_negative(
+            "position_process_noise_m_sqrt_s", self.position_process_noise_m_sqrt_s
+        )
+        require_non_negative("yaw_process_noise_rad_sqrt_s", self.yaw_process_noise_rad_sqrt_s)
+        require_positive("gnss_default_std_m", self.gnss_default_std_m)
+        require_range("gnss_gate_probability", self.gnss_gate_probability, 0.5, 1.0 - 1e-15)
+        require_int_range("gnss_max_rejections", self.gnss_max_rejections, 1, 1000)
+        require_positive("gnss_max_gap_s", self.gnss_max_gap_s)
+        require_positive("max_gap_s", self.max_gap_s)
+        require_positive("init_min_distance_m", self.init_min_distance_m)
+        require_non_negative("min_speed_m_s", self.min_speed_m_s)
+        require_non_negative("steering_heading_speed_m_s", self.steering_heading_speed_m_s)
+        require_positive("max_abs_ax_m_s2", self.max_abs_ax_m_s2)
+        require_positive("max_abs_ay_m_s2", self.max_abs_ay_m_s2)
+        require_positive("braking_decel_m_s2", self.braking_decel_m_s2)
+        require_positive("imu_timeout_s", self.imu_timeout_s)
+        require_positive("accel_filter_time_constant_s", self.accel_filter_time_constant_s)
+        if not isinstance(self.non_increasing_after_calibration, bool):
+            raise ConfigError(
+                "non_increasing_after_calibration",
+                self.non_increasing_after_calibration,
+                "must be a bool",
+            )
+        require_non_negative("calibration_time_s", self.calibration_time_s)
+        require_non_negative("non_increasing_margin_m", self.non_increasing_margin_m)
+        if self.wheels not in WHEEL_MODES:
+            raise ConfigError("wheels", self.wheels, f"must be one of {WHEEL_MODES}")
+        if not isinstance(self.run_aug_kf, bool):
+            raise ConfigError("run_aug_kf", self.run_aug_kf, "must be a bool")
+        require_non_negative(
+            "aug_kf_radius_random_walk_m_sqrt_s", self.aug_kf_radius_random_walk_m_sqrt_s
+        )
+        require_int_range("seed", self.seed, 0, 2**63 - 1)
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> RadiusEstimatorConfig:
+        """Build from a mapping (e.g. ROS parameters); unknown keys raise ConfigError."""
+        if not isinstance(data, Mapping):
+            raise ConfigError("radius_estimator", data, "must be a mapping")
+        names = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(data) - names)
+        if unknown:
+            raise ConfigError(unknown[0], data[unknown[0]], "unknown key")
+        kwargs = {}
+        for f in dataclasses.fields(cls):
+            if f.name in data:
+                v = data[f.name]
+                if f.type in ("float",) and isinstance(v, int) and not isinstance(v, bool):
+                    v = float(v)
+                kwargs[f.name] = v
+        return cls(**kwargs)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain mapping of every field."""
+        return dataclasses.asdict(self)

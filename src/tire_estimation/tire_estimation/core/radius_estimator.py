@@ -1,0 +1,702 @@
+"""Front-end of the tyre-radius estimation: input validation, gates, GNSS handling, estimates.
+
+The ROS node and the bag replay drive the same :class:`RadiusEstimator`. Bad input never raises
+out of the ``on_*`` methods: the sample is dropped and counted in :attr:`RadiusEstimator.stats`.
+
+Beyond the paper (``wheels='all'``): the front radii are estimated from the front wheel speeds
+and the rear-based speed and yaw rate (kinematic front-wheel rolling speed with Ackermann steer
+angles, :meth:`RadiusMotionModel.front_wheel_geometry`). For a driven front axle the rolling
+speed is corrected by the slip ``s = F_x / C_x`` with ``F_x = m a_x`` (a slip-vs-acceleration
+coefficient ``m / C_x`` from the vehicle description). The per-sample pseudo measurement
+``delta_i = v_roll_i (1 + s) / omega_i - r`` feeds a single NiW (d = 2, forgetting factor as the
+MPF) whose MMSE mean is the front radius error. The slip that balances the driving resistance
+at constant speed (rolling resistance, drag) is not modelled and cannot be separated from the
+radius: it biases the front radii of a driven axle by about ``r F_resist / C_x`` (see the tests).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.stats import chi2
+
+from tire_estimation.core import niw
+from tire_estimation.core.aug_kf import AugKf
+from tire_estimation.core.config import RadiusEstimatorConfig
+from tire_estimation.core.radius_model import FL, FR, RadiusMotionModel
+from tire_estimation.core.radius_mpf import RadiusMPF
+from tire_estimation.core.vehicle import VehicleParams
+from tire_estimation.core.wheels import FRONT_WHEELS, REAR_WHEELS, WHEEL_INDEX, WHEELS
+from tire_estimation.errors import InputError
+
+F64 = NDArray[np.float64]
+
+_SHORT = {"fl": 0, "fr": 1, "rl": 2, "rr": 3}
+STATE_DICT_VERSION = 1
+
+
+@dataclass(frozen=True)
+class GnssUpdate:
+    """Outcome of one GNSS fix.
+
+    Attributes:
+        t_ns: stamp of the fix.
+        innovation_m: (east, north) measurement minus prediction, m (zeros when not computed).
+        innovation_cov_m2: its covariance (2, 2), m^2.
+        nis: normalized innovation squared (0 when not computed).
+        accepted: the fix was used (measurement update, anchoring or initialization).
+        reason: short explanation (``updated``, ``anchored (paused)``, ``outlier``, ...).
+    """
+
+    t_ns: int
+    innovation_m: F64
+    innovation_cov_m2: F64
+    nis: float
+    accepted: bool
+    reason: str
+
+
+@dataclass(frozen=True)
+class BaselineEstimate:
+    """AUG-KF estimate (same meaning as in :class:`RadiusEstimate`)."""
+
+    radius_error_m: F64
+    radius_error_std_m: F64
+    pose: F64
+    pose_cov: F64
+
+
+@dataclass(frozen=True)
+class RadiusEstimate:
+    """Current estimate.
+
+    Attributes:
+        t_ns: stamp of the latest wheel-speed sample used.
+        wheels: wheel names covered, in the order of the arrays below.
+        radius_error_m: MMSE radius error (effective minus nominal radius) per wheel, m.
+        radius_error_std_m: posterior std of the radius error per wheel, m.
+        radius_noise_std_m: sqrt of the diagonal of the MMSE NiW covariance (fast variation), m.
+        active: per wheel, the estimate is being updated now (not paused).
+        pose: ``[east_m, north_m, yaw_rad]`` of ``base_link`` in the local ENU frame.
+        pose_cov: (3, 3) covariance of the pose.
+        speed_m_s: estimated speed of ``base_link``.
+        yaw_rate_rad_s: estimated yaw rate.
+        n_eff: effective sample size of the MPF.
+        resample_count: resamplings so far.
+        state: ``initializing``, ``running`` or ``paused``.
+        state_reason: why (e.g. ``low speed``, ``braking``, ``waiting for GNSS``).
+        baseline: AUG-KF estimate when ``run_aug_kf`` (else None).
+    """
+
+    t_ns: int
+    wheels: tuple[str, ...]
+    radius_error_m: F64
+    radius_error_std_m: F64
+    radius_noise_std_m: F64
+    active: tuple[bool, ...]
+    pose: F64
+    pose_cov: F64
+    speed_m_s: float
+    yaw_rate_rad_s: float
+    n_eff: float
+    resample_count: int
+    state: str
+    state_reason: str
+    baseline: BaselineEstimate | None = None
+
+
+@dataclass
+class _Stream:
+    last_t_ns: int | None = None
+
+
+@dataclass
+class _Init:
+    """Two-fix initialization of the pose: anchor fix and body-frame odometry since then."""
+
+    anchor: F64 | None = None
+    body: F64 = field(default_factory=lambda: np.zeros(3))
+
+
+def _finite(kind: str, *values: float) -> None:
+    for v in values:
+        if not math.isfinite(v):
+            raise InputError("nan", f"{kind}: non-finite value {v!r}")
+
+
+class RadiusEstimator:
+    """Tyre-radius estimator front-end (MPF + optional AUG-KF baseline).
+
+    Args:
+        config: estimator configuration.
+        vehicle: vehicle description (nominal radius, track, wheelbase, antenna position).
+        rng: the random generator of the particle filter.
+    """
+
+    def __init__(
+        self, config: RadiusEstimatorConfig, vehicle: VehicleParams, rng: np.random.Generator
+    ) -> None:
+        self.config = config
+        self.vehicle = vehicle
+        self.rng = rng
+        self.model = RadiusMotionModel.from_vehicle(vehicle)
+        self.lever_arm_m = np.array(vehicle.gnss_antenna_position_m[:2], dtype=float)
+        self._gate = float(chi2.ppf(config.gnss_gate_probability, 2))
+        c = config
+        self.mpf = RadiusMPF(
+            self.model,
+            c.n_particles,
+            np.full(2, c.prior_radius_error_m),
+            c.prior_radius_error_std_m,
+            c.prior_radius_noise_std_m,
+            c.prior_dof,
+            c.forgetting_factor,
+            c.resampler,
+            c.resample_threshold,
+            c.position_process_noise_m_sqrt_s,
+            c.yaw_process_noise_rad_sqrt_s,
+            rng,
+            mean_random_walk_m_sqrt_s=c.radius_random_walk_m_sqrt_s,
+            kernel_shrinkage=c.kernel_shrinkage,
+        )
+        self.kf: AugKf | None = None
+        if c.run_aug_kf:
+            self.kf = AugKf(
+                self.model,
+                np.full(2, c.prior_radius_error_m),
+                c.prior_radius_error_std_m,
+                c.prior_radius_noise_std_m,
+                c.aug_kf_radius_random_walk_m_sqrt_s,
+                c.position_process_noise_m_sqrt_s,
+                c.yaw_process_noise_rad_sqrt_s,
+            )
+        self.stats: dict[str, int] = {}
+        self.reset()
+
+    # ------------------------------------------------------------------ housekeeping
+    def reset(self) -> None:
+        """Forget everything: radii, pose, origin, counters of the gates (not ``stats``)."""
+        self.mpf.reset_radii()
+        if self.kf is not None:
+            self.kf.reset_radii()
+        self._front = self._front_prior()
+        self._ltp: Any = None
+        self._streams = {k: _Stream() for k in ("wheel", "steering", "imu", "gnss")}
+        self._prev_ws: F64 | None = None
+        self._t_pose_ns: int | None = None
+        self._pose_ok = False
+        self._init = _Init()
+        self._steer: tuple[int, float] | None = None
+        self._imu: tuple[int, F64, F64] | None = None
+        self._ax_lp = 0.0
+        self._prev_v: float | None = None
+        self._active = False
+        self._reason = "waiting for wheel speeds"
+        self._rejections = 0
+        self._t_last_fix_ns: int | None = None
+        self._active_time_s = 0.0
+        self._upper: F64 | None = None
+        self._cache = self.mpf.estimate()
+
+    def _front_prior(self) -> niw.NiwStats:
+        c = self.config
+        d = 2
+        gamma0 = (c.prior_radius_error_std_m / c.prior_radius_noise_std_m) ** 2
+        scale0 = np.eye(d) * c.prior_radius_noise_std_m**2 * (c.prior_dof - d - 1.0)
+        return niw.init_stats(1, np.full(d, c.prior_radius_error_m), gamma0, c.prior_dof, scale0)
+
+    def _drop(self, kind: str) -> None:
+        self.stats[kind] = self.stats.get(kind, 0) + 1
+
+    def _check_order(self, stream: str, t_ns: int) -> None:
+        if isinstance(t_ns, bool) or not isinstance(t_ns, (int, np.integer)):
+            raise InputError("bad_stamp", f"{stream}: stamp must be an integer, got {t_ns!r}")
+        last = self._streams[stream].last_t_ns
+        if last is not None:
+            if t_ns == last:
+                raise InputError("duplicate", f"{stream}: duplicate stamp {t_ns}")
+            if t_ns < last:
+                raise InputError("out_of_order", f"{stream}: stamp {t_ns} before {last}")
+
+    # ------------------------------------------------------------------ inputs
+    def on_steering(self, t_ns: int, angle_rad: float) -> None:
+        """Mean road-wheel steer angle (rad, positive left); used by eq. (31a) at low speed."""
+        try:
+            self._check_order("steering", t_ns)
+            _finite("steering", float(angle_rad))
+            if abs(angle_rad) > 1.2:
+                raise InputError("out_of_range", f"steering angle {angle_rad} rad")
+        except (InputError, TypeError, ValueError) as exc:
+            self._drop(exc.kind if isinstance(exc, InputError) else "bad_value")
+            return
+        self._streams["steering"].last_t_ns = int(t_ns)
+        self._steer = (int(t_ns), float(angle_rad))
+
+    def on_imu(
+        self, t_ns: int, angular_velocity_rad_s: Any, linear_acceleration_m_s2: Any
+    ) -> None:
+        """IMU sample in ``base_link`` axes (only used by the acceleration gates)."""
+        try:
+            self._check_order("imu", t_ns)
+            gyro = np.asarray(angular_velocity_rad_s, dtype=float).reshape(-1)
+            acc = np.asarray(linear_acceleration_m_s2, dtype=float).reshape(-1)
+            if gyro.shape != (3,) or acc.shape != (3,):
+                raise InputError("wrong_length", "imu vectors must have 3 components")
+            _finite("imu", *gyro, *acc)
+        except (InputError, TypeError, ValueError) as exc:
+            self._drop(exc.kind if isinstance(exc, InputError) else "bad_value")
+            return
+        self._streams["imu"].last_t_ns = int(t_ns)
+        self._imu = (int(t_ns), gyro, acc)
+
+    def _parse_wheels(self, wheel_speed_rad_s: Any) -> F64:
+        if isinstance(wheel_speed_rad_s, Mapping):
+            ws = np.full(4, np.nan)
+            for name, value in wheel_speed_rad_s.items():
+                idx = WHEEL_INDEX.get(name, _SHORT.get(name))
+                if idx is None:
+                    raise InputError("unknown_wheel", f"unknown wheel name {name!r}")
+                ws[idx] = float(value)
+            if len(wheel_speed_rad_s) != 4:
+                raise InputError("wrong_length", f"need 4 wheels, got {len(wheel_speed_rad_s)}")
+        else:
+            ws = np.asarray(wheel_speed_rad_s, dtype=float).reshape(-1)
+            if ws.shape != (4,):
+                raise InputError("wrong_length", f"need 4 wheel speeds, got {ws.shape[0]}")
+        _finite("wheel speeds", *ws)
+        if np.any(np.abs(ws) > 1000.0):
+            raise InputError("out_of_range", f"wheel speed above 1000 rad/s: {ws}")
+        return ws
+
+    def on_wheel_speeds(self, t_ns: int, wheel_speed_rad_s: Any) -> None:
+        """Wheel speeds (fl, fr, rl, rr) in rad/s; drives the prediction of the filters."""
+        try:
+            self._check_order("wheel", t_ns)
+            ws = self._parse_wheels(wheel_speed_rad_s)
+        except (InputError, TypeError, ValueError) as exc:
+            self._drop(exc.kind if isinstance(exc, InputError) else "bad_value")
+            return
+        t_ns = int(t_ns)
+        last = self._streams["wheel"].last_t_ns
+        self._streams["wheel"].last_t_ns = t_ns
+        prev = self._prev_ws
+        self._prev_ws = ws
+        if last is None or prev is None:
+            self._t_pose_ns = t_ns
+            return
+        dt = (t_ns - last) * 1e-9
+        if dt > self.config.max_gap_s:
+            self._drop("gap")
+            self._reinit_pose("wheel-speed gap")
+            self._t_pose_ns = t_ns
+            self._prev_v = None
+            return
+        self._step(dt, t_ns, prev, ws)
+
+    def _gates(self, t_ns: int, dt: float, ws: F64) -> tuple[bool, str, float, float, F64 | None]:
+        c = self.config
+        # speed and yaw rate with the learned radii (eq. 6): the virtual yaw rate (eq. 4b) is
+        # off by ~0.05 rad/s per mm of left-right radius difference (eq. 9b)
+        v, yr = self.model.speed_yaw_rate(ws, self._cache.radius.mean)
+        v, yr = float(v), float(yr)
+        if self._prev_v is not None and dt > 0:
+            a = (v - self._prev_v) / dt
+            k = dt / (c.accel_filter_time_constant_s + dt)
+            self._ax_lp += k * (a - self._ax_lp)
+        self._prev_v = v
+        imu_ok = self._imu is not None and (t_ns - self._imu[0]) * 1e-9 <= c.imu_timeout_s
+        steer_ok = self._steer is not None and (t_ns - self._steer[0]) * 1e-9 <= c.imu_timeout_s
+        if imu_ok and self._imu is not None:
+            ax, ay = float(self._imu[2][0]), float(self._imu[2][1])
+        elif steer_ok and self._steer is not None:
+            # lateral acceleration from the steer angle (independent of the radius estimates,
+            # which may still be wrong while the filter converges)
+            ax, ay = self._ax_lp, v * float(self.model.steering_yaw_rate(v, self._steer[1]))
+        else:
+            ax, ay = self._ax_lp, v * yr
+        steer = None
+        if steer_ok and self._steer is not None and abs(v) < c.steering_heading_speed_m_s:
+            steer = self._steer[1]
+        if v < c.min_speed_m_s:
+            return False, "low speed", ax, ay, steer
+        if ax < -c.braking_decel_m_s2:
+            return False, "braking", ax, ay, steer
+        if abs(ax) > c.max_abs_ax_m_s2:
+            return False, "longitudinal acceleration", ax, ay, steer
+        if abs(ay) > c.max_abs_ay_m_s2:
+            return False, "lateral acceleration", ax, ay, steer
+        return True, "estimating", ax, ay, steer
+
+    def _step(self, dt: float, t_ns: int, ws: F64, ws_new: F64) -> None:
+        """Propagate over ``dt`` with the speeds ``ws`` of the interval start (eq. 3, zero-order
+        hold); the gates use the newest sample ``ws_new``."""
+        active, reason, ax, _ay, steer = self._gates(t_ns, dt, ws_new)
+        steer_for_front = steer if steer is not None else (self._steer[1] if self._steer else 0.0)
+        if not self._pose_ok:
+            # dead-reckon in the body frame of the anchor fix (two-fix heading initialization)
+            if self._init.anchor is not None:
+                mu = self._cache.radius.mean
+                v, yr = self.model.speed_yaw_rate(ws, mu)
+                b = self._init.body
+                b[0] += dt * float(v) * math.cos(b[2])
+                b[1] += dt * float(v) * math.sin(b[2])
+                b[2] += dt * float(yr)
+            self._active = False
+            self._reason = "waiting for GNSS"
+            self._t_pose_ns = t_ns
+            return
+        self.mpf.predict(dt, ws, learn=active, steer_angle_rad=steer)
+        if self.kf is not None:
+            self.kf.predict(dt, ws, learn=active, steer_angle_rad=steer)
+        self._t_pose_ns = t_ns
+        self._active = active
+        self._reason = reason
+        if active:
+            self._active_time_s += dt
+            if self.config.wheels == "all":
+                self._front_update(ws, ax, steer_for_front)
+
+    def _front_update(self, ws: F64, ax: float, steer: float) -> None:
+        """Front radius pseudo measurement and NiW update (beyond the paper)."""
+        mu = self._cache.radius.mean
+        v, yr = self.model.speed_yaw_rate(ws, mu)
+        a, b = self.model.front_wheel_geometry(steer)
+        v_roll = a * float(v) + b * float(yr)
+        veh = self.vehicle
+        if veh.drive == "front":
+            slip = veh.mass_kg * ax / veh.longitudinal_stiffness_front_n
+        elif veh.drive == "all":
+            slip = 0.5 * veh.mass_kg * ax / veh.longitudinal_stiffness_front_n
+        else:
+            slip = 0.0
+        omega = ws[[FL, FR]]
+        if np.any(np.abs(omega) < 1.0):
+            return
+        delta = v_roll * (1.0 + slip) / omega - self.model.nominal_radius_m
+        niw.time_update(self._front, self.config.forgetting_factor)
+        niw.measurement_update(self._front, delta[None, :])
+
+    def _reinit_pose(self, why: str) -> None:
+        self._pose_ok = False
+        self._init = _Init()
+        self._reason = f"waiting for GNSS ({why})"
+
+    # ------------------------------------------------------------------ GNSS
+    def on_gnss_fix(
+        self,
+        t_ns: int,
+        lat_deg: float,
+        lon_deg: float,
+        alt_m: float,
+        position_covariance_m2: Any = None,
+    ) -> GnssUpdate:
+        """GNSS antenna fix (WGS-84) with an optional ENU covariance (3, 3)."""
+        zeros2, eye2 = np.zeros(2), np.zeros((2, 2))
+        try:
+            self._check_order("gnss", t_ns)
+            lat, lon, alt = float(lat_deg), float(lon_deg), float(alt_m)
+            _finite("gnss", lat, lon, alt)
+            if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 360.0 and abs(alt) < 1e5):
+                raise InputError("out_of_range", f"gnss fix out of range: {lat}, {lon}, {alt}")
+            r = self._gnss_cov(position_covariance_m2)
+        except (InputError, TypeError, ValueError) as exc:
+            kind = exc.kind if isinstance(exc, InputError) else "bad_value"
+            self._drop(kind)
+            return GnssUpdate(int(t_ns) if _is_int(t_ns) else 0, zeros2, eye2, 0.0, False, kind)
+        t_ns = int(t_ns)
+        self._streams["gnss"].last_t_ns = t_ns
+        try:
+            if self._ltp is None:
+                from tire_estimation.core.geodesy import LocalTangentPlane
+
+                self._ltp = LocalTangentPlane(lat, lon, alt)
+            e, n, _u = self._ltp.to_enu(lat, lon, alt)
+            y = np.array([float(e), float(n)])
+            _finite("gnss", *y)
+        except Exception:
+            self._drop("bad_value")
+            return GnssUpdate(t_ns, zeros2, eye2, 0.0, False, "bad_value")
+        return self.on_gnss_enu(t_ns, y, r)
+
+    def _gnss_cov(self, cov: Any) -> F64:
+        sd = self.config.gnss_default_std_m
+        if cov is None:
+            return np.eye(2) * sd**2
+        c = np.asarray(cov, dtype=float)
+        if c.size == 9:
+            c = c.reshape(3, 3)[:2, :2]
+        elif c.size == 4:
+            c = c.reshape(2, 2)
+        else:
+            raise InputError("wrong_length", f"gnss covariance must be 3x3, got size {c.size}")
+        if not np.all(np.isfinite(c)):
+            raise InputError("nan", "gnss covariance not finite")
+        c = 0.5 * (c + c.T)
+        if np.all(c == 0.0):
+            return np.eye(2) * sd**2  # "covariance unknown"
+        if np.linalg.eigvalsh(c)[0] <= 0.0:
+            raise InputError("bad_covariance", "gnss covariance not positive definite")
+        return c
+
+    def on_gnss_enu(self, t_ns: int, y_m: F64, r_m2: F64) -> GnssUpdate:
+        """GNSS update with a fix already in the local ENU frame (east, north) and its (2, 2)
+        covariance. Called by :meth:`on_gnss_fix`; usable directly by tests and simulations."""
+        c = self.config
+        zeros2 = np.zeros(2)
+        if (
+            self._pose_ok
+            and self._t_last_fix_ns is not None
+            and (t_ns - self._t_last_fix_ns) * 1e-9 > c.gnss_max_gap_s
+        ):
+            self._drop("gnss_gap")
+            self._reinit_pose("GNSS gap")
+        if not self._pose_ok:
+            return self._initialize(t_ns, y_m, r_m2)
+        ext = 0.0 if self._t_pose_ns is None else (t_ns - self._t_pose_ns) * 1e-9
+        if abs(ext) > 0.5:
+            self._drop("stale")
+            return GnssUpdate(t_ns, zeros2, r_m2, 0.0, False, "stale (no wheel speeds)")
+        pred = self.mpf.predict_fix(y_m, r_m2, self.lever_arm_m, ext)
+        if not math.isfinite(pred.nis) or pred.nis > self._gate:
+            self._drop("gnss_outlier")
+            self._rejections += 1
+            if self._rejections >= c.gnss_max_rejections:
+                self._rejections = 0
+                self._reinit_pose("repeated GNSS outliers")
+                self._initialize(t_ns, y_m, r_m2)
+                return GnssUpdate(
+                    t_ns,
+                    pred.innovation_m,
+                    pred.innovation_cov_m2,
+                    pred.nis,
+                    False,
+                    "outlier; pose re-initialization",
+                )
+            return GnssUpdate(
+                t_ns, pred.innovation_m, pred.innovation_cov_m2, pred.nis, False, "outlier"
+            )
+        self._rejections = 0
+        self._t_last_fix_ns = t_ns
+        learn = self._active
+        if learn:
+            self.mpf.update(y_m, r_m2, pred)
+            self._calibration()
+            reason = "updated"
+        else:
+            self.mpf.anchor(y_m, r_m2, pred)
+            reason = f"anchored ({self._reason})"
+        if self.kf is not None:
+            upd, hj = self.kf.innovation(y_m, r_m2, self.lever_arm_m, ext)
+            if upd.nis <= self._gate * 4.0:
+                self.kf.update(upd, hj, learn=learn)
+        self._cache = self.mpf.estimate()
+        return GnssUpdate(t_ns, pred.innovation_m, pred.innovation_cov_m2, pred.nis, True, reason)
+
+    def _calibration(self) -> None:
+        c = self.config
+        if not c.non_increasing_after_calibration:
+            return
+        if self._upper is None and self._active_time_s >= c.calibration_time_s:
+            self._upper = self.mpf.estimate().radius.mean + c.non_increasing_margin_m
+        if self._upper is not None:
+            self.mpf.clip_mean(self._upper)
+
+    def _initialize(self, t_ns: int, y_m: F64, r_m2: F64) -> GnssUpdate:
+        """Two-fix pose initialization: heading from the GNSS displacement vs the odometry."""
+        zeros2 = np.zeros(2)
+        self._t_last_fix_ns = t_ns
+        if self._init.anchor is None or self._prev_ws is None:
+            self._init = _Init(anchor=np.array(y_m, dtype=float))
+            return GnssUpdate(t_ns, zeros2, r_m2, 0.0, True, "initializing (anchor fix)")
+        d_enu = y_m - self._init.anchor
+        dist = float(np.hypot(*d_enu))
+        b = self._init.body
+        d_body = float(np.hypot(b[0], b[1]))
+        if dist < self.config.init_min_distance_m:
+            if d_body > 3.0 * self.config.init_min_distance_m:
+                self._init = _Init(anchor=np.array(y_m, dtype=float))
+            return GnssUpdate(t_ns, zeros2, r_m2, 0.0, True, "initializing (moving)")
+        if not 0.5 * dist < d_body < 2.0 * dist:
+            self._init = _Init(anchor=np.array(y_m, dtype=float))
+            return GnssUpdate(t_ns, zeros2, r_m2, 0.0, False, "initializing (inconsistent)")
+        yaw0 = math.atan2(d_enu[1], d_enu[0]) - math.atan2(b[1], b[0])
+        yaw = yaw0 + b[2]
+        sd = math.sqrt(float(np.trace(r_m2)) / 2.0)
+        yaw_std = 2.0 * sd / dist + 0.01
+        la = self.lever_arm_m
+        pos = y_m - np.array(
+            [
+                la[0] * math.cos(yaw) - la[1] * math.sin(yaw),
+                la[0] * math.sin(yaw) + la[1] * math.cos(yaw),
+            ]
+        )
+        cov = np.zeros((3, 3))
+        cov[:2, :2] = r_m2
+        cov[2, 2] = yaw_std**2
+        mean = np.array([pos[0], pos[1], math.atan2(math.sin(yaw), math.cos(yaw))])
+        self.mpf.init_pose(mean, cov)
+        if self.kf is not None:
+            self.kf.init_pose(mean, cov)
+        self._pose_ok = True
+        self._rejections = 0
+        self._cache = self.mpf.estimate()
+        return GnssUpdate(t_ns, zeros2, r_m2, 0.0, True, "pose initialized")
+
+    # ------------------------------------------------------------------ outputs
+    def estimate(self) -> RadiusEstimate:
+        """Current estimate (always finite)."""
+        est = self.mpf.estimate()
+        self._cache = est
+        rad = est.radius
+        wheels: tuple[str, ...] = REAR_WHEELS
+        mean = rad.mean
+        std = np.sqrt(np.maximum(np.diag(rad.mean_cov), 0.0))
+        noise = np.sqrt(np.maximum(np.diag(rad.noise_cov), 0.0))
+        active = (self._active, self._active)
+        if self.config.wheels == "all":
+            fe = niw.mmse(self._front, np.ones(1))
+            wheels = FRONT_WHEELS + REAR_WHEELS
+            mean = np.concatenate([fe.mean, mean])
+            fstd = np.sqrt(np.maximum(np.diag(fe.mean_cov), 0.0) + np.mean(std**2))
+            std = np.concatenate([fstd, std])
+            noise = np.concatenate([np.sqrt(np.maximum(np.diag(fe.noise_cov), 0.0)), noise])
+            active = (self._active,) * 4
+        ws = self._prev_ws if self._prev_ws is not None else np.zeros(4)
+        v, yr = self.model.speed_yaw_rate(ws, rad.mean)
+        if self._pose_ok:
+            state = "running" if self._active else "paused"
+            pose, pose_cov = est.pose, est.pose_cov
+        else:
+            state = "initializing"
+            pose, pose_cov = np.zeros(3), np.diag([1e6, 1e6, math.pi**2])
+        baseline = None
+        if self.kf is not None:
+            baseline = BaselineEstimate(
+                radius_error_m=self.kf.x[3:].copy(),
+                radius_error_std_m=np.sqrt(np.maximum(np.diag(self.kf.p)[3:], 0.0)),
+                pose=self.kf.x[:3].copy(),
+                pose_cov=self.kf.p[:3, :3].copy(),
+            )
+        out = RadiusEstimate(
+            t_ns=int(self._t_pose_ns or 0),
+            wheels=tuple(wheels),
+            radius_error_m=_sanitize(mean),
+            radius_error_std_m=_sanitize(std, 1.0),
+            radius_noise_std_m=_sanitize(noise, 1.0),
+            active=tuple(bool(a) for a in active),
+            pose=_sanitize(pose),
+            pose_cov=_sanitize(pose_cov, 1e6),
+            speed_m_s=float(np.nan_to_num(v)),
+            yaw_rate_rad_s=float(np.nan_to_num(yr)),
+            n_eff=float(np.nan_to_num(est.n_eff)),
+            resample_count=est.resample_count,
+            state=state,
+            state_reason=self._reason,
+            baseline=baseline,
+        )
+        return out
+
+    def state_dict(self) -> dict[str, Any]:
+        """Learned radius statistics (JSON-serializable): per estimated axle the NiW MMSE mean,
+        mean covariance, noise covariance and dof, plus the vehicle name and wheel order."""
+        rad = self.mpf.estimate().radius
+        out: dict[str, Any] = {
+            "version": STATE_DICT_VERSION,
+            "vehicle": self.vehicle.name,
+            "rear": {
+                "wheels": list(REAR_WHEELS),
+                "mean_m": rad.mean.tolist(),
+                "mean_cov_m2": rad.mean_cov.tolist(),
+                "noise_cov_m2": rad.noise_cov.tolist(),
+                "dof": float(self.mpf.stats.dof),
+            },
+        }
+        if self.config.wheels == "all":
+            fe = niw.mmse(self._front, np.ones(1))
+            out["front"] = {
+                "wheels": list(FRONT_WHEELS),
+                "mean_m": fe.mean.tolist(),
+                "mean_cov_m2": fe.mean_cov.tolist(),
+                "noise_cov_m2": fe.noise_cov.tolist(),
+                "dof": float(fe.dof),
+            }
+        if self.kf is not None:
+            out["aug_kf"] = {
+                "mean_m": self.kf.x[3:].tolist(),
+                "cov_m2": self.kf.p[3:, 3:].tolist(),
+            }
+        return out
+
+    def load_state_dict(self, d: Mapping[str, Any]) -> None:
+        """Restore :meth:`state_dict` output; raises InputError (kind ``state``) when it does not
+        belong to this vehicle or is malformed."""
+        try:
+            if d.get("vehicle") != self.vehicle.name:
+                raise InputError("state", f"state of vehicle {d.get('vehicle')!r}")
+            rear = d["rear"]
+            n = self.mpf.n
+            # half of the uncertainty of the mean in gamma, half as spread of the particle means
+            stats = niw.stats_from_moments(
+                n,
+                np.asarray(rear["mean_m"], dtype=float).reshape(2),
+                0.5 * np.asarray(rear["mean_cov_m2"], dtype=float).reshape(2, 2),
+                np.asarray(rear["noise_cov_m2"], dtype=float).reshape(2, 2),
+                float(rear["dof"]),
+            )
+            if (
+                not all(
+                    np.all(np.isfinite(a))
+                    for a in (stats.mean, stats.scale, stats.gamma, stats.dof)
+                )
+                or float(rear["dof"]) <= 3.0
+            ):
+                raise InputError("state", "non-finite or invalid rear statistics")
+            # spread the particle means over the restored uncertainty of the mean
+            cov = np.asarray(rear["mean_cov_m2"], dtype=float).reshape(2, 2)
+            chol = np.linalg.cholesky(0.25 * (cov + cov.T) + 1e-18 * np.eye(2))
+            z = self.rng.standard_normal((n, 2))
+            z -= z.mean(axis=0)
+            stats.mean += z @ chol.T
+            front = None
+            if "front" in d and self.config.wheels == "all":
+                f = d["front"]
+                front = niw.stats_from_moments(
+                    1,
+                    np.asarray(f["mean_m"], dtype=float).reshape(2),
+                    np.asarray(f["mean_cov_m2"], dtype=float).reshape(2, 2),
+                    np.asarray(f["noise_cov_m2"], dtype=float).reshape(2, 2),
+                    float(f["dof"]),
+                )
+        except InputError:
+            raise
+        except (KeyError, TypeError, ValueError, np.linalg.LinAlgError) as exc:
+            raise InputError("state", f"malformed radius state: {exc}") from exc
+        self.mpf.set_stats(stats)
+        if front is not None:
+            self._front = front
+        if self.kf is not None and "aug_kf" in d:
+            self.kf.x[3:] = np.asarray(d["aug_kf"]["mean_m"], dtype=float).reshape(2)
+            self.kf.p[3:, 3:] = np.asarray(d["aug_kf"]["cov_m2"], dtype=float).reshape(2, 2)
+        self._cache = self.mpf.estimate()
+
+
+def _is_int(x: Any) -> bool:
+    return isinstance(x, (int, np.integer)) and not isinstance(x, bool)
+
+
+def _sanitize(a: Any, fill: float = 0.0) -> F64:
+    return np.nan_to_num(np.array(a, dtype=float), nan=fill, posinf=fill, neginf=-fill)
+
+
+__all__ = [
+    "WHEELS",
+    "BaselineEstimate",
+    "GnssUpdate",
+    "RadiusEstimate",
+    "RadiusEstimator",
+]

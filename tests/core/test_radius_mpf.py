@@ -1,0 +1,213 @@
+"""Motion model and MPF on a synthetic curvy drive generated here with NumPy."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from tire_estimation.core.radius_model import RadiusMotionModel
+from tire_estimation.core.radius_mpf import RadiusMPF
+
+R_NOM, TRACK, WHEELBASE = 0.31, 1.55, 2.7
+TRUE_REAR_ERR = (1.0e-3, -0.5e-3)
+
+
+def make_drive(
+    duration_s=300.0,
+    dt_s=0.01,
+    radius_error_m=(0.0, 0.0, *TRUE_REAR_ERR),
+    gnss_rate_hz=1.0,
+    gnss_std_m=1.5,
+    seed=0,
+    front_slip=None,
+):
+    """Curvy drive at 22-28 m/s (|ay| < 3 m/s^2): truth, wheel speeds (M, 4), GNSS fixes.
+
+    ``front_slip(v, ax)`` optionally returns the front-wheel slip ratio (driven front axle).
+    """
+    rng = np.random.default_rng(seed)
+    m = RadiusMotionModel(R_NOM, TRACK, WHEELBASE)
+    n = round(duration_s / dt_s) + 1
+    t = np.arange(n) * dt_s
+    v = 25.0 + 3.0 * np.sin(2 * np.pi * t / 60.0)
+    ax = 3.0 * 2 * np.pi / 60.0 * np.cos(2 * np.pi * t / 60.0)
+    kappa = 0.003 * np.sin(2 * np.pi * t / 40.0) + 0.0015 * np.sin(2 * np.pi * t / 17.0 + 1.0)
+    yr = v * kappa
+    steer = np.arctan(WHEELBASE * kappa)
+    yaw = np.concatenate([[0.3], 0.3 + np.cumsum(0.5 * (yr[1:] + yr[:-1]) * dt_s)])
+    ym, vm = 0.5 * (yaw[1:] + yaw[:-1]), 0.5 * (v[1:] + v[:-1])
+    east = np.concatenate([[0.0], np.cumsum(vm * np.cos(ym) * dt_s)])
+    north = np.concatenate([[0.0], np.cumsum(vm * np.sin(ym) * dt_s)])
+    radii = R_NOM + np.asarray(radius_error_m)
+    ws = m.kinematic_wheel_speeds(v, yr, steer, radii)
+    if front_slip is not None:
+        ws[:, :2] *= (1.0 + front_slip(v, ax))[:, None]
+    step = round(1.0 / gnss_rate_hz / dt_s)
+    gi = np.arange(0, n, step)
+    gnss = np.stack([east[gi], north[gi]], 1) + gnss_std_m * rng.standard_normal((gi.size, 2))
+    return {
+        "t": t,
+        "t_ns": np.round(t * 1e9).astype(np.int64),
+        "v": v,
+        "ax": ax,
+        "yr": yr,
+        "steer": steer,
+        "yaw": yaw,
+        "east": east,
+        "north": north,
+        "ws": ws,
+        "gi": gi,
+        "gnss": gnss,
+        "gnss_std": gnss_std_m,
+    }
+
+
+def test_virtual_speed_and_yaw_rate_from_known_trajectory():
+    m = RadiusMotionModel(R_NOM, TRACK, WHEELBASE)
+    v = np.array([5.0, 20.0, 30.0])
+    yr = np.array([0.3, -0.05, 0.1])
+    st = np.arctan(WHEELBASE * yr / v)
+    err = np.array([0.0, 0.0, 1.0e-3, -0.5e-3])
+    ws = m.kinematic_wheel_speeds(v, yr, st, R_NOM + err)
+    # eq. (6): with the true radius errors the speed and yaw rate are recovered exactly
+    v6, yr6 = m.speed_yaw_rate(ws, np.tile(err[2:], (3, 1)))
+    np.testing.assert_allclose(v6, v, rtol=1e-12)
+    np.testing.assert_allclose(yr6, yr, rtol=1e-12, atol=1e-14)
+    # eq. (4): the virtual values are biased as in eq. (9): -(w3 d3 + w4 d4)/2 and ...
+    vv, yv = m.virtual_speed_yaw_rate(ws)
+    np.testing.assert_allclose(vv, v - 0.5 * (ws[:, 2] * 1e-3 + ws[:, 3] * -0.5e-3), rtol=1e-12)
+    np.testing.assert_allclose(yv - yr, -(ws[:, 3] * -0.5e-3 - ws[:, 2] * 1e-3) / TRACK)
+    # paper example (9): r = 0.27, l_T = 1.52, w3 = 76, w4 = 75.8, d3 = -1 mm
+    pm = RadiusMotionModel(0.27, 1.52, 2.7)
+    wsp = np.array([0.0, 0.0, 76.0, 75.8])
+    v9, y9 = pm.virtual_speed_yaw_rate(wsp)
+    assert float(v9) == pytest.approx(20.5, abs=0.01)
+    assert float(y9) == pytest.approx(-0.036, abs=0.001)
+    vt, yt = pm.speed_yaw_rate(wsp, np.array([-1e-3, 0.0]))
+    assert float(vt - v9) == pytest.approx(-0.038, abs=1e-3)
+    assert float(yt - y9) == pytest.approx(0.05, abs=1e-3)
+    # steering yaw rate (eq. 31a) and front wheels rolling straight
+    assert float(m.steering_yaw_rate(np.array(10.0), float(st[0]))) == pytest.approx(
+        10.0 * yr[0] / v[0]
+    )
+    a, b = m.front_wheel_geometry(0.0)
+    np.testing.assert_allclose(a, [1.0, 1.0])
+    np.testing.assert_allclose(b, [-TRACK / 2, TRACK / 2])
+
+
+def test_front_wheel_rolling_speed_matches_rigid_body_kinematics():
+    m = RadiusMotionModel(R_NOM, TRACK, WHEELBASE)
+    v, yr = 10.0, 0.4  # tight turn
+    st = float(np.arctan(WHEELBASE * yr / v))
+    a, b = m.front_wheel_geometry(st)
+    # wheel centre speed magnitude = |yaw rate| x distance to the instantaneous centre
+    rc = v / yr
+    for i, y in enumerate((TRACK / 2, -TRACK / 2)):
+        speed = abs(yr) * np.hypot(WHEELBASE, rc - y)
+        assert a[i] * v + b[i] * yr == pytest.approx(speed, rel=1e-12)
+
+
+def run_mpf(drive, n=500, seed=0, **kw):
+    m = RadiusMotionModel(R_NOM, TRACK, WHEELBASE)
+    rng = np.random.default_rng(seed)
+    opts = {
+        "prior_mean_std_m": 3e-3,
+        "prior_noise_std_m": 1e-3,
+        "prior_dof": 10.0,
+        "forgetting_factor": 0.9998,
+        "resampler": "systematic",
+        "resample_threshold": 0.5,
+        "position_noise_m_sqrt_s": 0.01,
+        "yaw_noise_rad_sqrt_s": 0.002,
+        "mean_random_walk_m_sqrt_s": 5e-5,
+        "kernel_shrinkage": 0.98,
+    }
+    opts.update(kw)
+    f = RadiusMPF(m, n, np.zeros(2), rng=rng, **opts)
+    f.init_pose(
+        np.array([drive["east"][0], drive["north"][0], drive["yaw"][0]]), np.diag([1, 1, 0.01])
+    )
+    fix_at = dict(zip(drive["gi"].tolist(), range(drive["gi"].size), strict=False))
+    r = np.eye(2) * drive["gnss_std"] ** 2
+    hist = []
+    for k in range(1, drive["t"].size):
+        f.predict(0.01, drive["ws"][k - 1])
+        if k in fix_at:
+            y = drive["gnss"][fix_at[k]]
+            f.update(y, r, f.predict_fix(y, r, np.zeros(2)))
+            if drive["t"][k] >= drive["t"][-1] - 60.0:
+                hist.append(f.estimate().radius.mean)
+    return f, np.mean(hist, axis=0)
+
+
+@pytest.mark.parametrize(("rate_hz", "duration_s"), [(1.0, 300.0), (10.0, 200.0)])
+def test_mpf_converges_on_synthetic_drive(rate_hz, duration_s):
+    drive = make_drive(duration_s=duration_s, gnss_rate_hz=rate_hz, seed=1)
+    f, last_minute = run_mpf(drive, seed=1)
+    est = f.estimate()
+    truth = np.array(TRUE_REAR_ERR)
+    err = est.radius.mean - truth
+    assert np.all(np.abs(last_minute - truth) < 0.5e-3), (last_minute, truth)
+    assert np.all(np.abs(err) < 0.6e-3), err
+    # the left-right difference is far better observed (eq. 9b)
+    assert abs(np.diff(err)[0]) < 0.15e-3
+    # pose tracks the truth
+    assert np.hypot(est.pose[0] - drive["east"][-1], est.pose[1] - drive["north"][-1]) < 3.0
+    assert np.all(np.isfinite(est.pose_cov)) and est.n_eff > 10
+    assert est.resample_count > 5
+
+
+def test_mpf_without_gnss_cannot_learn_and_stays_at_prior():
+    drive = make_drive(duration_s=20.0, seed=2)
+    drive["gi"] = np.array([], dtype=int)
+
+    m = RadiusMotionModel(R_NOM, TRACK, WHEELBASE)
+    f = RadiusMPF(
+        m,
+        200,
+        np.zeros(2),
+        3e-3,
+        1e-3,
+        10.0,
+        0.9998,
+        "systematic",
+        0.5,
+        0.0,
+        0.0,
+        np.random.default_rng(2),
+    )
+    f.init_pose(np.zeros(3), np.eye(3) * 1e-6)
+    for k in range(1, 2001):
+        f.predict(0.01, drive["ws"][k - 1])
+    est = f.estimate()
+    assert np.all(np.abs(est.radius.mean) < 1e-3)  # prior mean 0, std 3 mm / sqrt(N)
+    # the self-sampled NiW keeps the prior noise level (eq. 23-24 are self-consistent)
+    np.testing.assert_allclose(np.sqrt(np.diag(est.radius.noise_cov)), 1e-3, rtol=0.3)
+
+
+def test_paused_prediction_leaves_statistics_untouched():
+    drive = make_drive(duration_s=2.0, seed=3)
+    m = RadiusMotionModel(R_NOM, TRACK, WHEELBASE)
+    f = RadiusMPF(
+        m,
+        100,
+        np.zeros(2),
+        3e-3,
+        1e-3,
+        10.0,
+        0.999,
+        "systematic",
+        0.5,
+        0.0,
+        0.0,
+        np.random.default_rng(3),
+    )
+    f.init_pose(np.zeros(3), np.eye(3) * 1e-6)
+    for k in range(10):
+        f.predict(0.01, drive["ws"][k])
+    mean, scale, dof = f.stats.mean.copy(), f.stats.scale.copy(), float(f.stats.dof)
+    east = f.east.copy()
+    f.predict(0.01, drive["ws"][10], learn=False)
+    np.testing.assert_array_equal(f.stats.mean, mean)
+    np.testing.assert_array_equal(f.stats.scale, scale)
+    assert float(f.stats.dof) == dof
+    assert np.all(f.east > east)
