@@ -5,10 +5,10 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from tire_estimation.bag.writer import write_sim_bag
-from tire_estimation.sim.streams import SimResult
 
 from tests.bag.synthetic import make_result
+from tire_estimation.bag.writer import write_sim_bag
+from tire_estimation.sim.streams import SimResult
 
 
 @pytest.fixture(scope="session")

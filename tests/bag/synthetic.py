@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.sim.streams import (
     GnssStream,

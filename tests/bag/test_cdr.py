@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
 from tire_estimation.bag import cdr
 from tire_estimation.bag import messages as mb
 from tire_estimation.bag import topics as tp

@@ -8,6 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 from rosbags.rosbag2 import StoragePlugin, Writer
+
+from tests.bag.synthetic import START_NS, make_result
 from tire_estimation.bag import messages as mb
 from tire_estimation.bag import topics as tp
 from tire_estimation.bag.reader import BagData, read_bag
@@ -17,8 +19,6 @@ from tire_estimation.core.vehicle import VehicleParams, dump_vehicle_yaml
 from tire_estimation.core.wheels import WHEELS
 from tire_estimation.errors import BagError, VehicleConfigError
 from tire_estimation.sim.streams import SimResult
-
-from tests.bag.synthetic import START_NS, make_result
 
 
 @pytest.fixture(scope="module")

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 from tire_estimation.bag import messages as mb
 from tire_estimation.bag import topics as tp
 from tire_estimation.bag import typestore

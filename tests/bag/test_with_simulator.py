@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 from tire_estimation.bag import topics as tp
 from tire_estimation.bag.reader import read_bag
 from tire_estimation.bag.writer import write_sim_bag

@@ -8,14 +8,14 @@ import numpy as np
 import pytest
 import yaml
 from rosbags.rosbag2 import Reader
+
+from tests.bag.synthetic import make_result
 from tire_estimation.bag import topics as tp
 from tire_estimation.bag.typestore import get_typestore
 from tire_estimation.bag.writer import reduced_rate_rows, sim_topic_series, write_sim_bag
 from tire_estimation.core.vehicle import load_vehicle_yaml
 from tire_estimation.errors import BagError
 from tire_estimation.sim.streams import SimResult
-
-from tests.bag.synthetic import make_result
 
 
 def test_fast_serialization_is_byte_identical(result: SimResult) -> None:

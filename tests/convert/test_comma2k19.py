@@ -10,6 +10,7 @@ import pymap3d
 import pytest
 import yaml
 from scipy.spatial.transform import Rotation
+
 from tire_estimation.bag.reader import read_bag
 from tire_estimation.cli import main
 from tire_estimation.convert.comma2k19 import (

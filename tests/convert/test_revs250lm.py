@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 import yaml
 from rosbags.rosbag2 import Reader
+
 from tire_estimation.bag.reader import read_bag
 from tire_estimation.bag.typestore import get_typestore
 from tire_estimation.convert.common import ConvertError

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from tire_estimation.core.aug_kf import AugKf
-from tire_estimation.core.radius_model import RadiusMotionModel
 
 from tests.core.test_radius_mpf import R_NOM, TRACK, TRUE_REAR_ERR, WHEELBASE, make_drive
+from tire_estimation.core.aug_kf import AugKf
+from tire_estimation.core.radius_model import RadiusMotionModel
 
 
 def _kf():

@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 import pytest
+
 from tire_estimation.core.deflation import (
     CalibrationState,
     DeflationDetector,

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
 from tire_estimation.core.geodesy import LocalTangentPlane
 from tire_estimation.errors import ConfigError
 

@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
+from tests.core.test_radius_mpf import R_NOM, TRACK, TRUE_REAR_ERR, WHEELBASE, make_drive
 from tire_estimation.core.config import RadiusEstimatorConfig
 from tire_estimation.core.geodesy import LocalTangentPlane
 from tire_estimation.core.radius_estimator import RadiusEstimator
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.errors import ConfigError
-
-from tests.core.test_radius_mpf import R_NOM, TRACK, TRUE_REAR_ERR, WHEELBASE, make_drive
 
 VEH = VehicleParams(
     name="synthetic",

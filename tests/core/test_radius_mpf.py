@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
 from tire_estimation.core.radius_model import RadiusMotionModel
 from tire_estimation.core.radius_mpf import RadiusMPF
 

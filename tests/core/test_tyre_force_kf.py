@@ -8,6 +8,7 @@ import re
 
 import numpy as np
 import pytest
+
 from tire_estimation.core.single_track import SingleTrackParams, steady_state
 from tire_estimation.core.tyre_force_kf import (
     TUONONEN_2009_VEHICLE,

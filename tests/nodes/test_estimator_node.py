@@ -27,7 +27,7 @@ def ros() -> Any:
 
 
 def _node(ros: Any, tmp_path: Path, **params: Any) -> Any:
-    rclpy, context = ros
+    _rclpy, context = ros
     from rclpy.parameter import Parameter
 
     from tire_estimation.nodes.estimator_node import EstimatorNode

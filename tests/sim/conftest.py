@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
 from tire_estimation.sim import SensorConfig, SimResult, simulate
 from tire_estimation.sim.streams import TruthStream
 

@@ -6,6 +6,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+
 from tire_estimation.errors import ConfigError, ScenarioError
 from tire_estimation.sim import SCENARIOS, SensorConfig, SimResult, simulate
 

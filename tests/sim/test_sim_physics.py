@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+
 from tire_estimation.sim import SensorConfig, SimResult, simulate
 from tire_estimation.sim.tires import inverse_magic_formula_e0, magic_formula
 

@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+
 from tire_estimation.core.geodesy import LocalTangentPlane
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.sim import SensorConfig, SimResult, simulate
