@@ -173,3 +173,65 @@ def test_radii_persist_across_restarts_and_reset_forgets(ros: Any, tmp_path: Pat
     est = again.estimator.estimate()
     assert np.allclose(est.radius_error_m, 0.0, atol=1e-12)
     again.destroy_node()
+
+
+def test_tire_forces_drive_the_lateral_state(ros: Any, tmp_path: Path) -> None:
+    from tire_estimation.bag.messages import joint_state
+    from tire_estimation.sim import simulate
+    from tire_estimation_msgs.msg import LateralState, TireForces
+
+    node = _node(ros, tmp_path)
+    published: list[Any] = []
+    node.pub_lateral.publish = published.append  # capture instead of DDS (tested elsewhere)
+    cb = _callbacks(node)
+    res = simulate("lane_change", seed=1, minutes=0.3)
+    events = []
+    ws, st, tf = res.wheel_speeds, res.steering, res.tire_forces
+    for i, t in enumerate(ws.t_ns.tolist()):
+        events.append((t, 0, i))
+    for i, t in enumerate(st.t_ns.tolist()):
+        events.append((t, 1, i))
+    for i, t in enumerate(tf.t_ns.tolist()):
+        events.append((t, 2, i))
+    for t, kind, i in sorted(events):
+        if kind == 0:
+            cb["/vehicle/wheel_speeds"](_wheels(t, ws.wheel_speed_rad_s[i].tolist()))
+        elif kind == 1:
+            msg = joint_state(t, ["front_wheel_angle"], position=[float(st.angle_rad[i])])
+            cb["/vehicle/steering"](_to_ros_joint(msg))
+        else:
+            m = TireForces()
+            m.header.stamp.sec, m.header.stamp.nanosec = divmod(t, 1_000_000_000)
+            m.wheel_names = ["wheel_fl", "wheel_fr", "wheel_rl", "wheel_rr"]
+            m.fx_n, m.fy_n, m.fz_n = (tf.fx_n[i].tolist(), tf.fy_n[i].tolist(),
+                                      tf.fz_n[i].tolist())  # fmt: skip
+            m.valid = tf.valid[i].tolist()
+            cb["/vehicle/tire_forces"](m)
+    bad = TireForces()
+    bad.header.stamp.sec = 2_000_000_000
+    bad.wheel_names = ["wheel_fl"]
+    bad.fx_n = [1.0, 2.0]
+    cb["/vehicle/tire_forces"](bad)
+    assert node.dropped["tire_forces:wrong_length"] == 1
+    assert len(published) > 500
+    last = published[-1]
+    assert last.source == "tyre_force_kf"
+    assert last.linearity in (LateralState.LINEARITY_LINEAR, LateralState.LINEARITY_NONLINEAR)
+    # against truth: vy within 0.2 m/s at the last estimate
+    k = int(
+        np.searchsorted(res.truth.t_ns, last.header.stamp.sec * 10**9 + last.header.stamp.nanosec)
+    )
+    k = min(k, res.truth.t_ns.size - 1)
+    assert abs(last.lateral_velocity_m_s - res.truth.velocity_m_s[k, 1]) < 0.2
+    assert abs(last.yaw_rate_rad_s - res.truth.yaw_rate_rad_s[k]) < 0.05
+    node.destroy_node()
+
+
+def _to_ros_joint(msg: Any) -> Any:
+    from sensor_msgs.msg import JointState
+
+    out = JointState()
+    out.header.stamp.sec, out.header.stamp.nanosec = msg.header.stamp.sec, msg.header.stamp.nanosec
+    out.name = list(msg.name)
+    out.position = [float(v) for v in msg.position]
+    return out

@@ -139,6 +139,12 @@ def build_parser() -> argparse.ArgumentParser:
         pass
     else:
         add_convert_parser(sub)
+    try:  # evaluation campaigns (ECE R-64, calibration study)
+        from tire_estimation.evaluation.campaign import add_campaign_parser
+    except ImportError:
+        pass
+    else:
+        add_campaign_parser(sub)
     return parser
 
 

@@ -31,6 +31,10 @@ class EstimatorNodeOptions:
             0 publishes after every wheel-speed sample. Default 0.02.
         radii_publish_period_s: minimum period between TireRadii messages (header time), s.
             Default 0.1.
+        lateral_publish_period_s: minimum period between LateralState messages (header
+            time), s. Default 0.02.
+        tyre_force_enabled: run the tyre-force lateral Kalman filter when
+            ``/vehicle/tire_forces`` messages arrive. Default true.
         diagnostics_period_s: period of /diagnostics, s (wall or sim time). Default 1.
         sensor_qos: QoS of the sensor subscriptions, ``sensor_data`` (best effort, default) or
             ``reliable``.
@@ -42,6 +46,8 @@ class EstimatorNodeOptions:
     persistence_period_s: float = 60.0
     odometry_publish_period_s: float = 0.02
     radii_publish_period_s: float = 0.1
+    lateral_publish_period_s: float = 0.02
+    tyre_force_enabled: bool = True
     diagnostics_period_s: float = 1.0
     sensor_qos: str = "sensor_data"
 
@@ -51,6 +57,7 @@ class EstimatorNodeOptions:
         require_finite("persistence_period_s", self.persistence_period_s)
         require_non_negative("odometry_publish_period_s", self.odometry_publish_period_s)
         require_positive("radii_publish_period_s", self.radii_publish_period_s)
+        require_non_negative("lateral_publish_period_s", self.lateral_publish_period_s)
         require_positive("diagnostics_period_s", self.diagnostics_period_s)
         if self.sensor_qos not in SENSOR_QOS:
             raise ConfigError("sensor_qos", self.sensor_qos, f"must be one of {SENSOR_QOS}")

@@ -181,13 +181,19 @@ def render_params_yaml(node_name: str, sections: list[tuple[str, type, str]]) ->
                 line += " " + word
             if line.strip() != "#":
                 lines.append(line)
-            lines.append(f"    {spec.name}: {_yaml_value(spec.default)}")
+            if spec.default is None:
+                lines.append(
+                    f"    # {spec.name}: (optional, unset by default; {spec.kind.__name__})"
+                )
+            else:
+                lines.append(f"    {spec.name}: {_yaml_value(spec.default)}")
     return "\n".join(lines) + "\n"
 
 
 def estimator_sections() -> list[tuple[str, type, str]]:
     """The parameter sections of ``estimator_node`` (node options, vehicle, radius filter)."""
     from tire_estimation.core.config import RadiusEstimatorConfig
+    from tire_estimation.core.tyre_force_kf import TyreForceKFConfig
     from tire_estimation.core.vehicle import VehicleParams
     from tire_estimation.node_config import EstimatorNodeOptions
 
@@ -195,6 +201,7 @@ def estimator_sections() -> list[tuple[str, type, str]]:
         ("", EstimatorNodeOptions, "node"),
         ("vehicle", VehicleParams, "vehicle (ignored when vehicle_file is set)"),
         ("radius", RadiusEstimatorConfig, "tire-radius MPF (Lundquist et al. 2014)"),
+        ("tyre_force", TyreForceKFConfig, "lateral state from tyre forces (Tuononen 2009)"),
     ]
 
 

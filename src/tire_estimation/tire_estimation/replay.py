@@ -26,40 +26,54 @@ from tire_estimation.bag.reader import BagData, read_bag
 from tire_estimation.core.config import RadiusEstimatorConfig
 from tire_estimation.core.geodesy import LocalTangentPlane
 from tire_estimation.core.radius_estimator import RadiusEstimator
+from tire_estimation.core.tyre_force_kf import TyreForceEstimator, TyreForceKFConfig
 from tire_estimation.errors import BagError, ConfigError
 from tire_estimation.evaluation import metrics as ev
-from tire_estimation.evaluation.runner import RadiusTrace, run_radius_estimator
+from tire_estimation.evaluation.runner import (
+    LateralTrace,
+    RadiusTrace,
+    run_lateral_estimator,
+    run_radius_estimator,
+)
 
 NODE_NAME = "estimator_node"
+
+
+def load_config_sections(path: Path | None) -> dict[str, dict[str, Any]]:
+    """Sections of a parameter YAML: ``{"radius": {...}, "tyre_force": {...}, ...}``.
+
+    Accepted layouts: the ROS params file (``estimator_node: ros__parameters: radius.x: v``),
+    a mapping with one sub-mapping per section, or flat ``section.x`` keys.
+    """
+    sections: dict[str, dict[str, Any]] = {}
+    if path is None:
+        return sections
+    try:
+        data = yaml.safe_load(Path(path).read_text()) or {}
+    except FileNotFoundError as exc:
+        raise ConfigError("--config", str(path), "file not found") from exc
+    except yaml.YAMLError as exc:
+        raise ConfigError("--config", str(path), f"not valid YAML: {exc}") from exc
+    if not isinstance(data, dict):
+        raise ConfigError("--config", str(path), "must hold a mapping")
+    if NODE_NAME in data:
+        data = (data[NODE_NAME] or {}).get("ros__parameters", {}) or {}
+    for key, value in data.items():
+        if not isinstance(key, str):
+            continue
+        if isinstance(value, dict):
+            sections.setdefault(key, {}).update(value)
+        elif "." in key:
+            section, name = key.split(".", 1)
+            sections.setdefault(section, {})[name] = value
+    return sections
 
 
 def load_radius_config(
     path: Path | None, overrides: dict[str, Any] | None = None
 ) -> RadiusEstimatorConfig:
-    """Estimator configuration from the node's parameter YAML (or a plain mapping).
-
-    Accepted layouts: the ROS params file (``estimator_node: ros__parameters: radius.x: v``),
-    a mapping with a ``radius`` section, or flat ``radius.x`` keys. Other node parameters are
-    ignored here; unknown ``radius.*`` keys raise :class:`ConfigError`.
-    """
-    values: dict[str, Any] = {}
-    if path is not None:
-        try:
-            data = yaml.safe_load(Path(path).read_text()) or {}
-        except FileNotFoundError as exc:
-            raise ConfigError("--config", str(path), "file not found") from exc
-        except yaml.YAMLError as exc:
-            raise ConfigError("--config", str(path), f"not valid YAML: {exc}") from exc
-        if not isinstance(data, dict):
-            raise ConfigError("--config", str(path), "must hold a mapping")
-        if NODE_NAME in data:
-            data = (data[NODE_NAME] or {}).get("ros__parameters", {}) or {}
-        section = data.get("radius")
-        if isinstance(section, dict):
-            values.update(section)
-        for key, value in data.items():
-            if isinstance(key, str) and key.startswith("radius."):
-                values[key.removeprefix("radius.")] = value
+    """The ``radius`` section as :class:`RadiusEstimatorConfig` (unknown keys raise)."""
+    values = dict(load_config_sections(path).get("radius", {}))
     values.update(overrides or {})
     return RadiusEstimatorConfig.from_dict(values)
 
@@ -105,6 +119,13 @@ class ReplayReport:
         pos = m["position"]["rmse_m"]
         if pos is not None:
             lines.append(f"  position RMSE vs {m['position']['against']}: {pos:.2f} m")
+        lat = m.get("lateral")
+        if lat and lat.get("vy_rmse_m_s") is not None:
+            lines.append(
+                f"  lateral (tyre-force KF) vs {lat['against']}: vy RMSE "
+                f"{lat['vy_rmse_m_s']:.3f} m/s, sideslip {lat['sideslip_rmse_deg']:.2f} deg, "
+                f"yaw rate {lat['yaw_rate_rmse_deg_s']:.2f} deg/s"
+            )
         res = m["residuals"]
         lines.append(f"  innovations consistent: {res['consistent']}")
         lines.append(f"  report: {self.out_dir / 'metrics.json'}")
@@ -209,6 +230,7 @@ def run_replay(
     stale = out / "metrics.json"
     stale.unlink(missing_ok=True)
     cfg = config if config is not None else load_radius_config(config_path)
+    tyre_cfg = TyreForceKFConfig.from_dict(load_config_sections(config_path).get("tyre_force", {}))
 
     wall0 = time.perf_counter()
     bag = read_bag(
@@ -221,6 +243,8 @@ def run_replay(
             topics.TRUTH_FIX,
             topics.TRUTH_WHEEL_RADII,
             topics.REFERENCE_ODOMETRY,
+            topics.TIRE_FORCES_TOPIC,
+            topics.TRUTH_ODOMETRY,
         ),
         require=(topics.WHEEL_SPEEDS, topics.GNSS_FIX),
     )
@@ -242,8 +266,17 @@ def run_replay(
         bag.imu,
         progress=_progress_printer(total, progress),
     )
+    lateral = None
+    if bag.tire_forces is not None and bag.tire_forces.t_ns.size:
+        lateral = run_lateral_estimator(
+            TyreForceEstimator(tyre_cfg, bag.vehicle),
+            bag.tire_forces,
+            bag.wheel_speeds,
+            bag.steering,
+            bag.imu,
+        )
     t_run = time.perf_counter()
-    metrics = build_metrics(bag, trace, cfg)
+    metrics = build_metrics(bag, trace, cfg, lateral)
     metrics["wall_s"] = time.perf_counter() - wall0
     metrics["timing_s"] = {"read": t_read - wall0, "estimate": t_run - t_read}
     metrics["realtime_factor"] = metrics["duration_s"] / max(metrics["wall_s"], 1e-9)
@@ -254,7 +287,12 @@ def run_replay(
     return ReplayReport(out, _clean(metrics))
 
 
-def build_metrics(bag: BagData, trace: RadiusTrace, cfg: RadiusEstimatorConfig) -> dict[str, Any]:
+def build_metrics(
+    bag: BagData,
+    trace: RadiusTrace,
+    cfg: RadiusEstimatorConfig,
+    lateral: LateralTrace | None = None,
+) -> dict[str, Any]:
     """The contract's metrics.json content (minus the wall-clock fields)."""
     arr = trace.arrays()
     nominal = bag.vehicle.nominal_tire_radius_m
@@ -312,7 +350,7 @@ def build_metrics(bag: BagData, trace: RadiusTrace, cfg: RadiusEstimatorConfig) 
         "position": {"rmse_m": pos_rmse, "against": against},
         "detection": {"alarms": []},
         "stiffness": None,
-        "lateral": None,
+        "lateral": _lateral_metrics(bag, lateral),
         "residuals": {"consistent": consistent, "tests": residuals, "suspected_effects": []},
         "dropped_samples": trace.dropped,
         "resample_count": trace.resample_count,
@@ -321,6 +359,33 @@ def build_metrics(bag: BagData, trace: RadiusTrace, cfg: RadiusEstimatorConfig) 
             for e in bag.events
         ],
     }
+
+
+def _lateral_metrics(bag: BagData, lateral: LateralTrace | None) -> dict[str, Any] | None:
+    if lateral is None:
+        return None
+    arr = lateral.arrays()
+    ref = bag.truth_odometry if bag.truth_odometry is not None else bag.reference_odometry
+    out: dict[str, Any] = {"source": "tyre_force_kf", "dropped_samples": lateral.dropped}
+    if ref is None:
+        out.update({"vy_rmse_m_s": None, "sideslip_rmse_deg": None, "yaw_rate_rmse_deg_s": None})
+        return out
+    out["against"] = (
+        topics.TRUTH_ODOMETRY if bag.truth_odometry is not None else topics.REFERENCE_ODOMETRY
+    )
+    out.update(
+        ev.lateral_metrics(
+            arr["t_ns"],
+            arr["vy_m_s"],
+            arr["yaw_rate_rad_s"],
+            arr["sideslip_rad"],
+            arr["relay"],
+            ref.t_ns,
+            ref.linear_velocity_m_s,
+            ref.angular_velocity_rad_s[:, 2],
+        )
+    )
+    return out
 
 
 def write_plots(out: Path, bag: BagData, trace: RadiusTrace) -> None:

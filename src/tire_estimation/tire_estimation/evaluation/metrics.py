@@ -194,3 +194,43 @@ def innovation_tests(
         "ljung_box_q_north": q_n,
         "rejected_fixes": int((~accepted).sum()),
     }
+
+
+def lateral_metrics(
+    t_ns: NDArray[np.int64],
+    vy_m_s: F64,
+    yaw_rate_rad_s: F64,
+    sideslip_rad: F64,
+    relay: NDArray[np.int64],
+    ref_t_ns: NDArray[np.int64],
+    ref_velocity_m_s: F64,
+    ref_yaw_rate_rad_s: F64,
+) -> dict[str, Any]:
+    """RMSE of vy (m/s), sideslip (deg) and yaw rate (deg/s) of base_link against a reference.
+
+    ``ref_velocity_m_s`` (T, >=2) [vx, vy] of base_link in base_link axes. Also the RMSEs over
+    the samples the relay marked nonlinear (``relay == 2``), when there are any.
+    """
+    if t_ns.size == 0 or ref_t_ns.size == 0:
+        return {"vy_rmse_m_s": None, "sideslip_rmse_deg": None, "yaw_rate_rmse_deg_s": None}
+    ref_vx = np.interp(t_ns, ref_t_ns, ref_velocity_m_s[:, 0])
+    ref_vy = np.interp(t_ns, ref_t_ns, ref_velocity_m_s[:, 1])
+    ref_r = np.interp(t_ns, ref_t_ns, ref_yaw_rate_rad_s)
+    ref_beta = np.arctan2(ref_vy, np.maximum(ref_vx, 0.1))
+    e_vy = vy_m_s - ref_vy
+    e_beta = np.degrees(sideslip_rad - ref_beta)
+    e_r = np.degrees(yaw_rate_rad_s - ref_r)
+
+    def rms(x: F64) -> float | None:
+        return float(np.sqrt(np.mean(x**2))) if x.size else None
+
+    nonlinear = relay == 2
+    return {
+        "vy_rmse_m_s": rms(e_vy),
+        "sideslip_rmse_deg": rms(e_beta),
+        "yaw_rate_rmse_deg_s": rms(e_r),
+        "nonlinear_fraction": float(np.mean(nonlinear)),
+        "nonlinear_vy_rmse_m_s": rms(e_vy[nonlinear]),
+        "nonlinear_yaw_rate_rmse_deg_s": rms(e_r[nonlinear]),
+        "samples": int(t_ns.size),
+    }

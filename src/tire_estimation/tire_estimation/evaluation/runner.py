@@ -15,9 +15,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tire_estimation.core.radius_estimator import RadiusEstimator
-from tire_estimation.sim.streams import GnssStream, ImuStream, SteeringStream, WheelSpeedStream
+from tire_estimation.sim.streams import (
+    GnssStream,
+    ImuStream,
+    SteeringStream,
+    TireForceStream,
+    WheelSpeedStream,
+)
 
-WHEEL, STEER, IMU, GNSS = 0, 1, 2, 3
+WHEEL, STEER, IMU, GNSS, FORCES = 0, 1, 2, 3, 4
 
 
 @dataclass
@@ -175,3 +181,86 @@ def _record(trace: RadiusTrace, estimator: RadiusEstimator, upd: Any, t_ns: int)
         trace.baseline_radius_error_std_m.append(
             np.asarray(est.baseline.radius_error_std_m, dtype=float)
         )
+
+
+@dataclass
+class LateralTrace:
+    """Lateral estimates after every tyre-force sample: ``t_ns`` (K,), ``vx``/``vy``/``r``/
+    ``sideslip`` (K,), ``linear`` (K,) relay state (1 linear, 2 nonlinear, 0 unknown)."""
+
+    t_ns: list[int] = field(default_factory=list)
+    vx_m_s: list[float] = field(default_factory=list)
+    vy_m_s: list[float] = field(default_factory=list)
+    yaw_rate_rad_s: list[float] = field(default_factory=list)
+    sideslip_rad: list[float] = field(default_factory=list)
+    relay: list[int] = field(default_factory=list)
+    dropped: dict[str, int] = field(default_factory=dict)
+
+    def arrays(self) -> dict[str, NDArray[Any]]:
+        """The lists as arrays."""
+        return {
+            "t_ns": np.asarray(self.t_ns, dtype=np.int64),
+            "vx_m_s": np.asarray(self.vx_m_s, dtype=float),
+            "vy_m_s": np.asarray(self.vy_m_s, dtype=float),
+            "yaw_rate_rad_s": np.asarray(self.yaw_rate_rad_s, dtype=float),
+            "sideslip_rad": np.asarray(self.sideslip_rad, dtype=float),
+            "relay": np.asarray(self.relay, dtype=np.int64),
+        }
+
+
+_RELAY_CODE = {"unknown": 0, "linear": 1, "nonlinear": 2}
+
+
+def run_lateral_estimator(
+    estimator: Any,
+    tire_forces: TireForceStream,
+    wheel_speeds: WheelSpeedStream | None,
+    steering: SteeringStream | None,
+    imu: ImuStream | None,
+) -> LateralTrace:
+    """Feed a tyre-force lateral estimator (``TyreForceEstimator``) in stamp order.
+
+    On equal stamps wheel speeds, steering and IMU go before the tyre forces, so each force
+    sample sees the inputs of its own instant.
+    """
+    parts: list[tuple[NDArray[np.int64], int]] = []
+    if wheel_speeds is not None:
+        parts.append((wheel_speeds.t_ns, WHEEL))
+    if steering is not None:
+        parts.append((steering.t_ns, STEER))
+    if imu is not None:
+        parts.append((imu.t_ns, IMU))
+    parts.append((tire_forces.t_ns, FORCES))
+    t = np.concatenate([p[0] for p in parts])
+    s = np.concatenate([np.full(p[0].size, p[1]) for p in parts])
+    i = np.concatenate([np.arange(p[0].size) for p in parts])
+    order = np.lexsort((s, t))
+    trace = LateralTrace()
+    f = tire_forces
+    for sid, row in zip(s[order].tolist(), i[order].tolist(), strict=True):
+        if sid == WHEEL:
+            estimator.on_wheel_speeds(
+                int(wheel_speeds.t_ns[row]), wheel_speeds.wheel_speed_rad_s[row]
+            )  # type: ignore[union-attr]
+        elif sid == STEER:
+            estimator.on_steering(int(steering.t_ns[row]), float(steering.angle_rad[row]))  # type: ignore[union-attr]
+        elif sid == IMU:
+            estimator.on_imu(
+                int(imu.t_ns[row]),
+                imu.angular_velocity_rad_s[row],
+                imu.linear_acceleration_m_s2[row],
+            )  # type: ignore[union-attr]
+        else:
+            est = estimator.on_tire_forces(
+                int(f.t_ns[row]), f.fx_n[row], f.fy_n[row], f.fz_n[row], f.valid[row]
+            )
+            if est is None or est.linearity == "unknown":
+                continue
+            trace.t_ns.append(int(est.t_ns))
+            trace.vx_m_s.append(float(est.vx_m_s))
+            trace.vy_m_s.append(float(est.vy_m_s))
+            trace.yaw_rate_rad_s.append(float(est.yaw_rate_rad_s))
+            trace.sideslip_rad.append(float(est.sideslip_rad))
+            trace.relay.append(_RELAY_CODE.get(est.linearity, 0))
+    trace.dropped = dict(getattr(estimator, "stats", {}))
+    return trace

@@ -115,3 +115,32 @@ def gnss_from_msg(msg: Any) -> tuple[int, float, float, float, np.ndarray | None
         if not np.all(np.isfinite(cov)) or cov[0, 0] <= 0 or cov[1, 1] <= 0:
             cov = None
     return t_ns, lat, lon, alt, cov
+
+
+def tire_forces_from_msg(msg: Any) -> tuple[int, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """TireForces -> (t_ns, fx, fy, fz, valid), each (4,) in WHEELS order.
+
+    Wheels absent from the message are invalid; unknown names are ignored; mismatched array
+    lengths raise ``wrong_length``; no known wheel raises ``unknown_wheel``.
+    """
+    t_ns = stamp_ns(msg.header)
+    names = list(msg.wheel_names)
+    cols = [list(msg.fx_n), list(msg.fy_n), list(msg.fz_n), list(msg.valid)]
+    if any(len(c) != len(names) for c in cols):
+        raise InputError(
+            "wrong_length",
+            f"TireForces has {len(names)} names but {[len(c) for c in cols]} values",
+        )
+    fx, fy, fz = np.zeros(4), np.zeros(4), np.zeros(4)
+    valid = np.zeros(4, dtype=bool)
+    known = 0
+    for k, name in enumerate(names):
+        idx = WHEEL_INDEX.get(name)
+        if idx is None:
+            continue
+        known += 1
+        fx[idx], fy[idx], fz[idx] = float(cols[0][k]), float(cols[1][k]), float(cols[2][k])
+        valid[idx] = bool(cols[3][k])
+    if known == 0:
+        raise InputError("unknown_wheel", f"no known wheel name in {names}")
+    return t_ns, fx, fy, fz, valid

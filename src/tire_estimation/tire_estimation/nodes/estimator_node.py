@@ -1,7 +1,11 @@
-"""estimator_node: thin rclpy adapter over :class:`tire_estimation.core.RadiusEstimator`.
+"""estimator_node: thin rclpy adapter over the core estimators.
 
 Subscribes (contract v1): ``/vehicle/wheel_speeds``, ``/vehicle/steering``, ``/imu/data``,
-``/gnss/fix``. Publishes ``/tire_estimation/odometry``, ``/tire_estimation/tire_radii`` and
+``/gnss/fix`` and, when present, ``/vehicle/tire_forces``. Publishes
+``/tire_estimation/odometry`` and ``/tire_estimation/tire_radii`` (tire-radius MPF,
+:class:`~tire_estimation.core.radius_estimator.RadiusEstimator`),
+``/tire_estimation/lateral_state`` (tyre-force Kalman filter,
+:class:`~tire_estimation.core.tyre_force_kf.TyreForceEstimator`, once tyre forces arrive) and
 ``/diagnostics``. Services: ``~/reset`` (std_srvs/Trigger) forgets the learned radii.
 
 The node converts messages, hands them to the same core object the bag replay drives, and
@@ -31,6 +35,7 @@ from std_srvs.srv import Trigger
 from tire_estimation.core.config import RadiusEstimatorConfig
 from tire_estimation.core.ordering import StampOrderedDispatcher
 from tire_estimation.core.radius_estimator import RadiusEstimator
+from tire_estimation.core.tyre_force_kf import TyreForceEstimator, TyreForceKFConfig
 from tire_estimation.core.vehicle import VehicleParams, load_vehicle_yaml
 from tire_estimation.errors import InputError, TireEstimationError
 from tire_estimation.node_config import EstimatorNodeOptions
@@ -42,13 +47,20 @@ from tire_estimation.params import (
     parameter_specs,
 )
 from tire_estimation.persistence import Identity, delete_state, load_state, save_state
-from tire_estimation_msgs.msg import TireRadii
+from tire_estimation_msgs.msg import LateralState, TireForces, TireRadii
 
 SECTIONS = estimator_sections()
 _STATE = {
     "initializing": TireRadii.STATE_INITIALIZING,
     "running": TireRadii.STATE_RUNNING,
     "paused": TireRadii.STATE_PAUSED,
+}
+
+
+_LINEARITY = {
+    "unknown": LateralState.LINEARITY_UNKNOWN,
+    "linear": LateralState.LINEARITY_LINEAR,
+    "nonlinear": LateralState.LINEARITY_NONLINEAR,
 }
 
 
@@ -87,6 +99,14 @@ class EstimatorNode(Node):
         rng = np.random.default_rng(self.config.seed)
         self.estimator = RadiusEstimator(self.config, self.vehicle, rng)
         self.dispatcher = StampOrderedDispatcher("wheel_speeds")
+        self.lateral: TyreForceEstimator | None = None
+        if self.options.tyre_force_enabled:
+            tyre_cfg = build_config(
+                TyreForceKFConfig, "tyre_force", self._values(self._specs["tyre_force"])
+            )
+            self.lateral = TyreForceEstimator(tyre_cfg, self.vehicle)
+        self._last_lateral_pub_ns = 0
+        self._lateral_period_ns = int(self.options.lateral_publish_period_s * 1e9)
 
         self.dropped: Counter[str] = Counter()
         self.received: Counter[str] = Counter()
@@ -120,6 +140,16 @@ class EstimatorNode(Node):
         self.create_subscription(
             NavSatFix, "/gnss/fix", self._guard("gnss_fix", self._on_gnss), sensor_qos
         )
+        if self.lateral is not None:
+            self.create_subscription(
+                TireForces,
+                "/vehicle/tire_forces",
+                self._guard("tire_forces", self._on_tire_forces),
+                sensor_qos,
+            )
+        self.pub_lateral = self.create_publisher(
+            LateralState, "/tire_estimation/lateral_state", 10
+        )
         self.pub_odom = self.create_publisher(Odometry, "/tire_estimation/odometry", 10)
         self.pub_radii = self.create_publisher(TireRadii, "/tire_estimation/tire_radii", 10)
         self.pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
@@ -138,7 +168,10 @@ class EstimatorNode(Node):
         self._specs = {prefix: parameter_specs(cls, prefix) for prefix, cls, _ in SECTIONS}
         for specs in self._specs.values():
             for spec in specs:
-                self.declare_parameter(spec.name, spec.default, _descriptor(spec))
+                desc = _descriptor(spec)
+                if spec.default is None:  # optional: unset unless given (any type accepted)
+                    desc.dynamic_typing = True
+                self.declare_parameter(spec.name, spec.default, desc)
 
     def _values(self, specs: Sequence[ParameterSpec]) -> dict[str, Any]:
         return {
@@ -226,18 +259,51 @@ class EstimatorNode(Node):
         t_ns, lat, lon, alt, cov = conv.gnss_from_msg(msg)
         self._dispatch(t_ns, "gnss_fix", (lat, lon, alt, cov))
 
+    def _on_tire_forces(self, msg: TireForces) -> None:
+        t_ns, fx, fy, fz, valid = conv.tire_forces_from_msg(msg)
+        self._dispatch(t_ns, "tire_forces", (fx, fy, fz, valid))
+
     def _dispatch(self, t_ns: int, kind: str, payload: Any) -> None:
-        """Hand samples to the core in header-stamp order (see core.ordering)."""
+        """Hand samples to the core estimators in header-stamp order (see core.ordering)."""
+        lateral = self.lateral
         for t, k, value in self.dispatcher.push(t_ns, kind, payload):
             if k == "wheel_speeds":
                 self.estimator.on_wheel_speeds(t, value)
+                if lateral is not None:
+                    lateral.on_wheel_speeds(t, value)
                 self._publish(t)
             elif k == "steering":
                 self.estimator.on_steering(t, value)
+                if lateral is not None:
+                    lateral.on_steering(t, value)
             elif k == "imu":
                 self.estimator.on_imu(t, value[0], value[1])
+                if lateral is not None:
+                    lateral.on_imu(t, value[0], value[1])
+            elif k == "tire_forces":
+                if lateral is not None:
+                    est = lateral.on_tire_forces(t, *value)
+                    if est is not None:
+                        self._publish_lateral(est, t)
             else:
                 self.estimator.on_gnss_fix(t, *value)
+
+    def _publish_lateral(self, est: Any, t_ns: int) -> None:
+        if t_ns - self._last_lateral_pub_ns < self._lateral_period_ns:
+            return
+        self._last_lateral_pub_ns = t_ns
+        msg = LateralState()
+        conv.ns_to_stamp(t_ns, msg.header.stamp)
+        msg.header.frame_id = "base_link"
+        msg.source = str(est.source)
+        msg.longitudinal_velocity_m_s = float(est.vx_m_s)
+        msg.lateral_velocity_m_s = float(est.vy_m_s)
+        msg.yaw_rate_rad_s = float(est.yaw_rate_rad_s)
+        msg.sideslip_rad = float(est.sideslip_rad)
+        msg.covariance = [float(v) for v in np.asarray(est.covariance, dtype=float).ravel()]
+        msg.axle_lateral_force_n = [float(v) for v in est.axle_lateral_force_n]
+        msg.linearity = _LINEARITY.get(est.linearity, LateralState.LINEARITY_UNKNOWN)
+        self.pub_lateral.publish(msg)
 
     # --- outputs ----------------------------------------------------------------------------
     def _publish(self, t_ns: int) -> None:
@@ -335,7 +401,7 @@ class EstimatorNode(Node):
             "particles": str(self.config.n_particles),
             "persistence": self._persist_note,
         }
-        for stream in ("wheel_speeds", "steering", "imu", "gnss_fix"):
+        for stream in ("wheel_speeds", "steering", "imu", "gnss_fix", "tire_forces"):
             values[f"rate_hz.{stream}"] = f"{self._input_rates_hz.get(stream, 0.0):.1f}"
             values[f"received.{stream}"] = str(self.received.get(stream, 0))
         for key, count in sorted(self.dropped.items()):
