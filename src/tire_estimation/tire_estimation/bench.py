@@ -1,0 +1,176 @@
+"""Benchmarks (``make bench``): filter step time, replay real-time factor, node latency.
+
+Not part of the tests: numbers depend on the machine and its load. Results are printed as JSON
+(and written to ``--out`` if given); docs/results.md quotes them with the command.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import signal
+import subprocess
+import tempfile
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from tire_estimation.core.config import RadiusEstimatorConfig
+from tire_estimation.core.geodesy import LocalTangentPlane
+from tire_estimation.core.radius_estimator import RadiusEstimator
+from tire_estimation.core.vehicle import VehicleParams
+
+ROOT = Path(__file__).resolve().parents[3]
+DEMO_BAG = ROOT / "bags" / "ece_r64_6min"
+
+
+def step_time_us(n_particles: int, seconds: float = 60.0, seed: int = 0) -> dict[str, float]:
+    """Mean wall time per 100 Hz wheel-speed step (GNSS at 10 Hz included), in µs."""
+    vehicle = VehicleParams()
+    cfg = RadiusEstimatorConfig(n_particles=n_particles, seed=seed)
+    est = RadiusEstimator(cfg, vehicle, np.random.default_rng(seed))
+    ltp = LocalTangentPlane(58.4, 15.6, 100.0)
+    rng = np.random.default_rng(seed + 1)
+    speed, radius = 25.0, vehicle.nominal_tire_radius_m
+    n = int(seconds * 100)
+    curvature = 0.002 * np.sin(np.arange(n) * 0.01 * 2 * np.pi / 60.0)
+    yaw = np.cumsum(speed * curvature * 0.01)
+    east = np.cumsum(speed * np.cos(yaw) * 0.01)
+    north = np.cumsum(speed * np.sin(yaw) * 0.01)
+    half = 0.5 * vehicle.track_width_m
+    omega_l = (speed - speed * curvature * half) / radius
+    omega_r = (speed + speed * curvature * half) / radius
+    lat, lon, alt = ltp.to_lla(
+        east + rng.normal(0, 1.5, n), north + rng.normal(0, 1.5, n), 0 * east
+    )
+    cov = np.diag([2.25, 2.25, 4.0])
+    t0 = 1_700_000_000_000_000_000
+    wheels = np.column_stack([omega_l, omega_r, omega_l, omega_r])
+    warm = n // 4
+    times = []
+    for k in range(n):
+        t = t0 + k * 10_000_000
+        start = time.perf_counter()
+        est.on_wheel_speeds(t, wheels[k])
+        if k % 10 == 0:
+            est.on_gnss_fix(t, float(lat[k]), float(lon[k]), float(alt[k]), cov)
+        if k >= warm:
+            times.append(time.perf_counter() - start)
+    arr = np.asarray(times) * 1e6
+    return {"mean_us": float(arr.mean()), "median_us": float(np.median(arr)),
+            "p99_us": float(np.quantile(arr, 0.99))}  # fmt: skip
+
+
+def replay_rtf(n_particles: int, bag: Path = DEMO_BAG) -> dict[str, float]:
+    """Replay the demo bag (decoding included, no plots); real-time factor and split."""
+    from tire_estimation.replay import run_replay
+
+    with tempfile.TemporaryDirectory() as out:
+        cfg = RadiusEstimatorConfig(n_particles=n_particles)
+        report = run_replay(bag, out, config=cfg, plots=False, progress=False)
+    m = report.metrics
+    return {"duration_s": m["duration_s"], "wall_s": m["wall_s"],
+            "realtime_factor": m["realtime_factor"], "read_s": m["timing_s"]["read"],
+            "estimate_s": m["timing_s"]["estimate"]}  # fmt: skip
+
+
+def node_latency(seconds: float = 20.0, n_particles: int = 500) -> dict[str, Any]:
+    """estimator_node end-to-end latency: wheel-speed stamp (wall clock) to odometry arrival.
+
+    Wheel speeds at 100 Hz and GNSS at 10 Hz are published with header stamp = now; the node
+    publishes odometry after every wheel-speed sample (``odometry_publish_period_s:=0``).
+    """
+    import rclpy
+    from nav_msgs.msg import Odometry
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.qos import qos_profile_sensor_data
+    from sensor_msgs.msg import JointState, NavSatFix
+
+    exe = shutil.which("estimator_node")
+    if exe is None:
+        return {"error": "estimator_node not on PATH (source env.sh)"}
+    proc = subprocess.Popen(
+        [exe, "--ros-args", "-p", "persistence_file:=''", "-p", "odometry_publish_period_s:=0.0",
+         "-p", f"radius.n_particles:={n_particles}", "--log-level", "warn"],
+        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=os.environ.copy(),
+    )  # fmt: skip
+    rclpy.init()
+    node = rclpy.create_node("latency_bench")
+    lat_ns: list[int] = []
+
+    def on_odom(msg: Odometry) -> None:
+        stamp = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+        lat_ns.append(time.time_ns() - stamp)
+
+    node.create_subscription(Odometry, "/tire_estimation/odometry", on_odom, 100)
+    pub_w = node.create_publisher(JointState, "/vehicle/wheel_speeds", qos_profile_sensor_data)
+    pub_g = node.create_publisher(NavSatFix, "/gnss/fix", qos_profile_sensor_data)
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    threading.Thread(target=executor.spin, daemon=True).start()
+    try:
+        deadline = time.monotonic() + 30
+        while node.count_subscribers("/vehicle/wheel_speeds") < 1 and time.monotonic() < deadline:
+            time.sleep(0.1)
+        ltp = LocalTangentPlane(58.4, 15.6, 100.0)
+        speed, omega = 25.0, 25.0 / 0.31
+        wheel = JointState(name=["wheel_fl", "wheel_fr", "wheel_rl", "wheel_rr"])
+        fix = NavSatFix()
+        fix.position_covariance = [2.25, 0, 0, 0, 2.25, 0, 0, 0, 4.0]
+        fix.position_covariance_type = NavSatFix.COVARIANCE_TYPE_DIAGONAL_KNOWN
+        fix.status.status = 0
+        start = time.monotonic()
+        k = 0
+        while time.monotonic() - start < seconds:
+            now = time.time_ns()
+            wheel.header.stamp.sec, wheel.header.stamp.nanosec = divmod(now, 1_000_000_000)
+            wheel.velocity = [omega] * 4
+            pub_w.publish(wheel)
+            if k % 10 == 0:
+                la, lo, al = ltp.to_lla(speed * k * 0.01, 0.0, 0.0)
+                fix.header.stamp = wheel.header.stamp
+                fix.latitude, fix.longitude, fix.altitude = float(la), float(lo), float(al)
+                pub_g.publish(fix)
+            k += 1
+            time.sleep(max(0.0, start + k * 0.01 - time.monotonic()))
+        time.sleep(1.0)
+    finally:
+        proc.send_signal(signal.SIGINT)
+        proc.wait(timeout=15)
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.shutdown()
+    arr = np.asarray(lat_ns[len(lat_ns) // 10 :], dtype=float) * 1e-6  # skip start-up
+    if arr.size == 0:
+        return {"error": "no odometry received"}
+    return {"inputs_sent": k, "outputs": len(lat_ns), "p50_ms": float(np.median(arr)),
+            "p99_ms": float(np.quantile(arr, 0.99)), "max_ms": float(arr.max())}  # fmt: skip
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run all benchmarks and print JSON."""
+    parser = argparse.ArgumentParser(description="tire_estimation benchmarks")
+    parser.add_argument("--particles", type=int, nargs="+", default=[100, 500, 2000])
+    parser.add_argument("--latency-seconds", type=float, default=20.0)
+    parser.add_argument("--skip-node", action="store_true", help="no DDS latency benchmark")
+    parser.add_argument("--out", type=Path, default=None, help="also write the JSON here")
+    args = parser.parse_args(argv)
+    results: dict[str, Any] = {"machine": {"cpus": os.cpu_count(), "load": os.getloadavg()}}
+    results["step_time"] = {str(n): step_time_us(n) for n in args.particles}
+    results["replay"] = {str(n): replay_rtf(n) for n in args.particles}
+    if not args.skip_node:
+        results["node_latency"] = node_latency(args.latency_seconds)
+    text = json.dumps(results, indent=1)
+    print(text)
+    if args.out is not None:
+        args.out.write_text(text + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
