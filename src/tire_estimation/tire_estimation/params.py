@@ -139,7 +139,13 @@ def build_config(cls: type[T], prefix: str, values: Mapping[str, Any]) -> T:
         elif not isinstance(value, spec.kind) or (spec.kind is int and isinstance(value, bool)):
             raise ConfigError(spec.name, value, f"must be of type {spec.kind.__name__}")
         kwargs[spec.field] = value
-    return cls(**kwargs)
+    try:
+        return cls(**kwargs)
+    except ConfigError as exc:
+        if not prefix or exc.field.startswith(f"{prefix}."):
+            raise
+        # name the parameter as the user spells it (radius.n_particles, not n_particles)
+        raise type(exc)(f"{prefix}.{exc.field}", exc.value, exc.reason) from exc
 
 
 def _yaml_value(value: Any) -> str:
