@@ -1,0 +1,151 @@
+"""Configuration of the tyre-stiffness estimator (Berntorp & Di Cairano, IEEE TCST 2018)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from tire_estimation.core.validation import (
+    require_int_range,
+    require_non_negative,
+    require_positive,
+    require_range,
+)
+from tire_estimation.errors import ConfigError
+
+DRIVE_CHOICES = ("vehicle", "front", "rear", "all")
+RESAMPLERS = ("systematic", "stratified", "multinomial", "residual")
+
+
+@dataclass(frozen=True)
+class StiffnessEstimatorConfig:
+    """Tuning of the stiffness MPF (Algorithm 1) and its front-end; checked at construction.
+
+    Attributes:
+        n_particles: number of particles N, 1 (default 200).
+        forgetting: NiW forgetting factor lambda of eq. (20) per IMU step, 1 (default 0.99).
+        resample_threshold: resample when N_eff <= threshold * N (Algorithm 1 line 8), 1
+            (default 0.5).
+        resampler: ``systematic``, ``stratified``, ``multinomial`` or ``residual`` (default
+            ``systematic``).
+        drive: driven axle whose longitudinal stiffness is estimated: ``vehicle`` (take
+            ``VehicleParams.drive``), ``front``, ``rear`` or ``all`` (default ``vehicle``).
+        initial_stiffness_factor: initial guess of every stiffness as a fraction of nominal, 1
+            (default 1.0).
+        initial_stiffness_std_fraction: prior std of the stiffness mean as a fraction of the
+            nominal value, 1 (default 0.3, paper Sec. VI-A).
+        stiffness_noise_std_fraction: prior std of the stiffness process noise w (square root of
+            E[Sigma]) as a fraction of nominal, 1 (default 0.03).
+        prior_dof: prior inverse-Wishart degrees of freedom nu_0 (> 4), 1 (default 10.0).
+        min_stiffness_fraction: lower projection bound of every stiffness, fraction of nominal,
+            1 (default 0.05; Sec. V).
+        max_stiffness_fraction: upper projection bound, fraction of nominal, 1 (default 3.0).
+        accel_noise_std_m_s2: accelerometer white-noise std (R), m/s^2 (default 0.05).
+        gyro_noise_std_rad_s: gyro white-noise std (R), rad/s (default 0.00175).
+        accel_bias_std_m_s2: initial accelerometer bias std (P_0), m/s^2 (default 0.1).
+        gyro_bias_std_rad_s: initial gyro bias std (P_0), rad/s (default 0.005).
+        accel_bias_walk_m_s2_sqrt_s: accelerometer bias random walk (Q, eq. 11), m/s^2/sqrt(s)
+            (default 0.0005).
+        gyro_bias_walk_rad_s_sqrt_s: gyro bias random walk (Q, eq. 11), rad/s/sqrt(s) (default
+            0.0001).
+        initial_vx_std_m_s: initial std of vX around the measured speed, m/s (default 0.3).
+        initial_vy_std_m_s: initial std of vY, m/s (default 0.3).
+        initial_yaw_rate_std_rad_s: initial std of the yaw rate, rad/s (default 0.0175).
+        state_jitter_vx_m_s_sqrt_s: extra random walk on vX (particle diversity), m/s/sqrt(s)
+            (default 0.05).
+        state_jitter_vy_m_s_sqrt_s: extra random walk on vY, m/s/sqrt(s) (default 0.02).
+        state_jitter_yaw_rate_rad_s_sqrt_s: extra random walk on the yaw rate, rad/s/sqrt(s)
+            (default 0.002).
+        wheel_radius_m: effective wheel radius R_w of eq. (3), m; 0 uses the vehicle's nominal
+            radius (default 0.0).
+        rolling_resistance_n: known constant longitudinal resistance, N (default 0.0, the
+            paper's Assumption 4).
+        drag_n_s2_m2: known aerodynamic drag coefficient k (F = k vX^2), N s^2/m^2 (default 0.0).
+        roll_gain: c_phi g of Sec. II-A; measured ay is divided by 1 + roll_gain, 1 (default
+            0.0).
+        min_speed_m_s: below this speed the stiffness statistics are frozen, m/s (default 5.0).
+        activation_window_s: window of the excitation measures (exponential), s (default 1.0).
+        activation_steer_rad: minimum RMS road-wheel angle to activate learning (Sec. V), rad
+            (default 0.003).
+        max_gap_s: a larger gap between IMU samples re-initializes the filter, s (default 0.5).
+        max_input_age_s: wheel speed / steering / velocity older than this are stale, s
+            (default 0.2).
+    """
+
+    n_particles: int = 200
+    forgetting: float = 0.99
+    resample_threshold: float = 0.5
+    resampler: str = "systematic"
+    drive: str = "vehicle"
+    initial_stiffness_factor: float = 1.0
+    initial_stiffness_std_fraction: float = 0.3
+    stiffness_noise_std_fraction: float = 0.03
+    prior_dof: float = 10.0
+    min_stiffness_fraction: float = 0.05
+    max_stiffness_fraction: float = 3.0
+    accel_noise_std_m_s2: float = 0.05
+    gyro_noise_std_rad_s: float = 0.00175
+    accel_bias_std_m_s2: float = 0.1
+    gyro_bias_std_rad_s: float = 0.005
+    accel_bias_walk_m_s2_sqrt_s: float = 0.0005
+    gyro_bias_walk_rad_s_sqrt_s: float = 0.0001
+    initial_vx_std_m_s: float = 0.3
+    initial_vy_std_m_s: float = 0.3
+    initial_yaw_rate_std_rad_s: float = 0.0175
+    state_jitter_vx_m_s_sqrt_s: float = 0.05
+    state_jitter_vy_m_s_sqrt_s: float = 0.02
+    state_jitter_yaw_rate_rad_s_sqrt_s: float = 0.002
+    wheel_radius_m: float = 0.0
+    rolling_resistance_n: float = 0.0
+    drag_n_s2_m2: float = 0.0
+    roll_gain: float = 0.0
+    min_speed_m_s: float = 5.0
+    activation_window_s: float = 1.0
+    activation_steer_rad: float = 0.003
+    max_gap_s: float = 0.5
+    max_input_age_s: float = 0.2
+
+    def __post_init__(self) -> None:
+        require_int_range("n_particles", self.n_particles, 1, 1_000_000)
+        require_range("forgetting", self.forgetting, 0.5, 1.0)
+        require_range("resample_threshold", self.resample_threshold, 0.0, 1.0)
+        if self.resampler not in RESAMPLERS:
+            raise ConfigError("resampler", self.resampler, f"must be one of {RESAMPLERS}")
+        if self.drive not in DRIVE_CHOICES:
+            raise ConfigError("drive", self.drive, f"must be one of {DRIVE_CHOICES}")
+        require_range("initial_stiffness_factor", self.initial_stiffness_factor, 0.05, 5.0)
+        require_range(
+            "initial_stiffness_std_fraction", self.initial_stiffness_std_fraction, 1e-4, 5.0
+        )
+        require_range("stiffness_noise_std_fraction", self.stiffness_noise_std_fraction, 1e-5, 5.0)
+        require_range("prior_dof", self.prior_dof, 4.5, 1e6)
+        require_range("min_stiffness_fraction", self.min_stiffness_fraction, 0.0, 1.0)
+        require_range("max_stiffness_fraction", self.max_stiffness_fraction, 1.0, 100.0)
+        for name in (
+            "accel_noise_std_m_s2",
+            "gyro_noise_std_rad_s",
+            "min_speed_m_s",
+            "activation_window_s",
+            "max_gap_s",
+            "max_input_age_s",
+        ):
+            require_positive(name, getattr(self, name))
+        for name in (
+            "accel_bias_std_m_s2",
+            "gyro_bias_std_rad_s",
+            "accel_bias_walk_m_s2_sqrt_s",
+            "gyro_bias_walk_rad_s_sqrt_s",
+            "initial_vx_std_m_s",
+            "initial_vy_std_m_s",
+            "initial_yaw_rate_std_rad_s",
+            "state_jitter_vx_m_s_sqrt_s",
+            "state_jitter_vy_m_s_sqrt_s",
+            "state_jitter_yaw_rate_rad_s_sqrt_s",
+            "rolling_resistance_n",
+            "drag_n_s2_m2",
+            "activation_steer_rad",
+        ):
+            require_non_negative(name, getattr(self, name))
+        require_range("wheel_radius_m", self.wheel_radius_m, 0.0, 1.5)
+        if 0.0 < self.wheel_radius_m < 0.1:
+            raise ConfigError("wheel_radius_m", self.wheel_radius_m, "must be 0 or >= 0.1")
+        require_range("roll_gain", self.roll_gain, -0.5, 5.0)

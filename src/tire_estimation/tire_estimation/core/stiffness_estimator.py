@@ -1,0 +1,312 @@
+"""Tyre-stiffness estimator front-end (Berntorp & Di Cairano, IEEE TCST 2018).
+
+Feeds :class:`~tire_estimation.core.stiffness_mpf.StiffnessMpf` from asynchronous sensor
+callbacks. The IMU drives the measurement update; the latest wheel speeds (or a measured
+longitudinal speed), and steering angle are the inputs ``u``. Bad input never raises: it is
+dropped and counted in :attr:`StiffnessEstimator.stats`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from tire_estimation.core import niw
+from tire_estimation.core.stiffness_config import StiffnessEstimatorConfig
+from tire_estimation.core.stiffness_model import NAMES, SingleTrackParams, roll_compensate
+from tire_estimation.core.stiffness_mpf import StiffnessMpf
+from tire_estimation.core.vehicle import VehicleParams
+from tire_estimation.errors import InputError
+
+F64 = NDArray[np.float64]
+STATE_DICT_VERSION = 1
+
+
+@dataclass(frozen=True)
+class StiffnessEstimate:
+    """Stiffness and lateral-state estimate.
+
+    Attributes:
+        t_ns: stamp of the last IMU update, ns (0 before the first).
+        names: ("cx_front", "cy_front", "cy_rear"); ``cx_front`` is the driven axle's Cx.
+        stiffness: [Cx N/unit slip, Cy_f N/rad, Cy_r N/rad] axle values (eq. 7, 27a), (3,).
+        stiffness_std: sqrt(diag) of eq. (27b), same units, (3,).
+        nominal: nominal stiffness C_n, (3,).
+        active: learning active (excitation, Sec. V).
+        reason: why learning is (in)active.
+        gyro_bias_rad_s: (0, 0, b_r), (3,).
+        accel_bias_m_s2: (b_ax, b_ay, 0), (3,).
+        n_eff: effective sample size.
+        vx_m_s: longitudinal speed at the CG, m/s.
+        vy_m_s: lateral speed at the CG, m/s.
+        yaw_rate_rad_s: yaw rate, rad/s.
+        sideslip_rad: atan(vy / vx) at the CG, rad.
+        covariance: covariance of [vx, vy, r], (3, 3).
+    """
+
+    t_ns: int
+    names: tuple[str, str, str]
+    stiffness: F64
+    stiffness_std: F64
+    nominal: F64
+    active: bool
+    reason: str
+    gyro_bias_rad_s: F64
+    accel_bias_m_s2: F64
+    n_eff: float
+    vx_m_s: float
+    vy_m_s: float
+    yaw_rate_rad_s: float
+    sideslip_rad: float
+    covariance: F64
+
+
+def _is_int(x: Any) -> bool:
+    return isinstance(x, (int, np.integer)) and not isinstance(x, bool)
+
+
+class StiffnessEstimator:
+    """Front-end of Algorithm 1.
+
+    Args:
+        config: :class:`StiffnessEstimatorConfig`.
+        vehicle: :class:`VehicleParams` (geometry, nominal stiffness, drive).
+        rng: random generator of every draw.
+    """
+
+    def __init__(
+        self,
+        config: StiffnessEstimatorConfig,
+        vehicle: VehicleParams,
+        rng: np.random.Generator,
+    ) -> None:
+        self.config = config
+        self.vehicle = vehicle
+        self.rng = rng
+        drive = vehicle.drive if config.drive == "vehicle" else config.drive
+        self.params = SingleTrackParams.from_vehicle(
+            vehicle,
+            drive=drive,
+            wheel_radius_m=config.wheel_radius_m or None,
+            rolling_resistance_n=config.rolling_resistance_n,
+            drag_n_s2_m2=config.drag_n_s2_m2,
+            roll_gain=config.roll_gain,
+        )
+        self.mpf = StiffnessMpf(config, self.params, rng)
+        self.stats: dict[str, int] = {}
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget everything learned and all inputs."""
+        self.mpf = StiffnessMpf(self.config, self.params, self.rng)
+        self._last: dict[str, int | None] = {
+            "imu": None,
+            "wheel": None,
+            "steering": None,
+            "velocity": None,
+        }
+        self._wheel: F64 | None = None
+        self._steer = 0.0
+        self._vx_meas: float | None = None
+        self._steer_ms = 0.0
+        self._active = False
+        self._reason = "not initialized"
+        self._t_ns = 0
+
+    # ------------------------------------------------------------------ helpers
+    def _drop(self, kind: str) -> None:
+        self.stats[kind] = self.stats.get(kind, 0) + 1
+
+    def _check_stamp(self, stream: str, t_ns: Any) -> int:
+        if not _is_int(t_ns):
+            raise InputError("bad_stamp", f"{stream}: stamp must be an integer, got {t_ns!r}")
+        last = self._last[stream]
+        if last is not None and int(t_ns) <= last:
+            kind = "duplicate" if int(t_ns) == last else "out_of_order"
+            raise InputError(kind, f"{stream}: stamp {t_ns} not after {last}")
+        return int(t_ns)
+
+    @staticmethod
+    def _vector(value: Any, n: int, what: str) -> F64:
+        v = np.asarray(value, dtype=float).reshape(-1)
+        if v.shape != (n,):
+            raise InputError("wrong_length", f"{what}: need {n} values, got {v.shape[0]}")
+        if not np.all(np.isfinite(v)):
+            raise InputError("nan", f"{what}: non-finite value")
+        return v
+
+    def _fresh(self, stream: str, t_ns: int) -> bool:
+        last = self._last[stream]
+        return last is not None and (t_ns - last) * 1e-9 <= self.config.max_input_age_s
+
+    # ------------------------------------------------------------------ inputs
+    def on_wheel_speeds(self, t_ns: int, wheel_speed_rad_s: Any) -> None:
+        """Wheel speeds (fl, fr, rl, rr), rad/s."""
+        try:
+            t = self._check_stamp("wheel", t_ns)
+            ws = self._vector(wheel_speed_rad_s, 4, "wheel speeds")
+            if np.any(np.abs(ws) > 1000.0):
+                raise InputError("out_of_range", "wheel speed above 1000 rad/s")
+        except (InputError, TypeError, ValueError) as exc:
+            self._drop(exc.kind if isinstance(exc, InputError) else "bad_value")
+            return
+        self._last["wheel"] = t
+        self._wheel = ws
+
+    def on_steering(self, t_ns: int, angle_rad: float) -> None:
+        """Mean road-wheel steer angle delta, rad (positive left)."""
+        try:
+            t = self._check_stamp("steering", t_ns)
+            a = float(self._vector(angle_rad, 1, "steering")[0])
+            if abs(a) > 1.2:
+                raise InputError("out_of_range", f"steering angle {a} rad")
+        except (InputError, TypeError, ValueError) as exc:
+            self._drop(exc.kind if isinstance(exc, InputError) else "bad_value")
+            return
+        self._last["steering"] = t
+        self._steer = a
+
+    def on_velocity(self, t_ns: int, vx_m_s: float) -> None:
+        """Measured longitudinal speed, m/s (used when there are no wheel speeds)."""
+        try:
+            t = self._check_stamp("velocity", t_ns)
+            v = float(self._vector(vx_m_s, 1, "velocity")[0])
+            if abs(v) > 150.0:
+                raise InputError("out_of_range", f"speed {v} m/s")
+        except (InputError, TypeError, ValueError) as exc:
+            self._drop(exc.kind if isinstance(exc, InputError) else "bad_value")
+            return
+        self._last["velocity"] = t
+        self._vx_meas = v
+
+    def on_imu(self, t_ns: int, gyro_rad_s: Any, accel_m_s2: Any) -> None:
+        """IMU sample in ``base_link`` axes; runs one step of Algorithm 1."""
+        try:
+            t = self._check_stamp("imu", t_ns)
+            gyro = self._vector(gyro_rad_s, 3, "gyro")
+            acc = self._vector(accel_m_s2, 3, "accel")
+        except (InputError, TypeError, ValueError) as exc:
+            self._drop(exc.kind if isinstance(exc, InputError) else "bad_value")
+            return
+        last = self._last["imu"]
+        self._last["imu"] = t
+        self._t_ns = t
+        have_wheel = self._wheel is not None and self._fresh("wheel", t)
+        have_vel = self._vx_meas is not None and self._fresh("velocity", t)
+        if not (have_wheel or have_vel):
+            self._reason = "no speed input"
+            self._active = False
+            self._drop("no_speed")
+            return
+        r_w = self.params.wheel_radius_m
+        if have_wheel:
+            assert self._wheel is not None
+            wf = float(0.5 * r_w * (self._wheel[0] + self._wheel[1]))
+            wr = float(0.5 * r_w * (self._wheel[2] + self._wheel[3]))
+            vx_in = None
+            speed = wr if self.params.drive == "front" else min(wf, wr)
+        else:
+            assert self._vx_meas is not None
+            wf = wr = self._vx_meas
+            vx_in = self._vx_meas
+            speed = self._vx_meas
+        steer = self._steer if self._fresh("steering", t) else 0.0
+        y = np.array([acc[0], roll_compensate(float(acc[1]), self.params.roll_gain), gyro[2]])
+        c = self.config
+        dt = None if last is None else (t - last) * 1e-9
+        if dt is not None and dt > c.max_gap_s:
+            self._drop("gap")
+            self.mpf.initialized = False
+        if not self.mpf.initialized:
+            if speed < 0.5 * c.min_speed_m_s:
+                self._reason = "speed below minimum"
+                self._active = False
+                return
+            x0 = np.array([speed, 0.0, float(gyro[2])])
+            std = np.array(
+                [c.initial_vx_std_m_s, c.initial_vy_std_m_s, c.initial_yaw_rate_std_rad_s]
+            )
+            self.mpf.initialize(x0, std)
+            self._steer_ms = steer * steer
+            dt = None
+        # Sec. V activation: exponential RMS of the steering angle and a speed floor
+        if dt is not None:
+            a = min(1.0, dt / c.activation_window_s)
+            self._steer_ms += a * (steer * steer - self._steer_ms)
+        if speed < c.min_speed_m_s:
+            self._active, self._reason = False, "speed below minimum"
+        elif math.sqrt(self._steer_ms) < c.activation_steer_rad:
+            self._active, self._reason = False, "no lateral excitation"
+        else:
+            self._active, self._reason = True, "excited"
+        if dt is not None:
+            self.mpf.predict(dt, self._active)
+        self.mpf.update(y, steer, (wf, wr), self._active, vx_in)
+
+    # ------------------------------------------------------------------ outputs
+    def estimate(self) -> StiffnessEstimate:
+        """Current estimate (see :class:`StiffnessEstimate`)."""
+        e = self.mpf.estimate()
+        vx, vy, r = (float(v) for v in e.state)
+        return StiffnessEstimate(
+            t_ns=self._t_ns,
+            names=NAMES,
+            stiffness=e.stiffness,
+            stiffness_std=e.stiffness_std,
+            nominal=self.mpf.nominal.copy(),
+            active=self._active,
+            reason=self._reason,
+            gyro_bias_rad_s=np.array([0.0, 0.0, e.bias[2]]),
+            accel_bias_m_s2=np.array([e.bias[0], e.bias[1], 0.0]),
+            n_eff=e.n_eff,
+            vx_m_s=vx,
+            vy_m_s=vy,
+            yaw_rate_rad_s=r,
+            sideslip_rad=math.atan2(vy, max(vx, 1e-3)),
+            covariance=e.state_cov,
+        )
+
+    def state_dict(self) -> dict[str, Any]:
+        """Learned stiffness statistics (JSON-serializable)."""
+        est = niw.mmse(self.mpf.stats, self.mpf.weights)
+        return {
+            "version": STATE_DICT_VERSION,
+            "vehicle": self.vehicle.name,
+            "names": list(NAMES),
+            "nominal": self.mpf.nominal.tolist(),
+            "mean": est.mean.tolist(),
+            "mean_cov": est.mean_cov.tolist(),
+            "noise_cov": est.noise_cov.tolist(),
+            "dof": float(est.dof),
+        }
+
+    def load_state_dict(self, d: Mapping[str, Any]) -> None:
+        """Restore :meth:`state_dict` output; raises InputError (kind ``state``) if invalid."""
+        try:
+            if d.get("vehicle") != self.vehicle.name:
+                raise InputError("state", f"state of vehicle {d.get('vehicle')!r}")
+            dof = float(d["dof"])
+            if not math.isfinite(dof) or dof <= 4.0:
+                raise InputError("state", f"invalid dof {dof}")
+            stats = niw.stats_from_moments(
+                self.mpf.n,
+                np.asarray(d["mean"], dtype=float).reshape(3),
+                np.asarray(d["mean_cov"], dtype=float).reshape(3, 3),
+                np.asarray(d["noise_cov"], dtype=float).reshape(3, 3),
+                dof,
+            )
+            if not all(np.all(np.isfinite(a)) for a in (stats.mean, stats.scale, stats.gamma)):
+                raise InputError("state", "non-finite statistics")
+        except InputError:
+            raise
+        except (KeyError, TypeError, ValueError, AttributeError) as exc:
+            raise InputError("state", f"malformed stiffness state: {exc}") from exc
+        self.mpf.stats = stats
+
+
+__all__ = ["StiffnessEstimate", "StiffnessEstimator"]

@@ -1,0 +1,233 @@
+"""Single-track model of Berntorp & Di Cairano, "Tire-stiffness and vehicle-state estimation
+based on noise-adaptive particle filtering", IEEE TCST 2018, Section II (eq. 1-12).
+
+Everything is vectorized over particles: states ``x`` are ``(N, 3)`` = ``[vx, vy, r]`` with
+``vy`` the lateral velocity at the centre of gravity (CG) and ``r`` the yaw rate; the stiffness
+vector is ``C = [Cx, Cy_front, Cy_rear]`` (axle values, N per unit slip and N/rad).
+
+Sign conventions (documented deviations):
+
+* Wheel slip is ``(R w - vx) / max(vx, R w)`` (positive when driving), i.e. the negative of
+  eq. (3) as printed, so that ``Fx = Cx * slip`` is a traction force (eq. 2).
+* ``Cx`` is the longitudinal stiffness of the driven axle (front by default, as in the paper);
+  rear-wheel drive substitutes the rear axle (Sec. II-A); all-wheel drive shares one ``Cx`` on
+  both axles (the simulator scales both axles together).
+* The IMU sits at ``p`` from the CG; the measured specific force is the rigid-body acceleration
+  at ``p`` (``a_p = a_cg + dr z x p - r^2 p``), which stays affine in ``C``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from tire_estimation.core.vehicle import VehicleParams
+
+F64 = NDArray[np.float64]
+
+#: Standard gravity, m/s^2.
+GRAVITY_M_S2 = 9.81
+#: Speed floor in the slip and slip-angle denominators, m/s.
+MIN_SPEED_M_S = 1.0
+#: Names of the three estimated stiffnesses (order of ``w`` in eq. 8).
+NAMES = ("cx_front", "cy_front", "cy_rear")
+
+
+@dataclass(frozen=True)
+class SingleTrackParams:
+    """Parameters of the single-track model (SI units).
+
+    Attributes:
+        mass_kg: vehicle mass m, kg.
+        yaw_inertia_kg_m2: yaw inertia I about the CG, kg m^2.
+        lf_m: CG to front axle, m.
+        lr_m: CG to rear axle, m.
+        imu_x_m: IMU position relative to the CG, forward, m.
+        imu_y_m: IMU position relative to the CG, left, m.
+        wheel_radius_m: effective wheel radius R_w of eq. (3), m.
+        drive: driven axle ``front``, ``rear`` or ``all``.
+        nominal: nominal stiffness C_n of eq. (7), (3,) = [Cx, Cy_front, Cy_rear].
+        rolling_resistance_n: constant longitudinal resistance, N (0 = paper's Assumption 4).
+        drag_n_s2_m2: aerodynamic drag coefficient k in F = k vx^2, N s^2/m^2.
+        roll_gain: c_phi g of Sec. II-A (measured ay is divided by 1 + c_phi g), 1.
+    """
+
+    mass_kg: float
+    yaw_inertia_kg_m2: float
+    lf_m: float
+    lr_m: float
+    imu_x_m: float
+    imu_y_m: float
+    wheel_radius_m: float
+    drive: str
+    nominal: tuple[float, float, float]
+    rolling_resistance_n: float = 0.0
+    drag_n_s2_m2: float = 0.0
+    roll_gain: float = 0.0
+
+    @staticmethod
+    def from_vehicle(
+        vehicle: VehicleParams,
+        drive: str | None = None,
+        wheel_radius_m: float | None = None,
+        rolling_resistance_n: float = 0.0,
+        drag_n_s2_m2: float = 0.0,
+        roll_gain: float = 0.0,
+    ) -> SingleTrackParams:
+        """Build from :class:`VehicleParams` (``base_link`` at the rear axle: CG at x = lr)."""
+        drv = vehicle.drive if drive is None else drive
+        cx = (
+            vehicle.longitudinal_stiffness_rear_n
+            if drv == "rear"
+            else vehicle.longitudinal_stiffness_front_n
+        )
+        return SingleTrackParams(
+            mass_kg=vehicle.mass_kg,
+            yaw_inertia_kg_m2=vehicle.yaw_inertia_kg_m2,
+            lf_m=vehicle.lf_m,
+            lr_m=vehicle.lr_m,
+            imu_x_m=vehicle.imu_position_m[0] - vehicle.lr_m,
+            imu_y_m=vehicle.imu_position_m[1],
+            wheel_radius_m=(
+                vehicle.nominal_tire_radius_m if wheel_radius_m is None else wheel_radius_m
+            ),
+            drive=drv,
+            nominal=(
+                float(cx),
+                float(vehicle.cornering_stiffness_front_n_rad),
+                float(vehicle.cornering_stiffness_rear_n_rad),
+            ),
+            rolling_resistance_n=rolling_resistance_n,
+            drag_n_s2_m2=drag_n_s2_m2,
+            roll_gain=roll_gain,
+        )
+
+
+def wheel_slip(vx_m_s: F64, wheel_speed_m_s: F64 | float) -> F64:
+    """Longitudinal wheel slip (eq. 3, sign flipped: positive when driving), shape of inputs.
+
+    ``wheel_speed_m_s`` is ``R_w * omega``; the denominator is floored at ``MIN_SPEED_M_S``.
+    """
+    vx = np.asarray(vx_m_s, dtype=float)
+    rw = np.asarray(wheel_speed_m_s, dtype=float)
+    # eq. (3): lambda = (R w - vX) / max(vX, R w)
+    return (rw - vx) / np.maximum(np.maximum(vx, rw), MIN_SPEED_M_S)
+
+
+def slip_angles(x: F64, delta_rad: float, p: SingleTrackParams) -> tuple[F64, F64]:
+    """Front and rear slip angles (eq. 4), rad; ``x`` (N, 3) -> two (N,) arrays."""
+    vx = np.maximum(x[:, 0], MIN_SPEED_M_S)
+    vy, r = x[:, 1], x[:, 2]
+    # eq. (4) alpha_f = delta - (vY + lf r) / vX
+    alpha_f = delta_rad - (vy + p.lf_m * r) / vx
+    # eq. (4) alpha_r = (lr r - vY) / vX
+    alpha_r = (p.lr_m * r - vy) / vx
+    return alpha_f, alpha_r
+
+
+def force_regressor(
+    x: F64,
+    delta_rad: float,
+    wheel_speed_m_s: tuple[float, float],
+    p: SingleTrackParams,
+) -> F64:
+    """Matrix ``A`` (N, 3, 3) with ``[ax, ay, dr] = A @ C + a0`` (eq. 1 with eq. 2, 4).
+
+    ``ax = dvx - vy r`` and ``ay = dvy + vx r`` are the body accelerations at the CG, ``dr`` the
+    yaw acceleration; ``wheel_speed_m_s`` = (front, rear) axle mean ``R_w omega``, m/s.
+    """
+    n = x.shape[0]
+    m, iz, lf, lr = p.mass_kg, p.yaw_inertia_kg_m2, p.lf_m, p.lr_m
+    cd, sd = np.cos(delta_rad), np.sin(delta_rad)
+    alpha_f, alpha_r = slip_angles(x, delta_rad, p)
+    a = np.zeros((n, 3, 3))
+    # eq. (2) F = C * slip; eq. (1) columns = force directions / (m, m, I)
+    lam_f = wheel_slip(x[:, 0], wheel_speed_m_s[0]) if p.drive in ("front", "all") else 0.0
+    lam_r = wheel_slip(x[:, 0], wheel_speed_m_s[1]) if p.drive in ("rear", "all") else 0.0
+    # eq. (1a) m ax = Fxf cos(d) - Fyf sin(d) + Fxr
+    a[:, 0, 0] = (lam_f * cd + lam_r) / m
+    a[:, 0, 1] = -alpha_f * sd / m
+    # eq. (1b) m ay = Fyf cos(d) + Fyr + Fxf sin(d)
+    a[:, 1, 0] = lam_f * sd / m
+    a[:, 1, 1] = alpha_f * cd / m
+    a[:, 1, 2] = alpha_r / m
+    # eq. (1c) I dr = lf (Fyf cos(d) + Fxf sin(d)) - lr Fyr
+    a[:, 2, 0] = lf * lam_f * sd / iz
+    a[:, 2, 1] = lf * alpha_f * cd / iz
+    a[:, 2, 2] = -lr * alpha_r / iz
+    return a
+
+
+def resistance_accel(x: F64, p: SingleTrackParams) -> F64:
+    """Acceleration ``a0`` (N, 3) of the known resistances (zero under Assumption 4)."""
+    a0 = np.zeros_like(x)
+    a0[:, 0] = -(p.rolling_resistance_n + p.drag_n_s2_m2 * x[:, 0] * np.abs(x[:, 0])) / p.mass_kg
+    return a0
+
+
+@dataclass(frozen=True)
+class Linearized:
+    """Affine-in-``w`` model of one step (eq. 9 and eq. 12), per particle.
+
+    With sampling time ``Ts`` the Euler step is ``x_next = f + g w`` with ``f = x + Ts rate``
+    and ``g = Ts a`` (eq. 9-10).
+
+    Attributes:
+        rate: state derivative with nominal stiffness, (N, 3).
+        a: derivative gain of ``w`` (``g / Ts``), (N, 3, 3).
+        h: measurement mean with nominal stiffness and no bias, (N, 3).
+        d: measurement gain of ``w``, (N, 3, 3); ``y = h + b + d w + e``.
+    """
+
+    rate: F64
+    a: F64
+    h: F64
+    d: F64
+
+    def f(self, x: F64, dt_s: float) -> F64:
+        """Deterministic next state ``f(x, u)`` (eq. 9), (N, 3)."""
+        return x + dt_s * self.rate
+
+    def g(self, dt_s: float) -> F64:
+        """Process-noise gain ``g(x, u)`` (eq. 9-10), (N, 3, 3)."""
+        return dt_s * self.a
+
+
+def linearize(
+    x: F64,
+    delta_rad: float,
+    wheel_speed_m_s: tuple[float, float],
+    p: SingleTrackParams,
+) -> Linearized:
+    """Euler-discretized model (eq. 5, 9, 10) and measurement model (eq. 12), see Linearized.
+
+    The measurement is ``y = [ax_imu, ay_imu, r_gyro]`` (specific force at the IMU, roll
+    compensated ay, and yaw rate).
+    """
+    c_n = np.asarray(p.nominal, dtype=float)
+    a = force_regressor(x, delta_rad, wheel_speed_m_s, p)
+    a0 = resistance_accel(x, p)
+    # eq. (7) accelerations with C = C_n + w -> acc = (A C_n + a0) + A w
+    acc_n = a @ c_n + a0
+    vx, vy, r = x[:, 0], x[:, 1], x[:, 2]
+    kin = np.column_stack([vy * r, -vx * r, np.zeros_like(r)])
+    # eq. (9)-(10) Euler: x_{k+1} = x_k + Ts (acc + kinematic coupling) = f + g w
+    rate = acc_n + kin
+    # rigid body: a_p = a_cg + dr z x p - r^2 p (IMU at p from the CG)
+    px, py = p.imu_x_m, p.imu_y_m
+    lever = np.array([[1.0, 0.0, -py], [0.0, 1.0, px], [0.0, 0.0, 0.0]])
+    h = acc_n @ lever.T
+    h[:, 0] -= r * r * px
+    h[:, 1] -= r * r * py
+    # eq. (12) yaw-rate row: y_r = r + b_r + e_r
+    h[:, 2] = r
+    # eq. (12) d = [g1; g2; 0] / Ts mapped to the IMU position
+    d = np.einsum("ij,njk->nik", lever, a)
+    return Linearized(rate=rate, a=a, h=h, d=d)
+
+
+def roll_compensate(accel_y_m_s2: float, roll_gain: float) -> float:
+    """Sec. II-A: divide the measured lateral acceleration by ``1 + c_phi g``."""
+    return accel_y_m_s2 / (1.0 + roll_gain)

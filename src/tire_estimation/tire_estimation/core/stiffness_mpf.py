@@ -1,0 +1,359 @@
+"""Noise-adaptive marginalized particle filter with dependent noise and IMU bias.
+
+Algorithm 1 of Berntorp & Di Cairano, "Tire-stiffness and vehicle-state estimation based on
+noise-adaptive particle filtering", IEEE TCST 2018 (eq. 19-20, 27, 29-30, 35-36, 39-41).
+
+Per particle ``i`` (all arrays vectorized over ``N`` particles):
+
+* state ``x`` (N, 3) = [vX, vY at the CG, yaw rate] (sampled),
+* NiW statistics of the stiffness deviation ``w`` = [dCx, dCy_f, dCy_r] (eq. 8), d = 3
+  (``core.niw``),
+* IMU bias ``b`` (N, 3) = [b_ax, b_ay, b_r] with covariance ``P`` (N, 3, 3) (Kalman, eq. 29-30).
+
+Step order at IMU sample ``k`` (after :meth:`StiffnessMpf.predict` to time k):
+weights (36) -> normalize, N_eff, resample (lines 6-10) -> sample ``w_k`` from the conditional
+predictive (39)-(41) -> NiW update (19) -> bias update (30) -> estimates (27, 42) -> store the
+state derivative for the prediction (9) of the next step, which also applies (20) and (29).
+
+Documented deviations from the printed paper: (i) eq. (40) is implemented as the conditional of
+the joint Student-t of Approximation 1 per eq. (41) (dof ``nu~ + n_e``, gain ``L11 d^T L22^-1``),
+the printed (40) mixes transposes and dofs; (ii) eq. (30) uses ``P - K S K^T`` (the printed
+``K S^-1 K^T`` is dimensionally a typo); (iii) a small optional random walk ("jitter") on the
+states keeps particle diversity when Sigma becomes small.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from tire_estimation.core import niw, resampling
+from tire_estimation.core.stiffness_config import StiffnessEstimatorConfig
+from tire_estimation.core.stiffness_model import Linearized, SingleTrackParams, linearize
+
+F64 = NDArray[np.float64]
+#: Dimension of w (eq. 8) and of the measurement (n_e, eq. 12).
+NW = 3
+NE = 3
+
+
+def bias_predict(p_bias: F64, q_cov: F64) -> None:
+    """Kalman prediction of the random-walk bias (eq. 29), in place; ``p_bias`` (N, 3, 3)."""
+    # eq. (29) b_{k+1|k} = b_{k|k}, P_{k+1} = P_k + Q
+    p_bias += q_cov
+
+
+def bias_update(b: F64, p_bias: F64, resid: F64, extra_cov: F64, r_cov: F64) -> None:
+    """Kalman measurement update of the bias (eq. 30), in place, vectorized over particles.
+
+    Args:
+        b: predicted bias b_{k|k-1}, (N, 3).
+        p_bias: its covariance P_{k|k-1}, (N, 3, 3).
+        resid: y - h - d mu_{k|k} - b_{k|k-1}, (N, 3).
+        extra_cov: d Sigma_{k|k} d^T, (N, 3, 3).
+        r_cov: measurement-noise covariance R, (3, 3).
+    """
+    # eq. (30) S = P + R + d Sigma d^T
+    s = p_bias + r_cov + extra_cov
+    # eq. (30) K = P S^-1  (S symmetric: K = (S^-1 P)^T)
+    k = np.swapaxes(np.linalg.solve(s, p_bias), -1, -2)
+    # eq. (30) b_{k|k} = b_{k|k-1} + K (y - h - d mu - b_{k|k-1})
+    b += np.einsum("nij,nj->ni", k, resid)
+    # eq. (30) P_{k|k} = P - K S K^T  (= P - P S^-1 P)
+    p_bias -= np.einsum("nij,nkj->nik", k, p_bias)
+    p_bias[...] = 0.5 * (p_bias + np.swapaxes(p_bias, -1, -2))
+
+
+@dataclass(frozen=True)
+class LikelihoodParams:
+    """Student-t of Approximation 1 for the total measurement noise e_bar (eq. 35-36).
+
+    Attributes:
+        loc: mu_e = d mu_{k|k-1}, (N, 3).
+        shape: Lambda~_e = (1+gamma)/nu~ d Lambda d^T + (nu~-2)/nu~ (R + P), (N, 3, 3).
+        w_shape: Lambda_11 = (1+gamma)/nu~ Lambda, the shape of the predictive of w, (N, 3, 3).
+        dof: nu~ = nu_{k|k-1} - d + 1, scalar or (N,).
+    """
+
+    loc: F64
+    shape: F64
+    w_shape: F64
+    dof: F64
+
+
+def likelihood_params(stats: niw.NiwStats, d: F64, r_cov: F64, p_bias: F64) -> LikelihoodParams:
+    """Parameters of eq. (35) for every particle (see :class:`LikelihoodParams`)."""
+    # eq. (21) nu~ = nu - d + 1 and Lambda_11 = (1 + gamma) Lambda / nu~
+    dof = niw.predictive_dof(stats.dof, stats.d)
+    w_shape = niw.predictive_shape(stats)
+    # eq. (35) mu_e = d mu_{k|k-1}
+    loc = np.einsum("nij,nj->ni", d, stats.mean)
+    # eq. (35) Lambda_e = (1+gamma)/nu~ d Lambda d^T + (nu~ - 2)/nu~ (R + P)
+    f = (dof - 2.0) / dof
+    fb = f[..., None, None] if np.ndim(f) else f
+    shape = np.einsum("nij,njk,nlk->nil", d, w_shape, d) + fb * (r_cov + p_bias)
+    return LikelihoodParams(loc=loc, shape=shape, w_shape=w_shape, dof=dof)
+
+
+def log_likelihood(e_bar: F64, lp: LikelihoodParams) -> F64:
+    """Log of St(e_bar; mu_e, Lambda_e, nu~) (eq. 35-36), (N, 3) -> (N,)."""
+    # eq. (36) q_k ∝ q_{k-1} St(y; h + b + d mu, Lambda*, nu~)
+    return niw.student_t_logpdf(e_bar, lp.loc, lp.shape, lp.dof)
+
+
+@dataclass(frozen=True)
+class ConditionalPredictive:
+    """Student-t of w_k given e_bar_k (eq. 39-41).
+
+    Attributes:
+        loc: mu* (N, 3).
+        shape: Lambda* (N, 3, 3).
+        dof: nu* scalar or (N,).
+    """
+
+    loc: F64
+    shape: F64
+    dof: F64
+
+
+def conditional_predictive(
+    stats: niw.NiwStats, d: F64, e_bar: F64, lp: LikelihoodParams
+) -> ConditionalPredictive:
+    """Conditional Student-t of ``w`` given the measurement (Theorem 1 via eq. 41)."""
+    # eq. (40) z = e_bar - mu_e
+    z = e_bar - lp.loc
+    l11 = lp.w_shape
+    # eq. (41) Lambda_12 = Lambda_11 d^T (joint of w and e_bar = d w + e)
+    l12 = np.einsum("nij,nkj->nik", l11, d)
+    # gain Lambda_12 Lambda_22^-1 (Lambda_22 symmetric)
+    gain = np.swapaxes(np.linalg.solve(lp.shape, np.swapaxes(l12, -1, -2)), -1, -2)
+    sol = np.linalg.solve(lp.shape, z[..., None])[..., 0]
+    maha = np.sum(z * sol, axis=-1)
+    nu = np.asarray(lp.dof, dtype=float)
+    # eq. (41) nu_{1|2} = nu + d_2
+    dof = nu + NE
+    # eq. (41) mu_{1|2} = mu_1 + Lambda_12 Lambda_22^-1 (x_2 - mu_2)
+    loc = stats.mean + np.einsum("nij,nj->ni", gain, z)
+    # eq. (41) Lambda_{1|2} = (nu + z^T L22^-1 z)/(nu + d_2) (L11 - L12 L22^-1 L12^T)
+    shape = ((nu + maha) / dof)[:, None, None] * (l11 - np.einsum("nij,nkj->nik", gain, l12))
+    shape = 0.5 * (shape + np.swapaxes(shape, -1, -2))
+    return ConditionalPredictive(loc=loc, shape=shape, dof=np.asarray(dof))
+
+
+def sample_student_t(cp: ConditionalPredictive, rng: np.random.Generator) -> F64:
+    """One draw per particle from St(loc, shape, dof) (eq. 39), (N, 3)."""
+    n, dim = cp.loc.shape
+    z = rng.standard_normal((n, dim))
+    chi2 = 2.0 * rng.standard_gamma(np.broadcast_to(0.5 * cp.dof, (n,)))
+    chol = np.linalg.cholesky(
+        cp.shape + 1e-9 * np.eye(dim) * np.trace(cp.shape, axis1=1, axis2=2)[:, None, None]
+    )
+    return niw.student_t_from_draws(cp.loc, chol, cp.dof, z, chi2)
+
+
+@dataclass(frozen=True)
+class MpfEstimate:
+    """Weighted estimates of Algorithm 1 (eq. 27, 42).
+
+    Attributes:
+        stiffness: C_n + mu_hat (eq. 7, 27a), (3,).
+        stiffness_std: sqrt(diag(Sigma_hat)) of eq. (27b), (3,).
+        mean_std: std of the posterior of the mean mu, (3,).
+        state: weighted mean [vX, vY, r] (eq. 42), (3,).
+        state_cov: weighted covariance of the state, (3, 3).
+        bias: weighted mean bias [b_ax, b_ay, b_r], (3,).
+        n_eff: effective sample size before the last resampling decision.
+    """
+
+    stiffness: F64
+    stiffness_std: F64
+    mean_std: F64
+    state: F64
+    state_cov: F64
+    bias: F64
+    n_eff: float
+
+
+class StiffnessMpf:
+    """Algorithm 1, vectorized over particles.
+
+    Args:
+        config: tuning (see :class:`StiffnessEstimatorConfig`).
+        params: single-track parameters (nominal stiffness, geometry).
+        rng: random generator for every draw.
+    """
+
+    def __init__(
+        self,
+        config: StiffnessEstimatorConfig,
+        params: SingleTrackParams,
+        rng: np.random.Generator,
+    ) -> None:
+        self.config = config
+        self.params = params
+        self.rng = rng
+        self.n = config.n_particles
+        c = config
+        self.nominal = np.asarray(params.nominal, dtype=float)
+        self.lower = c.min_stiffness_fraction * self.nominal - self.nominal
+        self.upper = c.max_stiffness_fraction * self.nominal - self.nominal
+        self.r_cov = np.diag(
+            [c.accel_noise_std_m_s2**2, c.accel_noise_std_m_s2**2, c.gyro_noise_std_rad_s**2]
+        )
+        self.q_rate = np.diag(
+            [
+                c.accel_bias_walk_m_s2_sqrt_s**2,
+                c.accel_bias_walk_m_s2_sqrt_s**2,
+                c.gyro_bias_walk_rad_s_sqrt_s**2,
+            ]
+        )
+        self.jitter = np.array(
+            [
+                c.state_jitter_vx_m_s_sqrt_s,
+                c.state_jitter_vy_m_s_sqrt_s,
+                c.state_jitter_yaw_rate_rad_s_sqrt_s,
+            ]
+        )
+        self._resample = getattr(resampling, c.resampler)
+        self.initialized = False
+        self.x = np.zeros((self.n, 3))
+        self.rate = np.zeros((self.n, 3))
+        self.b = np.zeros((self.n, 3))
+        self.p_bias = np.zeros((self.n, 3, 3))
+        self.log_w = np.full(self.n, -np.log(self.n))
+        self.weights = np.full(self.n, 1.0 / self.n)
+        self.stats = self.prior_stats()
+        self.n_eff = float(self.n)
+        self.resample_count = 0
+
+    def prior_stats(self) -> niw.NiwStats:
+        """Prior NiW statistics: mean at the initial guess, E[Sigma] and gamma from config."""
+        c = self.config
+        mean0 = (c.initial_stiffness_factor - 1.0) * self.nominal
+        noise_var = (c.stiffness_noise_std_fraction * self.nominal) ** 2
+        scale0 = np.diag(noise_var) * (c.prior_dof - NW - 1.0)
+        gamma0 = (c.initial_stiffness_std_fraction / c.stiffness_noise_std_fraction) ** 2
+        return niw.init_stats(self.n, mean0, gamma0, c.prior_dof, scale0)
+
+    def initialize(self, x0: F64, x0_std: F64, bias0: F64 | None = None) -> None:
+        """Algorithm 1 'Initialize': x ~ N(x0, diag(x0_std^2)), b ~ N(bias0, P0), q = 1/N."""
+        c = self.config
+        self.x = x0[None, :] + self.rng.standard_normal((self.n, 3)) * x0_std[None, :]
+        self.rate = np.zeros((self.n, 3))
+        self.b = np.tile(np.zeros(3) if bias0 is None else bias0, (self.n, 1))
+        p0 = np.diag(
+            [c.accel_bias_std_m_s2**2, c.accel_bias_std_m_s2**2, c.gyro_bias_std_rad_s**2]
+        )
+        self.p_bias = np.tile(p0, (self.n, 1, 1))
+        self.log_w = np.full(self.n, -np.log(self.n))
+        self.weights = np.full(self.n, 1.0 / self.n)
+        self.initialized = True
+
+    def predict(self, dt_s: float, learn: bool) -> None:
+        """Time update to the next IMU sample: eq. (9) state, (20) NiW, (29) bias."""
+        # eq. (9) x_{k+1} = f + g w_k with the stored rate = rate_n + a w_k
+        self.x += dt_s * self.rate
+        if np.any(self.jitter > 0.0):
+            self.x += self.rng.standard_normal((self.n, 3)) * (self.jitter * np.sqrt(dt_s))
+        self.x[:, 0] = np.maximum(self.x[:, 0], 0.0)
+        if learn:
+            # eq. (20) gamma/lambda, mu, lambda nu, lambda Lambda
+            niw.time_update(self.stats, self.config.forgetting)
+        # eq. (29) P_{k+1} = P_k + Q
+        bias_predict(self.p_bias, self.q_rate * dt_s)
+
+    def update(
+        self,
+        y: F64,
+        delta_rad: float,
+        wheel_speed_m_s: tuple[float, float],
+        learn: bool,
+        vx_m_s: float | None = None,
+    ) -> None:
+        """Measurement part of Algorithm 1 at one IMU sample ``y`` (3,) = [ax, ay, r].
+
+        ``learn`` enables the NiW update (19) (activation, Sec. V). ``vx_m_s`` (optional)
+        replaces the particles' vX by a measured speed (no wheel speeds).
+        """
+        if vx_m_s is not None:
+            self.x[:, 0] = vx_m_s
+        lin = linearize(self.x, delta_rad, wheel_speed_m_s, self.params)
+        # e_bar = y - h - b_{k|k-1} (eq. 12)
+        e_bar = y[None, :] - lin.h - self.b
+        lp = likelihood_params(self.stats, lin.d, self.r_cov, self.p_bias)
+        # Algorithm 1 line 3: eq. (36)
+        self.log_w += log_likelihood(e_bar, lp)
+        # line 6-7: normalize, N_eff
+        self.weights, _ = resampling.normalize_log_weights(self.log_w)
+        self.n_eff = resampling.ess(self.weights)
+        if not np.all(np.isfinite(self.weights)):
+            self.weights = np.full(self.n, 1.0 / self.n)
+        # line 8-10: resample and copy the statistics
+        if self.n_eff <= self.config.resample_threshold * self.n:
+            idx = self._resample(self.weights, self.rng)
+            self._take(idx)
+            lin = Linearized(rate=lin.rate[idx], a=lin.a[idx], h=lin.h[idx], d=lin.d[idx])
+            e_bar = e_bar[idx]
+            lp = LikelihoodParams(
+                loc=lp.loc[idx],
+                shape=lp.shape[idx],
+                w_shape=lp.w_shape[idx],
+                dof=lp.dof[idx] if np.ndim(lp.dof) else lp.dof,
+            )
+            self.weights = np.full(self.n, 1.0 / self.n)
+            self.resample_count += 1
+        self.log_w = np.log(self.weights)
+        # line 17: sample w_k from the conditional predictive (39)-(41)
+        cp = conditional_predictive(self.stats, lin.d, e_bar, lp)
+        w = sample_student_t(cp, self.rng)
+        # Sec. V parameter projection to physical bounds
+        w = np.clip(w, self.lower, self.upper)
+        if learn:
+            # line 4: eq. (19) with w_bar = w_k (Remark 3)
+            niw.measurement_update(self.stats, w)
+            np.clip(self.stats.mean, self.lower, self.upper, out=self.stats.mean)
+        # line 15: eq. (30) with mu_{k|k} and Sigma_{k|k} = Lambda / (nu - 4)
+        sigma = self.stats.scale / np.reshape(
+            np.asarray(self.stats.dof) - NW - 1.0, (-1, 1, 1) if np.ndim(self.stats.dof) else ()
+        )
+        extra = np.einsum("nij,njk,nlk->nil", lin.d, sigma, lin.d)
+        resid = e_bar - np.einsum("nij,nj->ni", lin.d, self.stats.mean)
+        bias_update(self.b, self.p_bias, resid, extra, self.r_cov)
+        # line 18 (first half): derivative for eq. (9), applied in predict()
+        self.rate = lin.rate + np.einsum("nij,nj->ni", lin.a, w)
+
+    def _take(self, idx: NDArray[np.intp]) -> None:
+        self.x = self.x[idx]
+        self.b = self.b[idx]
+        self.p_bias = self.p_bias[idx]
+        self.rate = self.rate[idx]
+        self.stats.take(idx)
+
+    def estimate(self) -> MpfEstimate:
+        """Estimates (27) of the stiffness and (42) of the state."""
+        q = self.weights
+        st = self.stats
+        # eq. (27a) mu_hat = sum q_i mu_i
+        mu = q @ st.mean
+        dev = st.mean - mu
+        nu = np.broadcast_to(np.asarray(st.dof, dtype=float), (self.n,))
+        gam = np.broadcast_to(np.asarray(st.gamma, dtype=float), (self.n,))
+        spread = np.einsum("n,ni,nj->ij", q, dev, dev)
+        # eq. (27b) Sigma_hat = sum q_i (Lambda_i / (nu - 4) + dev dev^T)
+        e_sigma = np.einsum("n,nij->ij", q / (nu - NW - 1.0), st.scale)
+        sigma_hat = e_sigma + spread
+        mean_cov = np.einsum("n,nij->ij", q * gam / (nu - NW - 1.0), st.scale) + spread
+        # eq. (42) weighted mean of the state
+        xm = q @ self.x
+        dx = self.x - xm
+        return MpfEstimate(
+            stiffness=self.nominal + mu,
+            stiffness_std=np.sqrt(np.maximum(np.diag(sigma_hat), 0.0)),
+            mean_std=np.sqrt(np.maximum(np.diag(mean_cov), 0.0)),
+            state=xm,
+            state_cov=np.einsum("n,ni,nj->ij", q, dx, dx),
+            bias=q @ self.b,
+            n_eff=float(self.n_eff),
+        )
