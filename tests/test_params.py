@@ -11,6 +11,7 @@ from tire_estimation.core.config import RadiusEstimatorConfig
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.errors import ConfigError
 from tire_estimation.params import (
+    NODES,
     attribute_docs,
     build_config,
     estimator_sections,
@@ -18,11 +19,14 @@ from tire_estimation.params import (
     render_params_yaml,
 )
 
-YAML_PATH = Path(__file__).parents[1] / "src/tire_estimation/config/estimator.yaml"
+CONFIG_DIR = Path(__file__).parents[1] / "src/tire_estimation/config"
+YAML_PATH = CONFIG_DIR / "estimator.yaml"
 
 
-def test_committed_yaml_matches_the_code() -> None:
-    assert YAML_PATH.read_text() == render_params_yaml("estimator_node", estimator_sections())
+@pytest.mark.parametrize("node", sorted(NODES))
+def test_committed_yaml_matches_the_code(node: str) -> None:
+    path = CONFIG_DIR / f"{node.removesuffix('_node')}.yaml"
+    assert path.read_text() == render_params_yaml(node, NODES[node]())
 
 
 def test_every_parameter_is_documented_with_its_default() -> None:

@@ -61,3 +61,59 @@ class EstimatorNodeOptions:
         require_positive("diagnostics_period_s", self.diagnostics_period_s)
         if self.sensor_qos not in SENSOR_QOS:
             raise ConfigError("sensor_qos", self.sensor_qos, f"must be one of {SENSOR_QOS}")
+
+
+@dataclass(frozen=True)
+class DetectorNodeOptions:
+    """ROS-side options of ``detector_node`` (the CUSUM itself:
+    :class:`~tire_estimation.core.deflation.DeflationDetectorConfig`).
+
+    Attributes:
+        vehicle_file: path of a vehicle.yaml giving the vehicle name; empty = use
+            ``vehicle.name``.
+        tire_set_id: identity of the mounted tire set; the saved calibration is restored only
+            for the same vehicle name and tire set. Default ``default``.
+        persistence_file: file the calibration and alarms are saved to and restored from;
+            empty = off. Default ``~/.ros/tire_estimation/deflation_detector.json``.
+        persistence_period_s: save period, s; <= 0 saves only on events and shutdown.
+            Default 60.
+        diagnostics_period_s: period of /diagnostics, s. Default 1.
+        braking_decel_m_s2: deceleration above which the car counts as braking, m/s^2.
+            Default 1.
+        braking_window_s: odometry span over which the deceleration is taken, s. Default 0.5.
+        odometry_timeout_s: a speed older than this (against the radius stamp) is unknown, s.
+            Default 1.
+    """
+
+    vehicle_file: str = ""
+    tire_set_id: str = "default"
+    persistence_file: str = "~/.ros/tire_estimation/deflation_detector.json"
+    persistence_period_s: float = 60.0
+    diagnostics_period_s: float = 1.0
+    braking_decel_m_s2: float = 1.0
+    braking_window_s: float = 0.5
+    odometry_timeout_s: float = 1.0
+
+    def __post_init__(self) -> None:
+        if not self.tire_set_id:
+            raise ConfigError("tire_set_id", self.tire_set_id, "must not be empty")
+        require_finite("persistence_period_s", self.persistence_period_s)
+        require_positive("diagnostics_period_s", self.diagnostics_period_s)
+        require_positive("braking_decel_m_s2", self.braking_decel_m_s2)
+        require_positive("braking_window_s", self.braking_window_s)
+        require_positive("odometry_timeout_s", self.odometry_timeout_s)
+
+
+@dataclass(frozen=True)
+class VehicleIdentity:
+    """The vehicle's identity where a node needs no other vehicle data.
+
+    Attributes:
+        name: identity of the vehicle for persistence. Default ``vehicle``.
+    """
+
+    name: str = "vehicle"
+
+    def __post_init__(self) -> None:
+        if not self.name:
+            raise ConfigError("name", self.name, "must not be empty")

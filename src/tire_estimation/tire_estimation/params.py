@@ -169,7 +169,8 @@ def render_params_yaml(node_name: str, sections: list[tuple[str, type, str]]) ->
         f"# Parameters of {node_name}: every parameter with its default.",
         "# Units are in the names (_m, _s, _m_s, _rad, ...) and in the comments.",
         "# Generated from the configuration dataclasses by",
-        "#   python -m tire_estimation.params > src/tire_estimation/config/estimator.yaml",
+        f"#   python -m tire_estimation.params {node_name} > "
+        f"src/tire_estimation/config/{node_name.removesuffix('_node')}.yaml",
         "# (a test checks that this file matches the code).",
         f"{node_name}:",
         "  ros__parameters:",
@@ -211,5 +212,23 @@ def estimator_sections() -> list[tuple[str, type, str]]:
     ]
 
 
+def detector_sections() -> list[tuple[str, type, str]]:
+    """The parameter sections of ``detector_node`` (node options, vehicle identity, CUSUM)."""
+    from tire_estimation.core.deflation import DeflationDetectorConfig
+    from tire_estimation.node_config import DetectorNodeOptions, VehicleIdentity
+
+    return [
+        ("", DetectorNodeOptions, "node"),
+        ("vehicle", VehicleIdentity, "vehicle identity (ignored when vehicle_file is set)"),
+        ("detector", DeflationDetectorConfig, "CUSUM deflation detector (Lundquist et al. 2014)"),
+    ]
+
+
+NODES = {"estimator_node": estimator_sections, "detector_node": detector_sections}
+
+
 if __name__ == "__main__":
-    print(render_params_yaml("estimator_node", estimator_sections()), end="")
+    import sys
+
+    node = sys.argv[1] if len(sys.argv) > 1 else "estimator_node"
+    print(render_params_yaml(node, NODES[node]()), end="")

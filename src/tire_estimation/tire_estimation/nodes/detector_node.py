@@ -37,7 +37,12 @@ from tire_estimation.core.deflation import (
 from tire_estimation.core.vehicle import load_vehicle_yaml
 from tire_estimation.errors import InputError, TireEstimationError
 from tire_estimation.nodes import conversions as conv
-from tire_estimation.params import ParameterSpec, build_config, parameter_specs
+from tire_estimation.params import (
+    ParameterSpec,
+    build_config,
+    detector_sections,
+    parameter_specs,
+)
 from tire_estimation.persistence import Identity, load_state, save_state
 from tire_estimation_msgs.msg import DeflationStatus, TireRadii, WheelDeflation
 
@@ -116,31 +121,10 @@ class DetectorNode(Node):
 
     # --- parameters -------------------------------------------------------------------------
     def _declare_parameters(self) -> None:
-        node_params: list[tuple[str, Any, str]] = [
-            (
-                "vehicle_file",
-                "",
-                "path of a vehicle.yaml giving the vehicle name; empty = use vehicle.name",
-            ),
-            ("vehicle.name", "vehicle", "identity of the vehicle for persistence"),
-            ("tire_set_id", "default", "identity of the mounted tire set for persistence"),
-            (
-                "persistence_file",
-                "~/.ros/tire_estimation/deflation_detector.json",
-                "file the calibration and alarms are saved to and restored from; empty = off",
-            ),
-            ("persistence_period_s", 60.0, "[s] save period; <= 0 saves only on events/shutdown"),
-            ("diagnostics_period_s", 1.0, "[s] period of /diagnostics"),
-            ("braking_decel_m_s2", 1.0, "[m/s^2] deceleration above which the car is braking"),
-            ("braking_window_s", 0.5, "[s] odometry span over which the deceleration is taken"),
-            (
-                "odometry_timeout_s",
-                1.0,
-                "[s] speed older than this (vs the radius stamp) is unknown",
-            ),
-        ]
-        for name, default, doc in node_params:
-            self.declare_parameter(name, default, ParameterDescriptor(description=doc))
+        for prefix, cls, _ in detector_sections()[:2]:
+            for spec in parameter_specs(cls, prefix):
+                self.declare_parameter(spec.name, spec.default, _parameter_descriptor(spec))
+            build_config(cls, prefix, self._values(parameter_specs(cls, prefix)))  # validate
         self._specs = parameter_specs(DeflationDetectorConfig, DETECTOR_PREFIX)
         for spec in self._specs:
             self.declare_parameter(spec.name, spec.default, _parameter_descriptor(spec))
