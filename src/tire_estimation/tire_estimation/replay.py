@@ -29,6 +29,7 @@ from tire_estimation.core.radius_estimator import RadiusEstimator
 from tire_estimation.core.tyre_force_kf import TyreForceEstimator, TyreForceKFConfig
 from tire_estimation.errors import BagError, ConfigError
 from tire_estimation.evaluation import metrics as ev
+from tire_estimation.evaluation.residuals import analyze_trace as analyze_residuals
 from tire_estimation.evaluation.runner import (
     LateralTrace,
     RadiusTrace,
@@ -336,10 +337,7 @@ def build_metrics(
     ltp = LocalTangentPlane(*trace.origin_lla) if trace.origin_lla is not None else None
     ref_en, against = _reference_positions(bag, arr["t_ns"], ltp)
     pos_rmse = ev.position_rmse_m(arr["pose"][:, :2], ref_en) if ref_en is not None else None
-    residuals = ev.innovation_tests(
-        arr["innov_m"], arr["innov_cov_m2"], arr["nis"], arr["accepted"]
-    )
-    consistent = bool(residuals.pop("consistent"))
+    residual_report = analyze_residuals(trace)
     return {
         "bag": str(bag.path),
         "duration_s": bag.duration_s,
@@ -351,7 +349,7 @@ def build_metrics(
         "detection": {"alarms": []},
         "stiffness": None,
         "lateral": _lateral_metrics(bag, lateral),
-        "residuals": {"consistent": consistent, "tests": residuals, "suspected_effects": []},
+        "residuals": residual_report,
         "dropped_samples": trace.dropped,
         "resample_count": trace.resample_count,
         "events": [

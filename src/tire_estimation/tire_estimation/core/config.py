@@ -85,6 +85,12 @@ class RadiusEstimatorConfig:
         run_aug_kf: also run the AUG-KF baseline (eq. 10-11). Default False.
         aug_kf_radius_random_walk_m_sqrt_s: random walk of the radius errors in the AUG-KF
             state, m/sqrt(s). Default 2e-5.
+        gnss_latency_s: compensated GNSS latency, s: a fix stamped ``t`` is taken to describe the
+            antenna at ``t - gnss_latency_s`` (the measurement model extrapolates the pose back
+            along the heading by ``speed * latency``). In [-1, 1]; default 0 (off).
+        wheel_speed_time_offset_s: compensated wheel-speed stamp delay, s: a wheel-speed sample
+            stamped ``t`` is taken to describe the wheels at ``t - offset`` (the pose is
+            extrapolated forward by ``speed * offset`` before a fix). In [-1, 1]; default 0.
         seed: seed for the node's ``np.random.Generator``. Default 0.
     """
 
@@ -119,6 +125,8 @@ class RadiusEstimatorConfig:
     wheels: str = "rear"
     run_aug_kf: bool = False
     aug_kf_radius_random_walk_m_sqrt_s: float = 2e-5
+    gnss_latency_s: float = 0.0
+    wheel_speed_time_offset_s: float = 0.0
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -165,6 +173,8 @@ class RadiusEstimatorConfig:
         require_non_negative(
             "aug_kf_radius_random_walk_m_sqrt_s", self.aug_kf_radius_random_walk_m_sqrt_s
         )
+        require_range("gnss_latency_s", self.gnss_latency_s, -1.0, 1.0)
+        require_range("wheel_speed_time_offset_s", self.wheel_speed_time_offset_s, -1.0, 1.0)
         require_int_range("seed", self.seed, 0, 2**63 - 1)
 
     @classmethod

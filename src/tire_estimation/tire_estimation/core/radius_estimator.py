@@ -461,6 +461,9 @@ class RadiusEstimator:
         if abs(ext) > 0.5:
             self._drop("stale")
             return GnssUpdate(t_ns, zeros2, r_m2, 0.0, False, "stale (no wheel speeds)")
+        # calibrated time alignment (default 0): the fix describes the antenna at
+        # t - gnss_latency_s, the pose describes base_link at t_pose - wheel_speed_time_offset_s
+        ext += c.wheel_speed_time_offset_s - c.gnss_latency_s
         pred = self.mpf.predict_fix(y_m, r_m2, self.lever_arm_m, ext)
         if not math.isfinite(pred.nis) or pred.nis > self._gate:
             self._drop("gnss_outlier")

@@ -1,0 +1,400 @@
+"""Residual analysis of the GNSS innovations: consistency tests, regressions, suspected effects.
+
+The innovations ``nu_k = y_k - h(x_k)`` of the radius estimator are rotated into the vehicle's
+along-track / cross-track axes with the estimated heading ``psi_k``::
+
+    nu_along = cos(psi) nu_e + sin(psi) nu_n,   nu_cross = -sin(psi) nu_e + cos(psi) nu_n
+
+and tested (NIS against chi-square(2) bounds, Ljung-Box whiteness) and regressed on candidate
+regressors (speed, speed^2, longitudinal / lateral acceleration, yaw rate, heading, time).
+
+Library of unmodelled effects and their signature in the innovations (first order, before the
+filter absorbs part of a slowly varying residual into its position states):
+
+* ``gnss_latency`` (fix stamped ``t`` describes the antenna at ``t - tau``):
+  ``nu_along = -v tau``; the filter absorbs the slowly varying part into its position, what
+  stays is about its rate ``-a_x tau`` -> negative slope of along-track on the longitudinal
+  acceleration (fitted with intercept and time as nuisance regressors).
+* ``wheel_speed_time_offset`` (wheel samples stamped ``t`` describe ``t - d``): the odometry
+  pose lags by ``v d`` -> ``nu_along = +v d`` -> positive slope on ``a_x``. Both are delays
+  (>= 0), so the sign of the slope separates them.
+* ``gnss_lever_arm`` (antenna at ``a = (a_x, a_y)`` in base_link, not declared): the fix is
+  ``p + R(psi) a`` -> ``nu_e = a_x cos psi - a_y sin psi + c_e``,
+  ``nu_n = a_x sin psi + a_y cos psi + c_n`` (constants ``c`` for the part the position states
+  absorbed) -> regressor ``heading``; estimate ``a_x`` (m, reported), ``a_y`` in the tests.
+* ``radius_speed_dependence`` (``r = r0 + k v^2``): a speed error ``v k v^2 / r0`` integrates
+  into an along-track drift -> along-track on speed^2 beyond speed; the regression gives no
+  reliable size (the filter absorbs the drift), so ``estimate`` is from the profile scan only.
+
+The regression slopes are attenuated by the filter (it pulls its pose towards the fixes with a
+time constant of tens of seconds), so they rank the effects but do not size them. The size of
+an effect is estimated by :func:`profile_scan`: re-run the estimator with the effect switched on
+at a few values and take the minimum of a parabola through the innovation negative
+log-likelihood ``sum_k 0.5 (NIS_k + log det S_k)`` (prediction-error decomposition, Schweppe
+1965), which is what the switched-on model is judged by.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import stats
+
+from tire_estimation.evaluation.metrics import innovation_tests, ljung_box
+
+F64 = NDArray[np.float64]
+
+#: |t| of an effect's regression above which the effect is reported (decimated samples).
+SCORE_THRESHOLD = 4.0
+#: The innovations are decimated to this spacing for the t statistics and whiteness test, s
+#: (the correct-model innovations of a 10 Hz fix stream are correlated over a few fixes by the
+#: slowly varying GNSS error; 1 s spacing keeps the effective sample count honest).
+DECIMATION_S = 1.0
+
+
+@dataclass(frozen=True)
+class Effect:
+    """One candidate effect: its signature and how to read its size from a regression."""
+
+    name: str
+    unit: str
+    regressor: str
+    description: str
+
+
+EFFECTS: tuple[Effect, ...] = (
+    Effect(
+        "gnss_latency",
+        "s",
+        "longitudinal_acceleration",
+        "along-track innovation = -speed x latency",
+    ),
+    Effect(
+        "wheel_speed_time_offset",
+        "s",
+        "longitudinal_acceleration",
+        "along-track innovation = +speed x offset",
+    ),
+    Effect("gnss_lever_arm", "m", "heading", "ENU innovation = R(heading) lever arm"),
+    Effect(
+        "radius_speed_dependence",
+        "m/(m/s)^2",
+        "speed^2",
+        "along-track drift growing with speed^2 beyond speed",
+    ),
+)
+
+
+def _smooth_derivative(t_s: F64, x: F64, window_s: float = 1.0) -> F64:
+    """d x / d t by central differences over about ``window_s``."""
+    if t_s.size < 3:
+        return np.zeros_like(x)
+    dt = float(np.median(np.diff(t_s)))
+    h = max(1, round(0.5 * window_s / max(dt, 1e-6)))
+    idx = np.arange(t_s.size)
+    lo = np.clip(idx - h, 0, t_s.size - 1)
+    hi = np.clip(idx + h, 0, t_s.size - 1)
+    den = np.where(hi > lo, t_s[hi] - t_s[lo], 1.0)
+    return np.where(hi > lo, (x[hi] - x[lo]) / den, 0.0)
+
+
+def regressors_at(
+    innov_t_ns: NDArray[np.int64],
+    trace_t_ns: NDArray[np.int64],
+    pose: F64,
+    speed_m_s: F64,
+) -> dict[str, F64]:
+    """Candidate regressors at the innovation times from the estimator's own trace."""
+    t_tr = (trace_t_ns - trace_t_ns[0]) * 1e-9
+    t_in = (innov_t_ns - trace_t_ns[0]) * 1e-9
+    yaw = np.unwrap(pose[:, 2])
+    yaw_rate = _smooth_derivative(t_tr, yaw)
+    ax = _smooth_derivative(t_tr, speed_m_s)
+    v = np.interp(t_in, t_tr, speed_m_s)
+    r = np.interp(t_in, t_tr, yaw_rate)
+    return {
+        "speed": v,
+        "speed^2": v**2,
+        "longitudinal_acceleration": np.interp(t_in, t_tr, ax),
+        "lateral_acceleration": v * r,
+        "yaw_rate": r,
+        "heading": np.interp(t_in, t_tr, yaw),
+        "time": t_in,
+    }
+
+
+def _ols(x: F64, y: F64) -> tuple[F64, F64, float]:
+    """Least squares ``y = x b``: coefficients, their std errors, R^2."""
+    b, *_ = np.linalg.lstsq(x, y, rcond=None)
+    res = y - x @ b
+    dof = max(y.size - x.shape[1], 1)
+    s2 = float(res @ res) / dof
+    cov = s2 * np.linalg.pinv(x.T @ x)
+    se = np.sqrt(np.maximum(np.diag(cov), 1e-300))
+    tss = float(np.sum((y - y.mean()) ** 2))
+    r2 = 1.0 - float(res @ res) / tss if tss > 0 else 0.0
+    return b, se, r2
+
+
+def _decimation(t_s: F64) -> NDArray[np.intp]:
+    """Indices keeping about one sample per :data:`DECIMATION_S`."""
+    if t_s.size == 0:
+        return np.zeros(0, dtype=np.intp)
+    keep = [0]
+    for k in range(1, t_s.size):
+        if t_s[k] - t_s[keep[-1]] >= DECIMATION_S - 1e-6:
+            keep.append(k)
+    return np.asarray(keep, dtype=np.intp)
+
+
+def analyze(
+    innov_t_ns: NDArray[np.int64],
+    innov_m: F64,
+    innov_cov_m2: F64,
+    nis: F64,
+    accepted: NDArray[np.bool_],
+    trace_t_ns: NDArray[np.int64],
+    pose: F64,
+    speed_m_s: F64,
+    min_speed_m_s: float = 3.0,
+) -> dict[str, Any]:
+    """The ``residuals`` block of metrics.json: consistency tests, regressions, ranked effects.
+
+    Returns ``{"consistent", "tests", "suspected_effects"}``; the effects are ranked by the
+    |t| statistic of their signature (decimated innovations), most likely first, and empty
+    when the run is consistent. ``estimate`` is the (filter-attenuated) regression size; use
+    :func:`profile_scan` for a calibrated size.
+    """
+    base = innovation_tests(innov_m, innov_cov_m2, nis, accepted)
+    base.pop("consistent", None)
+    if trace_t_ns.size < 3:
+        return {"consistent": True, "tests": base, "suspected_effects": []}
+    ok = accepted & np.isfinite(nis) & (innov_t_ns >= trace_t_ns[0]) & (nis > 0)
+    reg = regressors_at(innov_t_ns[ok], trace_t_ns, pose, speed_m_s)
+    ok_idx = np.flatnonzero(ok)
+    moving = reg["speed"] >= min_speed_m_s
+    reg = {k: v[moving] for k, v in reg.items()}
+    nu = innov_m[ok_idx[moving]]
+    if nu.shape[0] < 20:
+        return {"consistent": True, "tests": base, "suspected_effects": []}
+    psi = reg["heading"]
+    c, s = np.cos(psi), np.sin(psi)
+    along = c * nu[:, 0] + s * nu[:, 1]
+    cross = -s * nu[:, 0] + c * nu[:, 1]
+    keep = _decimation(reg["time"])
+    n = int(keep.size)
+
+    tests: dict[str, Any] = dict(base)
+    tests["along_track_mean_m"] = float(np.mean(along))
+    tests["cross_track_mean_m"] = float(np.mean(cross))
+    tests["along_track_rms_m"] = float(np.sqrt(np.mean(along**2)))
+    tests["cross_track_rms_m"] = float(np.sqrt(np.mean(cross**2)))
+    # whiteness of the decimated along/cross innovations, normalized by their own spread
+    lags = min(10, max(1, n // 5))
+    q_a, p_a = ljung_box(along[keep], lags)
+    q_c, p_c = ljung_box(cross[keep], lags)
+    tests["decimation_s"] = DECIMATION_S
+    tests["ljung_box_decimated"] = {
+        "n": n,
+        "lags": lags,
+        "p_along": p_a,
+        "p_cross": p_c,
+        "q_along": q_a,
+        "q_cross": q_c,
+    }
+    # single-regressor fits with intercept of each component on each candidate (standardized
+    # slope t statistics on the decimated samples)
+    regs: dict[str, dict[str, dict[str, float]]] = {"along_track": {}, "cross_track": {}}
+    for comp, y in (("along_track", along), ("cross_track", cross)):
+        for name, x in reg.items():
+            xd = x[keep]
+            if np.std(xd) <= 1e-12:
+                continue
+            b, se, r2 = _ols(np.column_stack([np.ones(n), xd]), y[keep])
+            regs[comp][name] = {"slope": float(b[1]), "t": float(b[1] / se[1]), "r2": r2}
+    tests["regressions"] = regs
+
+    effects: list[dict[str, Any]] = []
+    # time delays: the filter absorbs the slowly varying offset -v tau into its position, what
+    # stays in the innovation is roughly its rate, -a tau (high-passed); fit along-track on
+    # [1, time, a_x] (intercept and time absorb the convergence ramp of the radii)
+    o = np.ones(n)
+    tt = reg["time"][keep]
+    axd = reg["longitudinal_acceleration"][keep]
+    if np.std(axd) > 1e-3:
+        b, se, _ = _ols(np.column_stack([o, tt, axd]), along[keep])
+        slope, t = float(b[2]), abs(float(b[2] / se[2]))
+        tests["along_track_on_time_and_ax"] = {"slope_ax": slope, "t_ax": float(b[2] / se[2])}
+        effects.append(_effect("gnss_latency", t if slope < 0 else 0.0, None))
+        effects.append(_effect("wheel_speed_time_offset", t if slope > 0 else 0.0, None))
+    # lever arm: [nu_e; nu_n] = [cos -sin; sin cos] [a_x; a_y] + [c_e; c_n]
+    ce, se_ = c[keep], s[keep]
+    z = np.zeros(n)
+    x_la = np.vstack([np.column_stack([ce, -se_, o, z]), np.column_stack([se_, ce, z, o])])
+    y_la = np.concatenate([nu[keep, 0], nu[keep, 1]])
+    if np.ptp(psi[keep]) > 0.2:
+        b, se, _ = _ols(x_la, y_la)
+        t_la = float(np.hypot(b[0] / se[0], b[1] / se[1]))
+        effects.append(_effect("gnss_lever_arm", t_la, float(b[0]), extra={"y_m": float(b[1])}))
+        tests["lever_arm_fit_m"] = [float(b[0]), float(b[1])]
+    else:
+        effects.append(_effect("gnss_lever_arm", 0.0, None))
+    # speed^2 beyond speed
+    v = reg["speed"][keep]
+    if np.std(v) > 0.2:
+        b, se, _ = _ols(np.column_stack([o, tt, v, v**2]), along[keep])
+        effects.append(_effect("radius_speed_dependence", abs(float(b[3] / se[3])), None))
+    effects.sort(key=lambda e: -e["score"])
+    nis_ok = True
+    if "mean_nis_bounds_95" in base:
+        _lo, hi = base["mean_nis_bounds_95"]
+        # a mean NIS above the bound: the model misses something (below: R too pessimistic)
+        nis_ok = bool(base["mean_nis"] <= hi)
+    white = bool(p_a > 0.01 and p_c > 0.01)
+    significant = [e for e in effects if e["score"] >= SCORE_THRESHOLD]
+    tests["mean_nis_ok"] = nis_ok
+    tests["white_decimated"] = white
+    tests["score_threshold"] = SCORE_THRESHOLD
+    consistent = bool(nis_ok and white and not significant)
+    return {
+        "consistent": consistent,
+        "tests": tests,
+        "suspected_effects": [] if consistent else significant or effects[:1],
+    }
+
+
+def _effect(
+    name: str, score: float, estimate: float | None, extra: dict[str, float] | None = None
+) -> dict[str, Any]:
+    eff = next(e for e in EFFECTS if e.name == name)
+    out: dict[str, Any] = {
+        "effect": name,
+        "score": float(score),
+        "estimate": estimate,
+        "unit": eff.unit,
+        "regressor": eff.regressor,
+    }
+    if extra:
+        out.update(extra)
+    return out
+
+
+def analyze_trace(trace: Any) -> dict[str, Any]:
+    """:func:`analyze` on a :class:`~tire_estimation.evaluation.runner.RadiusTrace`."""
+    a = trace.arrays()
+    return analyze(
+        np.asarray(trace.innov_t_ns, dtype=np.int64),
+        a["innov_m"],
+        a["innov_cov_m2"],
+        a["nis"],
+        a["accepted"],
+        a["t_ns"],
+        a["pose"],
+        a["speed_m_s"],
+    )
+
+
+def neg_log_likelihood(trace: Any, skip_s: float = 10.0) -> float:
+    """Mean innovation negative log-likelihood ``0.5 (NIS + log det S)`` of the accepted fixes
+    after ``skip_s`` seconds (prediction-error decomposition of the likelihood)."""
+    a = trace.arrays()
+    t = np.asarray(trace.innov_t_ns, dtype=np.int64)
+    ok = a["accepted"] & (a["nis"] > 0)
+    if t.size:
+        ok &= (t - t[0]) * 1e-9 >= skip_s
+    if not ok.any():
+        return float("inf")
+    logdet = np.linalg.slogdet(a["innov_cov_m2"][ok])[1]
+    return float(np.mean(0.5 * (a["nis"][ok] + logdet)))
+
+
+def profile_scan(
+    objective: Callable[[float], float], values: Sequence[float]
+) -> tuple[float, dict[float, float]]:
+    """Minimize ``objective`` over ``values`` and refine with a parabola through the best point
+    and its neighbours. Returns the minimizer and the evaluated points."""
+    vals = sorted(float(v) for v in values)
+    f = {v: float(objective(v)) for v in vals}
+    k = int(np.argmin([f[v] for v in vals]))
+    if 0 < k < len(vals) - 1:
+        x = np.array(vals[k - 1 : k + 2])
+        y = np.array([f[v] for v in x])
+        a2, a1, _ = np.polyfit(x, y, 2)
+        if a2 > 0:
+            return float(np.clip(-a1 / (2 * a2), x[0], x[2])), f
+    return vals[k], f
+
+
+def chi2_mean_bounds(n: int, dof: int = 2, p: float = 0.95) -> tuple[float, float]:
+    """Two-sided bounds of the mean of ``n`` chi-square(dof) variables."""
+    lo, hi = stats.chi2.ppf([(1 - p) / 2, (1 + p) / 2], dof * n) / n
+    return float(lo), float(hi)
+
+
+#: ``RadiusEstimatorConfig`` field that switches each effect on in the model (the lever arm is
+#: ``VehicleParams.gnss_antenna_position_m`` of the vehicle given to the estimator).
+CONFIG_FIELDS: dict[str, str] = {
+    "gnss_latency": "gnss_latency_s",
+    "wheel_speed_time_offset": "wheel_speed_time_offset_s",
+}
+
+#: Scan grids of the effects that the estimator can switch on (0 = not modelled).
+DEFAULT_GRIDS: dict[str, tuple[float, ...]] = {
+    "gnss_latency": (0.0, 0.1, 0.2, 0.4),
+    "wheel_speed_time_offset": (0.0, 0.1, 0.2, 0.4),
+    "gnss_lever_arm": (0.0, 1.0, 2.0, 4.0),
+}
+
+
+def rank_effects(
+    rerun: Callable[[str, float], Any],
+    grids: dict[str, Sequence[float]] | None = None,
+    baseline_nll: float | None = None,
+) -> list[dict[str, Any]]:
+    """Rank the switchable effects by their profile likelihood ratio and size them.
+
+    ``rerun(effect, value)`` runs the estimator with ``effect`` switched on at ``value`` and
+    returns its trace. For each effect the mean innovation NLL is profiled over its grid
+    (:func:`profile_scan`); ``score = 2 n (NLL(0) - NLL(estimate))`` with ``n`` the number of
+    decimated (about independent) fixes: a likelihood-ratio statistic, about chi-square(1)
+    when the effect is absent. The estimate is re-run to get the NLL at the minimizer.
+    """
+    grids = dict(DEFAULT_GRIDS if grids is None else grids)
+    out: list[dict[str, Any]] = []
+    cache: dict[tuple[str, float], float] = {}
+
+    def nll(effect: str, value: float) -> tuple[float, Any]:
+        tr = rerun(effect, value)
+        return neg_log_likelihood(tr), tr
+
+    for effect, grid in grids.items():
+        traces: dict[float, Any] = {}
+
+        def objective(v: float, effect: str = effect, traces: dict[float, Any] = traces) -> float:
+            if v == 0.0 and baseline_nll is not None:
+                return baseline_nll
+            f, tr = nll(effect, v)
+            traces[v] = tr
+            return f
+
+        est, f = profile_scan(objective, grid)
+        for v, fv in f.items():
+            cache[(effect, v)] = fv
+        f_est = f.get(est)
+        if f_est is None:
+            f_est, _tr = nll(effect, est)
+        any_tr = next(iter(traces.values()), None)
+        n = 60
+        if any_tr is not None and len(any_tr.innov_t_ns) > 1:
+            n = max(int((any_tr.innov_t_ns[-1] - any_tr.innov_t_ns[0]) * 1e-9 / DECIMATION_S), 1)
+        f0 = f.get(0.0, baseline_nll if baseline_nll is not None else f_est)
+        score = max(0.0, 2.0 * n * (f0 - min(f_est, min(f.values()))))
+        eff = _effect(effect, score, float(est))
+        eff["nll_profile"] = {str(k): v for k, v in sorted(f.items())}
+        out.append(eff)
+    out.sort(key=lambda e: -e["score"])
+    return out
