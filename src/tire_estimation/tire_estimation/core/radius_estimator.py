@@ -202,6 +202,7 @@ class RadiusEstimator:
         self._active_time_s = 0.0
         self._upper: F64 | None = None
         self._cache = self.mpf.estimate()
+        self._cache_version = self.mpf.version
 
     def _front_prior(self) -> niw.NiwStats:
         c = self.config
@@ -498,6 +499,7 @@ class RadiusEstimator:
             if upd.nis <= self._gate * 4.0:
                 self.kf.update(upd, hj, learn=learn)
         self._cache = self.mpf.estimate()
+        self._cache_version = self.mpf.version
         return GnssUpdate(t_ns, pred.innovation_m, pred.innovation_cov_m2, pred.nis, True, reason)
 
     def _calibration(self) -> None:
@@ -548,13 +550,17 @@ class RadiusEstimator:
         self._pose_ok = True
         self._rejections = 0
         self._cache = self.mpf.estimate()
+        self._cache_version = self.mpf.version
         return GnssUpdate(t_ns, zeros2, r_m2, 0.0, True, "pose initialized")
 
     # ------------------------------------------------------------------ outputs
     def estimate(self) -> RadiusEstimate:
         """Current estimate (always finite)."""
-        est = self.mpf.estimate()
+        # the estimate computed after the last fix is still valid if nothing changed since
+        fresh = getattr(self, "_cache_version", -1) == self.mpf.version
+        est = self._cache if fresh else self.mpf.estimate()
         self._cache = est
+        self._cache_version = self.mpf.version
         rad = est.radius
         wheels: tuple[str, ...] = REAR_WHEELS
         mean = rad.mean
@@ -686,6 +692,7 @@ class RadiusEstimator:
             self.kf.x[3:] = np.asarray(d["aug_kf"]["mean_m"], dtype=float).reshape(2)
             self.kf.p[3:, 3:] = np.asarray(d["aug_kf"]["cov_m2"], dtype=float).reshape(2, 2)
         self._cache = self.mpf.estimate()
+        self._cache_version = self.mpf.version
 
 
 def _is_int(x: Any) -> bool:

@@ -16,8 +16,11 @@ per-particle scale ``sqrt(lambda (1 + gamma) / (nu - d + 1) * nu_t / chi2_{nu_t}
 
 from __future__ import annotations
 
+import functools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -25,6 +28,8 @@ from numpy.typing import NDArray
 from tire_estimation.core import niw
 from tire_estimation.core.radius_model import RL, RR, RadiusMotionModel
 from tire_estimation.core.resampling import RESAMPLERS, ess, normalize_log_weights
+
+_R = TypeVar("_R")
 
 F64 = NDArray[np.float64]
 
@@ -65,6 +70,17 @@ class MpfEstimate:
     radius: niw.NiwEstimate
     n_eff: float
     resample_count: int
+
+
+def _mutates(method: Callable[..., _R]) -> Callable[..., _R]:
+    """Count changes of the filter state (``version``) so estimates can be cached."""
+
+    @functools.wraps(method)
+    def wrapper(self: RadiusMPF, *args: Any, **kwargs: Any) -> _R:
+        self.version += 1
+        return method(self, *args, **kwargs)
+
+    return wrapper
 
 
 class RadiusMPF:
@@ -135,6 +151,8 @@ class RadiusMPF:
         self.yaw = np.zeros(n)
         self.speed = np.zeros(n)
         self.weights = np.full(n, 1.0 / n)
+        #: incremented by every method that changes the filter state (see ``_mutates``)
+        self.version = 0
         self.resample_count = 0
         self.jitter_dt_s = 0.0
         self._mu = np.empty((d, n))
@@ -159,11 +177,13 @@ class RadiusMPF:
             scale=self._lam.transpose(2, 0, 1),
         )
 
+    @_mutates
     def reset_radii(self) -> None:
         """Back to the prior NiW statistics (forget the learned radii)."""
         self.stats = self._wrap(niw.init_stats(self.n, *self._prior))
         self._invalidate_block()
 
+    @_mutates
     def set_stats(self, stats: niw.NiwStats) -> None:
         """Replace the NiW statistics (e.g. restored from a persisted state).
 
@@ -174,6 +194,7 @@ class RadiusMPF:
         self.stats = self._wrap(stats)
         self._invalidate_block()
 
+    @_mutates
     def init_pose(self, mean: F64, cov: F64) -> None:
         """Draw the particle poses from ``N(mean, cov)`` (3,), (3, 3); uniform weights."""
         chol = np.linalg.cholesky(np.asarray(cov, dtype=float) + 1e-12 * np.eye(3))
@@ -213,6 +234,7 @@ class RadiusMPF:
         self._block_pos = 0
 
     # ------------------------------------------------------------------ prediction
+    @_mutates
     def predict(
         self,
         dt_s: float,
@@ -310,6 +332,7 @@ class RadiusMPF:
             self._mu += math.sqrt(self.mean_q * dt) * z[3:]
         self.jitter_dt_s = 0.0
 
+    @_mutates
     def predict_fix(
         self, y_m: F64, r_m2: F64, lever_arm_m: F64, extrapolate_s: float = 0.0
     ) -> FixPrediction:
@@ -337,6 +360,7 @@ class RadiusMPF:
         nis = float(innov @ np.linalg.solve(s_mat, innov))
         return FixPrediction(h=h, innovation_m=innov, innovation_cov_m2=s_mat, nis=nis)
 
+    @_mutates
     def update(self, y_m: F64, r_m2: F64, pred: FixPrediction) -> float:
         """Weight update with the GNSS likelihood (eq. 18, Table I line 12), normalize (line 15)
         and resample when ``N_eff < threshold N`` (line 16). Returns the log marginal likelihood.
@@ -354,6 +378,7 @@ class RadiusMPF:
             self.resample()
         return log_norm
 
+    @_mutates
     def resample(self) -> None:
         """Resample particles and their NiW statistics; uniform weights (Table I line 16)."""
         w = self.weights
@@ -378,6 +403,7 @@ class RadiusMPF:
             self._mu *= a
             self._mu += ((1.0 - a) * mbar)[:, None] + math.sqrt(1.0 - a * a) * (chol @ z)
 
+    @_mutates
     def anchor(self, y_m: F64, r_m2: F64, pred: FixPrediction) -> None:
         """Shift the whole cloud by the Kalman correction of its mean, without re-weighting.
 
@@ -390,6 +416,7 @@ class RadiusMPF:
         self.east += shift[0]
         self.north += shift[1]
 
+    @_mutates
     def clip_mean(self, upper_m: F64) -> None:
         """Project each particle's NiW mean onto ``mu <= upper_m`` (2,) (non-increasing radii)."""
         np.minimum(self._mu, np.asarray(upper_m, dtype=float)[:, None], out=self._mu)
