@@ -1,0 +1,287 @@
+"""Tests of the evaluation campaigns (tire_estimation.evaluation.campaign)."""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from tire_estimation.errors import TireEstimationError
+from tire_estimation.evaluation.campaign import (
+    DIFFUSION_DEADLINE_S,
+    STEP_DEADLINE_S,
+    CampaignError,
+    CaseSpec,
+    EceCampaignPlan,
+    add_campaign_parser,
+    braking_signal,
+    calibration_cases,
+    ece_r64_cases,
+    execute_cases,
+    run_case,
+    run_ece_r64_campaign,
+    summarize_calibration,
+    summarize_detection,
+)
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="tire-estimation")
+    sub = parser.add_subparsers(dest="command", required=True)
+    add_campaign_parser(sub)
+    return parser
+
+
+# ------------------------------------------------------------------ case generation (fast)
+
+
+def test_ece_cases_are_deterministic_and_balanced() -> None:
+    plan = EceCampaignPlan(step_cases=36, robustness_cases=6, diffusion_cases=8)
+    a, b = ece_r64_cases(plan), ece_r64_cases(plan)
+    assert [c.to_dict() for c in a] == [c.to_dict() for c in b]
+    steps = [c for c in a if c.kind == "step"]
+    assert len(steps) == 36
+    # the full factor grid (2 rear wheels x 3 tyres x 3 GNSS x 2 roads) is covered exactly once
+    combos = {
+        (c.labels["wheel"], c.labels["tyre"], c.labels["gnss"], c.labels["road"]) for c in steps
+    }
+    assert len(combos) == 36
+    assert {c.deflated_wheels[0] for c in steps} == {"wheel_rl", "wheel_rr"}
+    assert len({c.seed for c in a}) == len(a)  # every case has its own seed
+    for c in steps:
+        assert c.options["deflation_fraction"] == 0.2
+        assert c.deadline_s == STEP_DEADLINE_S
+        # the CUSUM calibration completes before the step
+        assert c.detector_calibration_s <= 0.8 * c.event_s
+    diffs = [c for c in a if c.kind == "diffusion"]
+    assert {len(c.deflated_wheels) for c in diffs} == {1, 2, 3, 4}
+    for c in diffs:
+        assert c.deadline_s == DIFFUSION_DEADLINE_S
+        assert {"wheel_rl", "wheel_rr"} & set(c.deflated_wheels)  # observable in rear mode
+    assert all(not c.deflated_wheels and c.event_s is None for c in a if c.kind == "robustness")
+
+
+def test_front_wheels_only_with_all_mode() -> None:
+    rear = ece_r64_cases(EceCampaignPlan(step_cases=20, robustness_cases=0, diffusion_cases=0))
+    assert all(c.deflated_wheels[0].startswith("wheel_r") for c in rear)
+    allw = ece_r64_cases(
+        EceCampaignPlan(step_cases=72, robustness_cases=0, diffusion_cases=0, wheels="all")
+    )
+    assert {c.deflated_wheels[0] for c in allw} == {"wheel_fl", "wheel_fr", "wheel_rl", "wheel_rr"}
+    assert all(c.estimator["wheels"] == "all" for c in allw)
+
+
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        {"step_cases": -1},
+        {"wheels": "front"},
+        {"braking_source": "pedal"},
+        {"gnss_levels": ("superb",)},
+        {"tyre_sensitivities_mm_per_kpa": (0.0,)},
+        {"step_minutes": 10.0, "deflation_min": 12.0},
+    ],
+)
+def test_bad_plans_raise_campaign_errors(kwargs: dict[str, Any]) -> None:
+    with pytest.raises(CampaignError):
+        ece_r64_cases(EceCampaignPlan(**kwargs))
+    assert issubclass(CampaignError, TireEstimationError)
+
+
+def test_calibration_cases_and_bad_arguments() -> None:
+    cases = calibration_cases(seeds=3, minutes=12.0, first_seed=5)
+    assert [c.seed for c in cases] == [5, 6, 7]
+    assert all(c.options == {"deflation_fraction": 0.0} and c.kind == "calibration" for c in cases)
+    with pytest.raises(CampaignError):
+        calibration_cases(seeds=0)
+    with pytest.raises(CampaignError):
+        calibration_cases(gnss="bad")
+    with pytest.raises(CampaignError):
+        execute_cases(cases, executor="carrier-pigeon")
+
+
+def test_braking_signal_from_speed() -> None:
+    t = np.arange(0.0, 30.0, 0.1)
+    v = np.where(t < 10.0, 25.0, np.maximum(25.0 - 3.0 * (t - 10.0), 10.0))  # brake 3 m/s^2
+    b = braking_signal(t, v)
+    assert not b[t < 10.0].any()
+    assert b[(t > 12.0) & (t < 14.0)].all()
+    assert not b[t > 18.0].any()
+
+
+def test_summaries_from_synthetic_rows() -> None:
+    rows: list[dict[str, Any]] = [
+        {
+            "case_id": "s0",
+            "kind": "step",
+            "minutes": 30.0,
+            "error": "",
+            "mpf_ok": True,
+            "mpf_detected": True,
+            "mpf_detected_in_time": True,
+            "mpf_detection_time_s": 120.0,
+            "mpf_false_alarms": 0,
+            "mpf_calibrated_before_event": True,
+            "aug_kf_ok": True,
+            "aug_kf_detected": False,
+            "aug_kf_detected_in_time": False,
+            "aug_kf_false_alarms": 0,
+            "aug_kf_calibrated_before_event": True,
+        },
+        {
+            "case_id": "r0",
+            "kind": "robustness",
+            "minutes": 60.0,
+            "error": "",
+            "mpf_ok": True,
+            "mpf_false_alarms": 1,
+            "mpf_monitored_h": 0.5,
+            "aug_kf_ok": True,
+            "aug_kf_false_alarms": 0,
+            "aug_kf_monitored_h": 0.5,
+        },
+    ]
+    s = summarize_detection(rows)
+    assert s["mpf"]["step"]["detection_rate"] == 1.0
+    assert s["aug_kf"]["step"]["detection_rate"] == 0.0
+    assert s["aug_kf"]["step"]["missed"] == ["s0"]
+    assert s["mpf"]["robustness"]["false_alarms_per_hour"] == pytest.approx(2.0)
+    assert s["aug_kf"]["robustness"]["false_alarms"] == 0
+    cal = summarize_calibration(
+        [
+            {
+                "case_id": "c0",
+                "seed": 0,
+                "error": "",
+                "mpf_ok": True,
+                "mpf_rel_err_at_m": 1e-4,
+                "mpf_abs_err_rl_at_m": 3e-4,
+                "mpf_abs_err_rr_at_m": 2e-4,
+                "mpf_meets_targets_at": True,
+                "aug_kf_ok": True,
+                "aug_kf_rel_err_at_m": 3e-4,
+                "aug_kf_abs_err_rl_at_m": 7e-4,
+                "aug_kf_abs_err_rr_at_m": 4e-4,
+                "aug_kf_meets_targets_at": False,
+            }
+        ],
+        600.0,
+    )
+    assert cal["mpf"]["seeds_meeting_all_targets"] == 1
+    assert cal["aug_kf"]["seeds_meeting_all_targets"] == 0
+    assert cal["aug_kf"]["seeds_relative_within_target"] == 0
+    assert cal["mpf"]["relative_error_at_mm"]["max_abs"] == pytest.approx(0.1)
+
+
+def test_cli_parser_and_user_errors(tmp_path: Path) -> None:
+    parser = _parser()
+    args = parser.parse_args(
+        ["campaign", "ece-r64", "--out", str(tmp_path), "--minutes", "3", "--gnss", "good"]
+    )
+    assert args.func.__name__ == "_cmd_ece_r64"
+    assert args.gnss == ("good",)
+    assert args.scheduler is None and args.executor == "dask"
+    args = parser.parse_args(["campaign", "calibration", "--out", str(tmp_path)])
+    assert args.seeds == 20 and args.at_min == 10.0
+    # a user error: deflation after the end of the drive
+    bad = parser.parse_args(
+        ["campaign", "ece-r64", "--out", str(tmp_path), "--minutes", "3", "--deflation-min", "5"]
+    )
+    with pytest.raises(CampaignError):
+        bad.func(bad)
+    bad = parser.parse_args(
+        ["campaign", "calibration", "--out", str(tmp_path), "--estimator", "n_particles=1"]
+    )
+    with pytest.raises(CampaignError):
+        bad.func(bad)
+
+
+# ------------------------------------------------------------------ small end-to-end campaign
+
+
+def test_small_ece_campaign_on_dask(tmp_path: Path) -> None:
+    """A 3.5-min drive with the step at 1.25 min (1 min of CUSUM calibration) and a 2-min drive
+    without deflation, on a threads-only Dask cluster with one worker."""
+    plan = EceCampaignPlan(
+        step_cases=1,
+        robustness_cases=1,
+        diffusion_cases=0,
+        step_minutes=3.5,
+        deflation_min=1.25,
+        robustness_minutes=2.0,
+        detector_calibration_s=60.0,
+        tyre_sensitivities_mm_per_kpa=(0.05,),
+        gnss_levels=("good",),
+        road_levels=("flat",),
+        first_seed=1,
+    )
+    summary = run_ece_r64_campaign(
+        tmp_path / "ece", plan, executor="dask", n_workers=1, threads=True
+    )
+    out = tmp_path / "ece"
+    for name in ("summary.json", "cases.csv", "cases.json", "detection_times.png"):
+        assert (out / name).is_file(), name
+    on_disk = json.loads((out / "summary.json").read_text())
+    assert on_disk["n_failed"] == 0
+    for key in ("mpf", "aug_kf", "cases_by_kind", "config", "versions", "files"):
+        assert key in on_disk
+    for m in ("mpf", "aug_kf"):
+        assert set(on_disk[m]) >= {"step", "diffusion", "robustness", "false_alarms_total"}
+        assert on_disk[m]["robustness"]["false_alarms"] is not None
+    with (out / "cases.csv").open() as fh:
+        rows = {r["case_id"]: r for r in csv.DictReader(fh)}
+    step = rows["step-0000"]
+    deflated = step["deflated_wheels"]
+    other = "wheel_rr" if deflated == "wheel_rl" else "wheel_rl"
+    # 20 % of 230 kPa at 0.05 mm/kPa: a ~2.3 mm step; both methods alarm on that wheel within
+    # the 2.25 min left (the CUSUM low-pass and rate limit alone need about a minute), never on
+    # the other wheel
+    for m in ("mpf", "aug_kf"):
+        assert step[f"{m}_detected"] == "True", step
+        assert step[f"{m}_alarms"].startswith(deflated + "@")
+        assert other not in step[f"{m}_alarms"]
+        assert int(step[f"{m}_false_alarms"]) == 0
+        assert 0.0 < float(step[f"{m}_detection_time_s"]) <= 135.0
+        assert float(step[f"{m}_estimated_change_m"]) < -0.7e-3  # the tyre got smaller
+    rob = rows["rob-0000"]
+    assert int(rob["mpf_false_alarms"]) == 0 and int(rob["aug_kf_false_alarms"]) == 0
+    assert rob["mpf_alarms"] == "" and rob["aug_kf_alarms"] == ""
+    assert summary["mpf"]["step"]["detection_rate"] == 1.0
+    assert summary["mpf"]["robustness"]["false_alarms"] == 0
+    assert summary["mpf"]["robustness"]["monitored_hours"] > 0.0
+
+
+def test_calibration_case_reports_errors_against_truth() -> None:
+    spec = calibration_cases(seeds=1, minutes=2.0, first_seed=3)[0]
+    row = run_case(spec, accuracy_at_s=90.0)
+    assert row["error"] == ""
+    for m in ("mpf", "aug_kf"):
+        assert row[f"{m}_ok"] is True
+        for key in ("rel_err_at_m", "abs_err_rl_at_m", "abs_err_rr_at_m", "final_rel_err_m"):
+            assert np.isfinite(row[f"{m}_{key}"]), key
+            assert abs(row[f"{m}_{key}"]) < 5e-3  # within the prior's reach after 1.5 min
+        assert isinstance(row[f"{m}_meets_targets_at"], bool)
+
+
+def test_failing_case_is_reported_not_raised() -> None:
+    spec = CaseSpec(case_id="bad", kind="step", scenario="no_such_scenario", seed=0, minutes=1.0)
+    row = run_case(spec)
+    assert "ScenarioError" in row["error"]
+    s = summarize_detection([row])
+    assert s["n_failed"] == 1
+
+
+@pytest.mark.parametrize("executor", ["serial", "processes"])
+def test_executors_keep_case_order(executor: str) -> None:
+    specs = [
+        CaseSpec(case_id=f"bad-{i}", kind="step", scenario="nope", seed=i, minutes=1.0)
+        for i in range(3)
+    ]
+    rows = execute_cases(specs, executor=executor, n_workers=2)
+    assert [r["case_id"] for r in rows] == ["bad-0", "bad-1", "bad-2"]
+    assert all("ScenarioError" in r["error"] for r in rows)
