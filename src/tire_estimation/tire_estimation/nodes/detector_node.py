@@ -20,10 +20,8 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from nav_msgs.msg import Odometry
-from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.node import Node
 from std_srvs.srv import Trigger
 
@@ -37,6 +35,7 @@ from tire_estimation.core.deflation import (
 from tire_estimation.core.vehicle import load_vehicle_yaml
 from tire_estimation.errors import InputError, TireEstimationError
 from tire_estimation.nodes import conversions as conv
+from tire_estimation.nodes.common import declare_specs, spin_node
 from tire_estimation.params import (
     ParameterSpec,
     build_config,
@@ -59,15 +58,6 @@ _LEVEL_TEXT = {
     Level.ALARM: "DEFLATION ALARM",
     Level.STALE: "no radius estimate",
 }
-
-
-def _parameter_descriptor(spec: ParameterSpec) -> ParameterDescriptor:
-    text = f"[{spec.unit}] {spec.doc}" if spec.unit else spec.doc
-    desc = ParameterDescriptor(description=text, read_only=True)
-    if spec.range is not None and spec.kind is float:
-        low, high = spec.range
-        desc.floating_point_range = [FloatingPointRange(from_value=low, to_value=high, step=0.0)]
-    return desc
 
 
 class DetectorNode(Node):
@@ -122,12 +112,11 @@ class DetectorNode(Node):
     # --- parameters -------------------------------------------------------------------------
     def _declare_parameters(self) -> None:
         for prefix, cls, _ in detector_sections()[:2]:
-            for spec in parameter_specs(cls, prefix):
-                self.declare_parameter(spec.name, spec.default, _parameter_descriptor(spec))
-            build_config(cls, prefix, self._values(parameter_specs(cls, prefix)))  # validate
+            specs = parameter_specs(cls, prefix)
+            declare_specs(self, specs)
+            build_config(cls, prefix, self._values(specs))  # validate the node options
         self._specs = parameter_specs(DeflationDetectorConfig, DETECTOR_PREFIX)
-        for spec in self._specs:
-            self.declare_parameter(spec.name, spec.default, _parameter_descriptor(spec))
+        declare_specs(self, self._specs)
 
     def _values(self, specs: Sequence[ParameterSpec]) -> dict[str, Any]:
         return {
@@ -362,22 +351,7 @@ class DetectorNode(Node):
 
 def main(args: list[str] | None = None) -> None:
     """Console script ``detector_node`` (``ros2 run tire_estimation detector_node``)."""
-    rclpy.init(args=args)
-    node: DetectorNode | None = None
-    try:
-        node = DetectorNode()
-        rclpy.spin(node)
-    except KeyboardInterrupt:
-        pass
-    except TireEstimationError as exc:
-        print(f"detector_node: configuration error: {exc}")
-        raise SystemExit(2) from exc
-    finally:
-        if node is not None:
-            node.save_on_shutdown()
-            node.destroy_node()
-        if rclpy.ok():
-            rclpy.shutdown()
+    spin_node("detector_node", DetectorNode, args)
 
 
 if __name__ == "__main__":

@@ -23,10 +23,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from nav_msgs.msg import Odometry
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, qos_profile_sensor_data
 from sensor_msgs.msg import Imu, JointState, NavSatFix
@@ -40,6 +38,7 @@ from tire_estimation.core.vehicle import VehicleParams, load_vehicle_yaml
 from tire_estimation.errors import InputError, TireEstimationError
 from tire_estimation.node_config import EstimatorNodeOptions
 from tire_estimation.nodes import conversions as conv
+from tire_estimation.nodes.common import declare_specs, spin_node
 from tire_estimation.params import (
     ParameterSpec,
     build_config,
@@ -62,24 +61,6 @@ _LINEARITY = {
     "linear": LateralState.LINEARITY_LINEAR,
     "nonlinear": LateralState.LINEARITY_NONLINEAR,
 }
-
-
-def _descriptor(spec: ParameterSpec) -> ParameterDescriptor:
-    text = spec.doc
-    if spec.unit:
-        text = f"[{spec.unit}] {text}"
-    if spec.choices:
-        text = f"{text} One of: {', '.join(spec.choices)}."
-    desc = ParameterDescriptor(description=text, read_only=True)
-    if spec.range is not None and spec.kind is float:
-        desc.floating_point_range = [
-            FloatingPointRange(from_value=spec.range[0], to_value=spec.range[1], step=0.0)
-        ]
-    elif spec.range is not None and spec.kind is int:
-        desc.integer_range = [
-            IntegerRange(from_value=int(spec.range[0]), to_value=int(spec.range[1]), step=1)
-        ]
-    return desc
 
 
 def _yaw_to_quaternion(yaw_rad: float) -> tuple[float, float, float, float]:
@@ -167,11 +148,7 @@ class EstimatorNode(Node):
     def _declare_parameters(self) -> None:
         self._specs = {prefix: parameter_specs(cls, prefix) for prefix, cls, _ in SECTIONS}
         for specs in self._specs.values():
-            for spec in specs:
-                desc = _descriptor(spec)
-                if spec.default is None:  # optional: unset unless given (any type accepted)
-                    desc.dynamic_typing = True
-                self.declare_parameter(spec.name, spec.default, desc)
+            declare_specs(self, specs)
 
     def _values(self, specs: Sequence[ParameterSpec]) -> dict[str, Any]:
         return {
@@ -437,22 +414,7 @@ class EstimatorNode(Node):
 
 def main(args: list[str] | None = None) -> None:
     """Console script ``estimator_node`` (``ros2 run tire_estimation estimator_node``)."""
-    rclpy.init(args=args)
-    node: EstimatorNode | None = None
-    try:
-        node = EstimatorNode()
-        rclpy.spin(node)
-    except KeyboardInterrupt:
-        pass
-    except TireEstimationError as exc:
-        print(f"estimator_node: configuration error: {exc}")
-        raise SystemExit(2) from exc
-    finally:
-        if node is not None:
-            node.save_on_shutdown()
-            node.destroy_node()
-        if rclpy.ok():
-            rclpy.shutdown()
+    spin_node("estimator_node", EstimatorNode, args)
 
 
 if __name__ == "__main__":

@@ -1,0 +1,63 @@
+"""Pieces both nodes share: parameter descriptors from specs and the node lifecycle."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import rclpy
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rclpy.exceptions import ParameterException
+from rclpy.node import Node
+
+from tire_estimation.errors import TireEstimationError
+from tire_estimation.params import ParameterSpec
+
+
+def parameter_descriptor(spec: ParameterSpec) -> ParameterDescriptor:
+    """Read-only descriptor with unit, description, choices and range of a dataclass field."""
+    text = f"[{spec.unit}] {spec.doc}" if spec.unit else spec.doc
+    if spec.choices:
+        text = f"{text} One of: {', '.join(spec.choices)}."
+    desc = ParameterDescriptor(description=text, read_only=True)
+    if spec.range is not None and spec.kind is float:
+        desc.floating_point_range = [
+            FloatingPointRange(from_value=spec.range[0], to_value=spec.range[1], step=0.0)
+        ]
+    elif spec.range is not None and spec.kind is int:
+        desc.integer_range = [
+            IntegerRange(from_value=int(spec.range[0]), to_value=int(spec.range[1]), step=1)
+        ]
+    if spec.default is None:  # optional: unset unless given (any type accepted)
+        desc.dynamic_typing = True
+    return desc
+
+
+def declare_specs(node: Node, specs: Sequence[ParameterSpec]) -> None:
+    """Declare one parameter per spec, with its default and descriptor."""
+    for spec in specs:
+        node.declare_parameter(spec.name, spec.default, parameter_descriptor(spec))
+
+
+def spin_node(name: str, factory: Callable[[], Any], args: list[str] | None = None) -> None:
+    """Create the node, spin it until interrupted, save its state, and shut down cleanly.
+
+    A configuration error (bad parameter) ends the process with a message naming the parameter
+    and exit status 2. The node must have ``save_on_shutdown()``.
+    """
+    rclpy.init(args=args)
+    node: Any = None
+    try:
+        node = factory()
+        rclpy.spin(node)
+    except KeyboardInterrupt:
+        pass
+    except (TireEstimationError, ParameterException) as exc:
+        print(f"{name}: configuration error: {exc}")
+        raise SystemExit(2) from exc
+    finally:
+        if node is not None:
+            node.save_on_shutdown()
+            node.destroy_node()
+        if rclpy.ok():
+            rclpy.shutdown()
