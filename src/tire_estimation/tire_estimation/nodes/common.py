@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from pathlib import Path
 from typing import Any
 
 import rclpy
@@ -12,6 +13,7 @@ from rclpy.node import Node
 
 from tire_estimation.errors import TireEstimationError
 from tire_estimation.params import ParameterSpec
+from tire_estimation.persistence import Identity, load_state, save_state
 
 
 def parameter_descriptor(spec: ParameterSpec) -> ParameterDescriptor:
@@ -61,3 +63,33 @@ def spin_node(name: str, factory: Callable[[], Any], args: list[str] | None = No
             node.destroy_node()
         if rclpy.ok():
             rclpy.shutdown()
+
+
+def restore_state(path: Path | None, identity: Identity, target: Any, what: str) -> str:
+    """Load saved state into ``target.load_state_dict`` if it belongs to ``identity``.
+
+    Returns the note shown on /diagnostics (what was restored, or why not).
+    """
+    if path is None:
+        return "persistence disabled"
+    state, reason = load_state(path, identity)
+    if state is not None:
+        try:
+            target.load_state_dict(state)
+        except (TireEstimationError, KeyError, TypeError, ValueError) as exc:
+            reason = f"saved {what} rejected: {exc}"
+    return reason
+
+
+def save_state_of(
+    node: Node, path: Path | None, identity: Identity, target: Any, what: str
+) -> bool:
+    """Write ``target.state_dict()``; on failure log a warning and return False."""
+    if path is None:
+        return True
+    try:
+        save_state(path, identity, target.state_dict())
+    except OSError as exc:
+        node.get_logger().warning(f"could not save the {what}: {exc}")
+        return False
+    return True

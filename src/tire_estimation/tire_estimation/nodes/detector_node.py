@@ -35,14 +35,14 @@ from tire_estimation.core.deflation import (
 from tire_estimation.core.vehicle import load_vehicle_yaml
 from tire_estimation.errors import InputError, TireEstimationError
 from tire_estimation.nodes import conversions as conv
-from tire_estimation.nodes.common import declare_specs, spin_node
+from tire_estimation.nodes.common import declare_specs, restore_state, save_state_of, spin_node
 from tire_estimation.params import (
     ParameterSpec,
     build_config,
     detector_sections,
     parameter_specs,
 )
-from tire_estimation.persistence import Identity, load_state, save_state
+from tire_estimation.persistence import Identity
 from tire_estimation_msgs.msg import DeflationStatus, TireRadii, WheelDeflation
 
 DETECTOR_PREFIX = "detector"
@@ -131,24 +131,15 @@ class DetectorNode(Node):
 
     # --- persistence ------------------------------------------------------------------------
     def _restore(self) -> None:
-        if self._persist_path is None:
-            return
-        state, reason = load_state(self._persist_path, self._identity)
-        if state is not None:
-            try:
-                self.detector.load_state_dict(state)
-            except (TireEstimationError, KeyError, TypeError, ValueError) as exc:
-                reason = f"saved detector state rejected: {exc}"
-        self._persist_note = reason
+        note = restore_state(self._persist_path, self._identity, self.detector, "detector state")
+        if self._persist_path is not None:
+            self._persist_note = note
 
     def _save(self) -> None:
-        if self._persist_path is None:
-            return
-        try:
-            save_state(self._persist_path, self._identity, self.detector.state_dict())
-        except OSError as exc:
+        if not save_state_of(
+            self, self._persist_path, self._identity, self.detector, "detector state"
+        ):
             self.dropped["persistence_write"] += 1
-            self.get_logger().warning(f"could not save the detector state: {exc}")
 
     def save_on_shutdown(self) -> None:
         """Write the calibration and alarms (called when the node stops)."""

@@ -38,14 +38,14 @@ from tire_estimation.core.vehicle import VehicleParams, load_vehicle_yaml
 from tire_estimation.errors import InputError, TireEstimationError
 from tire_estimation.node_config import EstimatorNodeOptions
 from tire_estimation.nodes import conversions as conv
-from tire_estimation.nodes.common import declare_specs, spin_node
+from tire_estimation.nodes.common import declare_specs, restore_state, save_state_of, spin_node
 from tire_estimation.params import (
     ParameterSpec,
     build_config,
     estimator_sections,
     parameter_specs,
 )
-from tire_estimation.persistence import Identity, delete_state, load_state, save_state
+from tire_estimation.persistence import Identity, delete_state
 from tire_estimation_msgs.msg import LateralState, TireForces, TireRadii
 
 SECTIONS = estimator_sections()
@@ -169,24 +169,15 @@ class EstimatorNode(Node):
         return Path(text).expanduser() if text else None
 
     def _restore(self) -> None:
-        if self._persist_path is None:
-            return
-        state, reason = load_state(self._persist_path, self._identity)
-        if state is not None:
-            try:
-                self.estimator.load_state_dict(state)
-            except (TireEstimationError, KeyError, TypeError, ValueError) as exc:
-                reason = f"saved estimates rejected: {exc}"
-        self._persist_note = reason
+        note = restore_state(self._persist_path, self._identity, self.estimator, "estimates")
+        if self._persist_path is not None:
+            self._persist_note = note
 
     def _save(self) -> None:
-        if self._persist_path is None:
-            return
-        try:
-            save_state(self._persist_path, self._identity, self.estimator.state_dict())
-        except OSError as exc:
+        if not save_state_of(
+            self, self._persist_path, self._identity, self.estimator, "estimates"
+        ):
             self.dropped["persistence_write"] += 1
-            self.get_logger().warning(f"could not save estimates: {exc}")
 
     def _on_reset(self, _: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
         self.estimator.reset()
