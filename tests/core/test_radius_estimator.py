@@ -251,3 +251,24 @@ def test_four_wheels_front_radii_and_the_driven_axle_limit(with_resistance):
         bias = R_NOM * f_res / VEH.longitudinal_stiffness_front_n
         assert np.all(np.abs(front_err + bias) < 0.3e-3), (front_err, bias)
         assert np.all(front_err < -0.5e-3)
+
+
+def test_pose_initialization_uses_the_calibrated_gnss_latency():
+    """A fix stamped t describes the antenna at t - 0.3 s. With gnss_latency_s = 0.3 the pose is
+    initialized by inverting the same measurement model as the update, so the first fixes after
+    initialization fit (small NIS); the initialization must not put the pose v * 0.3 = 7.5 m
+    behind."""
+    drive = make_drive(duration_s=30.0, gnss_rate_hz=10.0, gnss_std_m=0.2, seed=6)
+    lag = 30  # samples of 10 ms
+    gi = drive["gi"][drive["gi"] >= lag]
+    noise = 0.2 * np.random.default_rng(7).standard_normal((gi.size, 2))
+    drive["gnss"] = np.stack([drive["east"][gi - lag], drive["north"][gi - lag]], 1) + noise
+    drive["gi"] = gi
+    cfg = RadiusEstimatorConfig(gnss_latency_s=0.3, n_particles=200)
+    est = RadiusEstimator(cfg, VEH, np.random.default_rng(6))
+    fixes = feed(est, drive)
+    k_init = next(i for i, f in enumerate(fixes) if f.reason == "pose initialized")
+    after = fixes[k_init + 1 : k_init + 11]
+    nis = np.array([f.nis for f in after])
+    assert all(f.accepted for f in after)
+    assert np.median(nis) < 6.0, nis

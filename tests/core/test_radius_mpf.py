@@ -212,3 +212,73 @@ def test_paused_prediction_leaves_statistics_untouched():
     np.testing.assert_array_equal(f.stats.scale, scale)
     assert float(f.stats.dof) == dof
     assert np.all(f.east > east)
+
+
+def _bare_mpf(n, lam, seed, prior_dof=10.0, gamma_std=(3e-3, 1e-3)):
+    m = RadiusMotionModel(R_NOM, TRACK, WHEELBASE)
+    return RadiusMPF(
+        m, n, np.array([1e-3, -5e-4]), gamma_std[0], gamma_std[1], prior_dof, lam,
+        "systematic", 0.5, 0.0, 0.0, np.random.default_rng(seed),
+    )  # fmt: skip
+
+
+@pytest.mark.parametrize("k", [1, 7, 40])
+def test_block_niw_update_equals_sequential_eq23_24(k):
+    from tire_estimation.core import niw
+
+    f = _bare_mpf(50, 0.99, seed=5)
+    rng = np.random.default_rng(6)
+    # a non-trivial starting point: correlated scale, spread means
+    f._mu[...] += 1e-3 * rng.standard_normal((2, 50))
+    f._lam[0, 1] = f._lam[1, 0] = 0.3 * f._lam[0, 0]
+    ref = f.stats.copy()
+    w = 1e-3 * rng.standard_normal((k, 2, 50))
+    for j in range(k):
+        niw.time_update(ref, 0.99)
+        niw.measurement_update(ref, w[j].T)
+    f._niw_block_update(w[:, 0].copy(), w[:, 1].copy())
+    st = f.stats
+    np.testing.assert_allclose(st.mean, ref.mean, rtol=1e-10, atol=1e-16)
+    np.testing.assert_allclose(st.scale, ref.scale, rtol=1e-10, atol=1e-18)
+    assert float(st.gamma) == pytest.approx(float(ref.gamma), rel=1e-12)
+    assert float(st.dof) == pytest.approx(float(ref.dof), rel=1e-12)
+
+
+def test_block_draws_have_the_niw_joint_law():
+    """Without forgetting, a block is a draw of (mu, Sigma) from the NiW, then iid N(mu, Sigma)
+    samples: Var(w_j) = (1 + gamma) E[Sigma], Cov(w_1, w_2) = gamma E[Sigma], and a block of one
+    sample is the Student-t of eq. (27) (kurtosis 3 + 6 / (nu_t - 4))."""
+    n = 400_000
+    f = _bare_mpf(n, 1.0, seed=7, prior_dof=12.0, gamma_std=(1e-3, 1e-3))
+    f._lam[0, 1] = f._lam[1, 0] = 0.5 * f._lam[0, 0]
+    gamma, nu, d = float(f.stats.gamma), float(f.stats.dof), 2
+    e_sigma = f.stats.scale[0] / (nu - d - 1.0)
+    d3, d4 = f._draw_block(2)
+    c = np.cov(np.stack([d3[0], d4[0], d3[1], d4[1]]))
+    np.testing.assert_allclose(c[:2, :2], (1 + gamma) * e_sigma, rtol=0.03)
+    np.testing.assert_allclose(c[2:, 2:], (1 + gamma) * e_sigma, rtol=0.03)
+    np.testing.assert_allclose(c[:2, 2:], gamma * e_sigma, rtol=0.05)
+    x = f._draw_block(1)[0][0] - 1e-3
+    kurt = np.mean(x**4) / np.mean(x**2) ** 2
+    nu_t = nu - d + 1.0
+    assert kurt == pytest.approx(3.0 + 6.0 / (nu_t - 4.0), rel=0.1)
+    assert np.mean(x) == pytest.approx(0.0, abs=5e-6)
+
+
+def test_queued_predictions_equal_immediate_ones_when_paused():
+    """learn=False propagation is deterministic: processing the queue in one block or sample by
+    sample gives the same poses."""
+    drive = make_drive(duration_s=3.0, seed=4)
+    fa = _bare_mpf(20, 0.9998, seed=8)
+    fb = _bare_mpf(20, 0.9998, seed=8)
+    for f in (fa, fb):
+        f.init_pose(np.array([0.0, 0.0, 0.3]), np.eye(3) * 1e-4)
+    for k in range(150):
+        steer = 0.05 if k % 3 == 0 else None
+        fa.predict(0.01, drive["ws"][k], learn=False, steer_angle_rad=steer)
+        fb.predict(0.01, drive["ws"][k], learn=False, steer_angle_rad=steer)
+        fb.estimate()  # forces the queue to be processed after every sample
+    np.testing.assert_allclose(fa.east, fb.east, rtol=0, atol=1e-6)  # float32 in-block cos/sin
+    np.testing.assert_allclose(fa.north, fb.north, rtol=0, atol=1e-6)  # float32 in-block cos/sin
+    np.testing.assert_allclose(fa.yaw, fb.yaw, rtol=0, atol=1e-12)
+    assert np.all(fa.east > 0.5)

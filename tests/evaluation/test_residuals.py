@@ -79,8 +79,9 @@ def test_analyze_contract_shape() -> None:
 
 @pytest.mark.slow
 @pytest.mark.xfail(
-    reason="issue 7 open: on the 1.5 min sim the NLL profile sizes a 0.2 s latency at ~0.055 s "
-    "(ranking (a)/(b) pass, sizing (c) does not); see docs/closing_the_loop.md",
+    reason="issue 7 open: on the 1.5 min sim at N = 100, compensating the true 0.2 s latency "
+    "raises the mean innovation NLL (1.44 -> 2.67; pose errors of 4-5 m around 40-50 s), so the "
+    "profile does not find it; cause not found yet, see docs/closing_the_loop.md",
     strict=False,
 )
 def test_undeclared_gnss_latency_is_found_sized_and_closed() -> None:
@@ -97,12 +98,6 @@ def test_undeclared_gnss_latency_is_found_sized_and_closed() -> None:
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(
-    reason="issue 7 open: without any injected effect rank_effects still scores an effect far "
-    "above SCORE_THRESHOLD (about 80 on this drive): the rerun-and-compare NLL score does not yet "
-    "separate particle-filter run-to-run noise from a real effect",
-    strict=True,
-)
 def test_no_injection_no_false_attribution() -> None:
     ranked = _ranked(0.0)
     for eff in ranked:

@@ -28,8 +28,8 @@ from scipy.stats import chi2
 from tire_estimation.core import niw
 from tire_estimation.core.aug_kf import AugKf
 from tire_estimation.core.config import RadiusEstimatorConfig
-from tire_estimation.core.radius_model import FL, FR, RadiusMotionModel
-from tire_estimation.core.radius_mpf import RadiusMPF
+from tire_estimation.core.radius_model import FL, FR, RL, RR, RadiusMotionModel
+from tire_estimation.core.radius_mpf import MpfEstimate, RadiusMPF
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.core.wheels import FRONT_WHEELS, REAR_WHEELS, WHEEL_INDEX, WHEELS
 from tire_estimation.errors import InputError
@@ -129,6 +129,13 @@ def _finite(kind: str, *values: float) -> None:
             raise InputError("nan", f"{kind}: non-finite value {v!r}")
 
 
+def _floats(values: Any) -> list[float]:
+    """A flat list of Python floats from a sequence or array (raises TypeError/ValueError)."""
+    if isinstance(values, np.ndarray):
+        return [float(v) for v in values.reshape(-1).tolist()]
+    return [float(v) for v in np.asarray(values, dtype=float).reshape(-1).tolist()]
+
+
 class RadiusEstimator:
     """Tyre-radius estimator front-end (MPF + optional AUG-KF baseline).
 
@@ -201,8 +208,13 @@ class RadiusEstimator:
         self._t_last_fix_ns: int | None = None
         self._active_time_s = 0.0
         self._upper: F64 | None = None
-        self._cache = self.mpf.estimate()
+        self._set_cache(self.mpf.estimate())
+
+    def _set_cache(self, est: MpfEstimate) -> None:
+        """Remember the MPF estimate (valid until the filter state changes)."""
+        self._cache = est
         self._cache_version = self.mpf.version
+        self._radius_mean = (float(est.radius.mean[0]), float(est.radius.mean[1]))
 
     def _front_prior(self) -> niw.NiwStats:
         c = self.config
@@ -244,9 +256,9 @@ class RadiusEstimator:
         """IMU sample in ``base_link`` axes (only used by the acceleration gates)."""
         try:
             self._check_order("imu", t_ns)
-            gyro = np.asarray(angular_velocity_rad_s, dtype=float).reshape(-1)
-            acc = np.asarray(linear_acceleration_m_s2, dtype=float).reshape(-1)
-            if gyro.shape != (3,) or acc.shape != (3,):
+            gyro = _floats(angular_velocity_rad_s)
+            acc = _floats(linear_acceleration_m_s2)
+            if len(gyro) != 3 or len(acc) != 3:
                 raise InputError("wrong_length", "imu vectors must have 3 components")
             _finite("imu", *gyro, *acc)
         except (InputError, TypeError, ValueError) as exc:
@@ -257,22 +269,22 @@ class RadiusEstimator:
 
     def _parse_wheels(self, wheel_speed_rad_s: Any) -> F64:
         if isinstance(wheel_speed_rad_s, Mapping):
-            ws = np.full(4, np.nan)
+            vals = [math.nan] * 4
             for name, value in wheel_speed_rad_s.items():
                 idx = WHEEL_INDEX.get(name, _SHORT.get(name))
                 if idx is None:
                     raise InputError("unknown_wheel", f"unknown wheel name {name!r}")
-                ws[idx] = float(value)
+                vals[idx] = float(value)
             if len(wheel_speed_rad_s) != 4:
                 raise InputError("wrong_length", f"need 4 wheels, got {len(wheel_speed_rad_s)}")
         else:
-            ws = np.asarray(wheel_speed_rad_s, dtype=float).reshape(-1)
-            if ws.shape != (4,):
-                raise InputError("wrong_length", f"need 4 wheel speeds, got {ws.shape[0]}")
-        _finite("wheel speeds", *ws)
-        if np.any(np.abs(ws) > 1000.0):
-            raise InputError("out_of_range", f"wheel speed above 1000 rad/s: {ws}")
-        return ws
+            vals = _floats(wheel_speed_rad_s)
+            if len(vals) != 4:
+                raise InputError("wrong_length", f"need 4 wheel speeds, got {len(vals)}")
+        _finite("wheel speeds", *vals)
+        if max(abs(v) for v in vals) > 1000.0:
+            raise InputError("out_of_range", f"wheel speed above 1000 rad/s: {vals}")
+        return np.array(vals)
 
     def on_wheel_speeds(self, t_ns: int, wheel_speed_rad_s: Any) -> None:
         """Wheel speeds (fl, fr, rl, rr) in rad/s; drives the prediction of the filters."""
@@ -299,12 +311,21 @@ class RadiusEstimator:
             return
         self._step(dt, t_ns, prev, ws)
 
+    def _speed_yaw_rate(self, ws: F64) -> tuple[float, float]:
+        """Eq. (6) with the learned mean rear radius errors, in Python floats."""
+        d3, d4 = self._radius_mean
+        w3, w4 = float(ws[RL]), float(ws[RR])
+        r, lt = self.model.nominal_radius_m, self.model.track_width_m
+        # eq. (6a) v = r (w3 + w4) / 2 + (w3 d3 + w4 d4) / 2
+        v = 0.5 * (w3 * (r + d3) + w4 * (r + d4))
+        # eq. (6b) yaw_rate = (w4 (r + d4) - w3 (r + d3)) / l_T
+        return v, (w4 * (r + d4) - w3 * (r + d3)) / lt
+
     def _gates(self, t_ns: int, dt: float, ws: F64) -> tuple[bool, str, float, float, F64 | None]:
         c = self.config
         # speed and yaw rate with the learned radii (eq. 6): the virtual yaw rate (eq. 4b) is
         # off by ~0.05 rad/s per mm of left-right radius difference (eq. 9b)
-        v, yr = self.model.speed_yaw_rate(ws, self._cache.radius.mean)
-        v, yr = float(v), float(yr)
+        v, yr = self._speed_yaw_rate(ws)
         if self._prev_v is not None and dt > 0:
             a = (v - self._prev_v) / dt
             k = dt / (c.accel_filter_time_constant_s + dt)
@@ -313,7 +334,7 @@ class RadiusEstimator:
         imu_ok = self._imu is not None and (t_ns - self._imu[0]) * 1e-9 <= c.imu_timeout_s
         steer_ok = self._steer is not None and (t_ns - self._steer[0]) * 1e-9 <= c.imu_timeout_s
         if imu_ok and self._imu is not None:
-            ax, ay = float(self._imu[2][0]), float(self._imu[2][1])
+            ax, ay = self._imu[2][0], self._imu[2][1]
         elif steer_ok and self._steer is not None:
             # lateral acceleration from the steer angle (independent of the radius estimates,
             # which may still be wrong while the filter converges)
@@ -440,7 +461,8 @@ class RadiusEstimator:
         c = 0.5 * (c + c.T)
         if np.all(c == 0.0):
             return np.eye(2) * sd**2  # "covariance unknown"
-        if np.linalg.eigvalsh(c)[0] <= 0.0:
+        # a symmetric 2x2 matrix is positive definite iff c00 > 0 and det > 0
+        if not (c[0, 0] > 0.0 and c[0, 0] * c[1, 1] - c[0, 1] * c[0, 1] > 0.0):
             raise InputError("bad_covariance", "gnss covariance not positive definite")
         return c
 
@@ -498,8 +520,7 @@ class RadiusEstimator:
             upd, hj = self.kf.innovation(y_m, r_m2, self.lever_arm_m, ext)
             if upd.nis <= self._gate * 4.0:
                 self.kf.update(upd, hj, learn=learn)
-        self._cache = self.mpf.estimate()
-        self._cache_version = self.mpf.version
+        self._set_cache(self.mpf.estimate())
         return GnssUpdate(t_ns, pred.innovation_m, pred.innovation_cov_m2, pred.nis, True, reason)
 
     def _calibration(self) -> None:
@@ -533,12 +554,15 @@ class RadiusEstimator:
         yaw = yaw0 + b[2]
         sd = math.sqrt(float(np.trace(r_m2)) / 2.0)
         yaw_std = 2.0 * sd / dist + 0.01
-        la = self.lever_arm_m
+        # invert the measurement model of predict_fix (eq. 13 with lever arm and the calibrated
+        # time alignment): antenna = base_link + R(yaw) (lever + [ext v, 0])
+        c = self.config
+        ext = 0.0 if self._t_pose_ns is None else (t_ns - self._t_pose_ns) * 1e-9
+        ext += c.wheel_speed_time_offset_s - c.gnss_latency_s
+        lx = float(self.lever_arm_m[0]) + ext * self._speed_yaw_rate(self._prev_ws)[0]
+        ly = float(self.lever_arm_m[1])
         pos = y_m - np.array(
-            [
-                la[0] * math.cos(yaw) - la[1] * math.sin(yaw),
-                la[0] * math.sin(yaw) + la[1] * math.cos(yaw),
-            ]
+            [lx * math.cos(yaw) - ly * math.sin(yaw), lx * math.sin(yaw) + ly * math.cos(yaw)]
         )
         cov = np.zeros((3, 3))
         cov[:2, :2] = r_m2
@@ -549,8 +573,7 @@ class RadiusEstimator:
             self.kf.init_pose(mean, cov)
         self._pose_ok = True
         self._rejections = 0
-        self._cache = self.mpf.estimate()
-        self._cache_version = self.mpf.version
+        self._set_cache(self.mpf.estimate())
         return GnssUpdate(t_ns, zeros2, r_m2, 0.0, True, "pose initialized")
 
     # ------------------------------------------------------------------ outputs
@@ -559,8 +582,7 @@ class RadiusEstimator:
         # the estimate computed after the last fix is still valid if nothing changed since
         fresh = getattr(self, "_cache_version", -1) == self.mpf.version
         est = self._cache if fresh else self.mpf.estimate()
-        self._cache = est
-        self._cache_version = self.mpf.version
+        self._set_cache(est)
         rad = est.radius
         wheels: tuple[str, ...] = REAR_WHEELS
         mean = rad.mean
@@ -691,8 +713,7 @@ class RadiusEstimator:
         if self.kf is not None and "aug_kf" in d:
             self.kf.x[3:] = np.asarray(d["aug_kf"]["mean_m"], dtype=float).reshape(2)
             self.kf.p[3:, 3:] = np.asarray(d["aug_kf"]["cov_m2"], dtype=float).reshape(2, 2)
-        self._cache = self.mpf.estimate()
-        self._cache_version = self.mpf.version
+        self._set_cache(self.mpf.estimate())
 
 
 def _is_int(x: Any) -> bool:
@@ -700,7 +721,10 @@ def _is_int(x: Any) -> bool:
 
 
 def _sanitize(a: Any, fill: float = 0.0) -> F64:
-    return np.nan_to_num(np.array(a, dtype=float), nan=fill, posinf=fill, neginf=-fill)
+    out = np.array(a, dtype=float)
+    if np.isfinite(out).all():
+        return out
+    return np.nan_to_num(out, nan=fill, posinf=fill, neginf=-fill)
 
 
 __all__ = [

@@ -7,11 +7,12 @@ marginalized with per-particle Normal-inverse-Wishart statistics (:mod:`.niw`). 
 update, Student-t draw, pose propagation, NiW update); :meth:`RadiusMPF.update` performs lines
 12 and 15-16 (GNSS likelihood weights, normalization, resampling).
 
-Performance: the Student-t draws (eq. 27) are exact and drawn in blocks. Because every particle
-receives the same sequence of NiW updates, ``gamma`` and ``nu`` are shared scalars whose future
-values are known; a block holds, for the next ``B`` updates, standard normals ``(B, d, N)`` and the
-per-particle scale ``sqrt(lambda (1 + gamma) / (nu - d + 1) * nu_t / chi2_{nu_t})`` with
-``chi2 ~ chi-square(nu_t = nu - d + 1)`` drawn through ``Generator.standard_gamma``.
+Performance: predictions are queued and processed in blocks (at the next GNSS fix, estimate or
+state access, or after ``block_size`` samples), vectorized over samples and particles: one
+draw of ``(mu, Sigma)`` per particle and block from the NiW statistics, Gaussian radius errors
+for every sample of the block, the exact unrolled NiW recursion (eq. 23-24) and the pose
+propagation (eq. 3) as cumulative sums. See :meth:`RadiusMPF._draw_block` for why this samples
+the same law as Table I (exactly without forgetting, and for blocks of one sample).
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ from numpy.typing import NDArray
 from tire_estimation.core import niw
 from tire_estimation.core.radius_model import RL, RR, RadiusMotionModel
 from tire_estimation.core.resampling import RESAMPLERS, ess, normalize_log_weights
+from tire_estimation.core.sampling import standard_normal
 
 _R = TypeVar("_R")
 
@@ -41,7 +43,7 @@ class FixPrediction:
     """Predicted GNSS antenna position of the particle cloud.
 
     Attributes:
-        h: per-particle predicted antenna position (east, north), (N, 2), m.
+        h: per-particle predicted antenna position (east, north), (2, N), m.
         innovation_m: measurement minus the weighted mean prediction, (2,), m.
         innovation_cov_m2: weighted cloud covariance of ``h`` plus ``R``, (2, 2), m^2.
         nis: normalized innovation squared, ``innovation' S^-1 innovation``.
@@ -104,7 +106,7 @@ class RadiusMPF:
         kernel_shrinkage: Liu-West shrinkage ``a`` of the NiW means at resampling (beyond the
             paper); 0 disables.
         rng: random generator (all draws).
-        block_size: number of predictions per block of pre-drawn variates.
+        block_size: at most this many queued predictions are processed as one block.
     """
 
     D = 2
@@ -146,10 +148,10 @@ class RadiusMPF:
             np.eye(d) * prior_noise_std_m**2 * (prior_dof - d - 1.0),
         )
         n = self.n
-        self.east = np.zeros(n)
-        self.north = np.zeros(n)
-        self.yaw = np.zeros(n)
-        self.speed = np.zeros(n)
+        self._east = np.zeros(n)
+        self._north = np.zeros(n)
+        self._yaw = np.zeros(n)
+        self._speed = np.zeros(n)
         self.weights = np.full(n, 1.0 / n)
         #: incremented by every method that changes the filter state (see ``_mutates``)
         self.version = 0
@@ -157,13 +159,41 @@ class RadiusMPF:
         self.jitter_dt_s = 0.0
         self._mu = np.empty((d, n))
         self._lam = np.empty((d, d, n))
-        self.stats = self._wrap(niw.init_stats(n, *self._prior))
-        self._block_z: F64 = np.empty((0, d, n))
-        self._block_s: F64 = np.empty((0, n))
-        self._block_pos = 0
-        # scratch buffers
-        self._e = np.empty((d, n))
-        self._tmp = np.empty(n)
+        self._stats = self._wrap(niw.init_stats(n, *self._prior))
+        #: queued predictions (dt_s, w_rl, w_rr, learn, steer or NaN), see :meth:`_flush`
+        self._pending: list[tuple[float, float, float, float, float]] = []
+
+    # ------------------------------------------------------------------ state access
+    # Reading any of these first processes the queued predictions.
+    @property
+    def east(self) -> F64:
+        """Particle east positions of ``base_link`` (N,), m."""
+        self._flush()
+        return self._east
+
+    @property
+    def north(self) -> F64:
+        """Particle north positions of ``base_link`` (N,), m."""
+        self._flush()
+        return self._north
+
+    @property
+    def yaw(self) -> F64:
+        """Particle headings (N,), rad (ENU, 0 = east, not wrapped)."""
+        self._flush()
+        return self._yaw
+
+    @property
+    def speed(self) -> F64:
+        """Particle speeds of the last prediction (N,), m/s."""
+        self._flush()
+        return self._speed
+
+    @property
+    def stats(self) -> niw.NiwStats:
+        """Per-particle NiW statistics (views into the filter's buffers)."""
+        self._flush()
+        return self._stats
 
     # ------------------------------------------------------------------ initialization
     def _wrap(self, stats: niw.NiwStats) -> niw.NiwStats:
@@ -180,8 +210,8 @@ class RadiusMPF:
     @_mutates
     def reset_radii(self) -> None:
         """Back to the prior NiW statistics (forget the learned radii)."""
-        self.stats = self._wrap(niw.init_stats(self.n, *self._prior))
-        self._invalidate_block()
+        self._flush()
+        self._stats = self._wrap(niw.init_stats(self.n, *self._prior))
 
     @_mutates
     def set_stats(self, stats: niw.NiwStats) -> None:
@@ -191,47 +221,25 @@ class RadiusMPF:
         """
         if stats.n != self.n or stats.d != self.D or np.ndim(stats.gamma) or np.ndim(stats.dof):
             raise ValueError("stats must have N particles, d = 2 and shared gamma/dof")
-        self.stats = self._wrap(stats)
-        self._invalidate_block()
+        self._flush()
+        self._stats = self._wrap(stats)
 
     @_mutates
     def init_pose(self, mean: F64, cov: F64) -> None:
-        """Draw the particle poses from ``N(mean, cov)`` (3,), (3, 3); uniform weights."""
+        """Draw the particle poses from ``N(mean, cov)`` (3,), (3, 3); uniform weights.
+
+        Queued predictions (of the previous pose) are processed first for their effect on the
+        radius statistics.
+        """
+        self._flush()
         chol = np.linalg.cholesky(np.asarray(cov, dtype=float) + 1e-12 * np.eye(3))
         x = np.asarray(mean, dtype=float) + self.rng.standard_normal((self.n, 3)) @ chol.T
-        self.east[:] = x[:, 0]
-        self.north[:] = x[:, 1]
-        self.yaw[:] = x[:, 2]
-        self.speed[:] = 0.0
+        self._east[:] = x[:, 0]
+        self._north[:] = x[:, 1]
+        self._yaw[:] = x[:, 2]
+        self._speed[:] = 0.0
         self.weights[:] = 1.0 / self.n
         self.jitter_dt_s = 0.0
-
-    # ------------------------------------------------------------------ random blocks
-    def _invalidate_block(self) -> None:
-        self._block_pos = self._block_z.shape[0]
-
-    def _refill_block(self) -> None:
-        """Pre-draw the Student-t variates of the next ``B`` NiW updates (exact, eq. 27)."""
-        b, n, d, lam = self.block_size, self.n, self.D, self.lam
-        g = float(self.stats.gamma)
-        nu = float(self.stats.dof)
-        nu_t = np.empty(b)
-        factor = np.empty(b)
-        for k in range(b):
-            # eq. (24a), (24c) predicted gamma and nu of the k-th update ahead
-            g_pred = g / lam
-            nu_pred = lam * nu
-            # eq. (27) dof nu - d + 1; shape (1 + gamma) Lambda / (nu - d + 1), where the
-            # predicted Lambda = lambda Lambda (eq. 24d) -> the factor lambda is folded in here
-            nu_t[k] = nu_pred - d + 1.0
-            factor[k] = lam * (1.0 + g_pred) / nu_t[k]
-            # eq. (23a), (23c)
-            g = g_pred / (1.0 + g_pred)
-            nu = nu_pred + 1.0
-        chi2 = 2.0 * self.rng.standard_gamma(np.broadcast_to(0.5 * nu_t[:, None], (b, n)))
-        self._block_s = np.sqrt((factor * nu_t)[:, None] / chi2)
-        self._block_z = self.rng.standard_normal((b, d, n))
-        self._block_pos = 0
 
     # ------------------------------------------------------------------ prediction
     @_mutates
@@ -245,92 +253,212 @@ class RadiusMPF:
         """Propagate over ``dt_s`` with the wheel speeds ``(4,)`` of the start of the interval.
 
         ``learn=True`` (Table I lines 9-11, 13): sample the radius errors from each particle's
-        Student-t predictive, propagate the pose with them and update the NiW statistics.
+        predictive, propagate the pose with them and update the NiW statistics.
         ``learn=False`` (estimation paused): propagate with each particle's mean radius error and
         leave the statistics untouched. ``steer_angle_rad`` selects the low-speed heading model
         (eq. 31a).
+
+        The sample is queued; the queue is processed as one block (see :meth:`_flush`) before
+        anything reads the state, so callers always see the propagated filter.
         """
-        w3 = float(wheel_speed_rad_s[RL])
-        w4 = float(wheel_speed_rad_s[RR])
+        self.jitter_dt_s += dt_s
+        self._pending.append(
+            (
+                float(dt_s),
+                float(wheel_speed_rad_s[RL]),
+                float(wheel_speed_rad_s[RR]),
+                1.0 if learn else 0.0,
+                math.nan if steer_angle_rad is None else float(steer_angle_rad),
+            )
+        )
+        if len(self._pending) >= self.block_size:
+            self._flush()
+
+    def _flush(self) -> None:
+        """Process the queued predictions, one block per run of equal ``learn`` flags."""
+        pend = self._pending
+        if not pend:
+            return
+        self._pending = []
+        arr = np.array(pend)
+        learn = arr[:, 3] > 0.5
+        if learn.all() or not learn.any():
+            self._propagate(arr, bool(learn[0]))
+            return
+        for seg in np.split(arr, np.flatnonzero(np.diff(learn)) + 1):
+            self._propagate(seg, bool(seg[0, 3] > 0.5))
+
+    def _draw_block(self, k: int) -> tuple[F64, F64]:
+        """Radius errors ``(d_rl, d_rr)``, each ``(k, N)``, of the next ``k`` learning steps.
+
+        Table I line 10 samples each step from the Student-t predictive (eq. 27) of the
+        statistics updated with the previous samples. Without forgetting, that sequence has the
+        same joint law as: draw ``(mu, Sigma)`` once from the (time-updated, eq. 24) NiW, then
+        ``k`` independent ``N(mu, Sigma)`` samples (exchangeability of the conjugate model), which
+        is how it is drawn here. With forgetting the predictive of step ``j`` in the block is
+        built from statistics discounted by ``lambda^j`` instead; for a block of ``k`` samples
+        this changes the weight of the history by a factor ``lambda^k`` (0.998 for 10 samples and
+        the default lambda). A block of one sample is exactly eq. (27).
+
+        Sigma ~ iW(nu, Lambda) is drawn as the inverse of a Wishart(nu, Lambda^-1) matrix with
+        the Bartlett decomposition, ``W = M M^T``, ``M = chol(Lambda^-1) A``, ``A`` lower
+        triangular with ``A_11^2 ~ chi2(nu)``, ``A_22^2 ~ chi2(nu - 1)``, ``A_21 ~ N(0, 1)``;
+        then ``Sigma = M^-T M^-1`` and ``S = M^-T`` is a square root of Sigma.
+        """
+        lam, n = self.lam, self.n
+        st = self._stats
+        rng = self.rng
+        # eq. (24a), (24c), (24d): statistics predicted to the first step of the block
+        g = float(st.gamma) / lam
+        nu = lam * float(st.dof)
+        a = self._lam[0, 0]
+        b = self._lam[0, 1]
+        c = self._lam[1, 1]
+        det = a * c - b * b
+        det *= lam * lam
+        # chol(Lambda^-1) for Lambda = lam [[a, b], [b, c]] (closed form, 2x2):
+        # l11 = sqrt(c' / det'), l21 = -b' / sqrt(c' det'), l22 = 1 / sqrt(c')
+        sc = np.sqrt(lam * c)
+        sdet = np.sqrt(det)
+        a11 = np.sqrt(2.0 * rng.standard_gamma(0.5 * nu, n))
+        a22 = np.sqrt(2.0 * rng.standard_gamma(0.5 * (nu - 1.0), n))
+        z = standard_normal(rng, (2 * k + 3, n))
+        # M = chol(Lambda^-1) A; inverse diagonal of M and its off-diagonal term
+        inv_m11 = sdet / (sc * a11)
+        inv_m22 = sc / a22
+        m21 = (lam * b) * a11
+        m21 /= -sc * sdet
+        m21 += z[0] / sc
+        # mu ~ N(mean, gamma Sigma), w_j ~ N(mu, Sigma): w_j = mean + M^-T (sqrt(gamma) z0 + z_j)
+        u0 = z[3 : 3 + k]
+        u0 += math.sqrt(g) * z[1]
+        u1 = z[3 + k :]
+        u1 += math.sqrt(g) * z[2]
+        d4 = u1 * inv_m22
+        d3 = u0 - m21 * d4
+        d3 *= inv_m11
+        d3 += self._mu[0]
+        d4 += self._mu[1]
+        return d3, d4
+
+    def _niw_block_update(self, d3: F64, d4: F64) -> None:
+        """Eq. (24) + (23) applied to the samples ``(d3, d4)`` ``(k, N)`` in order, exactly.
+
+        gamma and nu are shared scalars, so the gains are scalars: with ``g_j = gamma_{j|j}``
+        and ``F_j = prod_{i<j} (1 - g_i)``, the running mean before step ``j`` is
+        ``mu_j = F_j mean + sum_{i<j} F_j g_i / F_{i+1} w_i`` (eq. 23b unrolled, a (k+1, k)
+        matrix ``B`` applied to the samples), and eq. (24d) + (23d) unroll to
+        ``Lambda_k = lambda^k Lambda + sum_j lambda^(k-1-j) c_j e_j e_j^T`` with
+        ``e_j = w_j - mu_j`` and ``c_j = 1 / (1 + gamma_{j|j-1})``.
+        """
+        lam = self.lam
+        k = d3.shape[0]
+        st = self._stats
+        g = float(st.gamma)
+        nu = float(st.dof)
+        gain = [0.0] * k
+        cj = [0.0] * k
+        for j in range(k):
+            # eq. (24a) gamma_{j|j-1} = gamma / lambda; eq. (23a) gamma_{j|j} = gp / (1 + gp)
+            gp = g / lam
+            cj[j] = 1.0 / (1.0 + gp)
+            g = gp * cj[j]
+            gain[j] = g
+            # eq. (24c) + (23c) nu = lambda nu + 1
+            nu = lam * nu + 1.0
+        gv = np.array(gain)
+        f = np.cumprod(np.concatenate(([1.0], 1.0 - gv)))
+        # B[j, i] = F_j g_i / F_{i+1} for i < j (rows 0..k: running means before each step and
+        # the final mean)
+        bmat = np.tril(np.outer(f, gv / f[1:]), -1)
+        q = np.array(cj) * lam ** np.arange(k - 1, -1, -1)
+        lm = self._lam
+        lam_k = lam**k
+        mu = self._mu
+        run3 = bmat @ d3
+        run3 += np.outer(f, mu[0])
+        run4 = bmat @ d4
+        run4 += np.outer(f, mu[1])
+        e3 = d3 - run3[:k]
+        e4 = d4 - run4[:k]
+        # eq. (24d) + (23d) unrolled
+        lm[0, 0] *= lam_k
+        lm[0, 0] += q @ (e3 * e3)
+        lm[1, 1] *= lam_k
+        lm[1, 1] += q @ (e4 * e4)
+        lm[0, 1] *= lam_k
+        lm[0, 1] += q @ (e3 * e4)
+        lm[1, 0] = lm[0, 1]
+        mu[0] = run3[k]
+        mu[1] = run4[k]
+        st.gamma[...] = g
+        st.dof[...] = nu
+
+    def _propagate(self, seg: F64, learn: bool) -> None:
+        """Propagate the pose over the samples ``seg`` ``(k, 5)`` = dt, w_rl, w_rr, learn,
+        steer (NaN = none) with the radius errors drawn for them (or the NiW means)."""
+        k = seg.shape[0]
+        dt, w3, w4, steer = seg[:, 0], seg[:, 1], seg[:, 2], seg[:, 4]
         r = self.model.nominal_radius_m
         lt = self.model.track_width_m
-        st = self.stats
-        self.jitter_dt_s += dt_s
         if learn:
-            if self._block_pos >= self._block_z.shape[0]:
-                self._refill_block()
-            j = self._block_pos
-            self._block_pos += 1
-            z = self._block_z[j]
-            s = self._block_s[j]
-            lam_, mu, e = self._lam, self._mu, self._e
-            # Cholesky of the current Lambda (closed form, d = 2); the predictive shape factor
-            # and sqrt(nu_t / chi2) are in s -> e = chol(shape) z sqrt(nu_t / chi2)
-            l11 = np.sqrt(lam_[0, 0])
-            l21 = lam_[1, 0] / l11
-            l22 = np.sqrt(np.maximum(lam_[1, 1] - l21 * l21, 0.0))
-            zs = z * s
-            np.multiply(l11, zs[0], out=e[0])
-            np.multiply(l21, zs[0], out=e[1])
-            e[1] += l22 * zs[1]
-            # eq. (27) w ~ St(mu, (1 + gamma) Lambda / (nu - d + 1), nu - d + 1): w = mu + e
-            w = mu + e
-            # eq. (24a) gamma_{k|k-1} = gamma / lambda (shared scalar)
-            g_pred = float(st.gamma) / self.lam
-            c = 1.0 / (1.0 + g_pred)
-            # eq. (24d) + (23d): Lambda = lambda Lambda + (w - mu)(w - mu)^T / (1 + gamma_{k|k-1})
-            lam_ *= self.lam
-            ec = c * e
-            lam_[0, 0] += ec[0] * e[0]
-            lam_[1, 1] += ec[1] * e[1]
-            lam_[0, 1] += ec[0] * e[1]
-            lam_[1, 0] = lam_[0, 1]
-            # eq. (23a) gamma_{k|k} = gamma_pred / (1 + gamma_pred)
-            g_new = g_pred * c
-            # eq. (23b) mu = mu + gamma_{k|k} (w - mu)
-            mu += g_new * e
-            st.gamma[...] = g_new
-            # eq. (24c) + (23c) nu = lambda nu + 1
-            st.dof[...] = self.lam * float(st.dof) + 1.0
+            # Table I lines 9-11, 13: sample the radius errors and update the NiW statistics
+            d3, d4 = self._draw_block(k)
+            self._niw_block_update(d3, d4)
         else:
-            w = self._mu
-        # eq. (6a)/(7a) v = r (w3 + w4) / 2 + (w3 d3 + w4 d4) / 2 and
-        # eq. (6b)/(7c) yaw_rate = r (w4 - w3) / l_T + (w4 d4 - w3 d3) / l_T, as one product
-        coef = np.array([[0.5 * w3, 0.5 * w4], [-w3 / lt, w4 / lt]])
-        vy = coef @ w
-        vy[0] += 0.5 * r * (w3 + w4)
-        v = vy[0]
-        self.speed[:] = v
-        if steer_angle_rad is None:
-            vy[1] += r * (w4 - w3) / lt
-            yr = vy[1]
-        else:
-            # eq. (31a) low-speed heading from the steer angle
-            yr = self.model.steering_yaw_rate(v, steer_angle_rad)
-        # eq. (3a)-(3c) / (7)
-        tmp = self._tmp
-        np.multiply(v, dt_s, out=tmp)
-        self.east += tmp * np.cos(self.yaw)
-        self.north += tmp * np.sin(self.yaw)
-        self.yaw += dt_s * yr
+            d3, d4 = self._mu[0][None, :], self._mu[1][None, :]
+        a3 = w3[:, None] * d3
+        a4 = w4[:, None] * d4
+        # eq. (6a)/(7a) v = r (w3 + w4) / 2 + (w3 d3 + w4 d4) / 2; here ds = v dt
+        ds = a3 + a4
+        ds += (r * (w3 + w4))[:, None]
+        ds *= (0.5 * dt)[:, None]
+        # eq. (6b)/(7c) yaw_rate = r (w4 - w3) / l_T + (w4 d4 - w3 d3) / l_T; here dt yaw_rate
+        dyaw = a4
+        dyaw -= a3
+        dyaw += (r * (w4 - w3))[:, None]
+        dyaw *= (dt / lt)[:, None]
+        steer_rows = np.flatnonzero(~np.isnan(steer))
+        if steer_rows.size:
+            # eq. (31a) low-speed heading from the steer angle: yaw_rate = v tan(delta) / l_b
+            dyaw[steer_rows] = (
+                ds[steer_rows] * (np.tan(steer[steer_rows]) / self.model.wheelbase_m)[:, None]
+            )
+        # eq. (3c): heading at the start of each step (zero-order hold), relative to the block
+        # start; the block start heading enters through the angle-sum identity below
+        rel = np.empty((k, self.n))
+        rel[0] = 0.0
+        for j in range(1, k):
+            np.add(rel[j - 1], dyaw[j - 1], out=rel[j])
+        # eq. (3a), (3b) summed over the block: cos/sin of the (small) in-block heading change
+        # in float32 (relative error ~1e-7 of a step of a few cm), block start in float64
+        c_rel = np.cos(rel, dtype=np.float32)
+        s_rel = np.sin(rel, dtype=np.float32)
+        fx = np.einsum("kn,kn->n", ds, c_rel)
+        fy = np.einsum("kn,kn->n", ds, s_rel)
+        c0 = np.cos(self._yaw)
+        s0 = np.sin(self._yaw)
+        self._east += fx * c0 - fy * s0
+        self._north += fx * s0 + fy * c0
+        self._yaw += rel[k - 1] + dyaw[k - 1]
+        np.multiply(ds[k - 1], 1.0 / dt[k - 1] if dt[k - 1] > 0 else 0.0, out=self._speed)
 
     # ------------------------------------------------------------------ measurement update
     def _apply_jitter(self) -> None:
         """Additive pose random walk accumulated since the last fix (roughening)."""
         dt = self.jitter_dt_s
+        self.jitter_dt_s = 0.0
         if dt <= 0.0 or (self.pos_q == 0.0 and self.yaw_q == 0.0 and self.mean_q == 0.0):
-            self.jitter_dt_s = 0.0
             return
         z = self.rng.standard_normal((3 + self.D, self.n))
         sp = math.sqrt(self.pos_q * dt)
-        self.east += sp * z[0]
-        self.north += sp * z[1]
-        self.yaw += math.sqrt(self.yaw_q * dt) * z[2]
+        self._east += sp * z[0]
+        self._north += sp * z[1]
+        self._yaw += math.sqrt(self.yaw_q * dt) * z[2]
         if self.mean_q > 0.0:
             # artificial dynamics of the NiW mean (beyond the paper): random walk of the
             # per-particle radius-error mean, keeps the radius hypotheses diverse
             self._mu += math.sqrt(self.mean_q * dt) * z[3:]
-        self.jitter_dt_s = 0.0
 
     @_mutates
     def predict_fix(
@@ -342,34 +470,49 @@ class RadiusMPF:
         antenna (x, y) in ``base_link``; ``extrapolate_s`` from the pose time to the fix time.
         Applies the accumulated pose noise first.
         """
+        self._flush()
         self._apply_jitter()
-        c = np.cos(self.yaw)
-        s = np.sin(self.yaw)
+        c = np.cos(self._yaw)
+        s = np.sin(self._yaw)
         ax, ay = float(lever_arm_m[0]), float(lever_arm_m[1])
-        ext = extrapolate_s * self.speed
-        h = np.empty((self.n, 2))
+        h = np.empty((2, self.n))
         # eq. (13) h(x) = [x, y] of the antenna: base_link + R(psi) lever arm (+ extrapolation)
-        h[:, 0] = self.east + (ax + ext) * c - ay * s
-        h[:, 1] = self.north + (ax + ext) * s + ay * c
+        if extrapolate_s:
+            lx = ax + extrapolate_s * self._speed
+            h[0] = self._east + lx * c - ay * s
+            h[1] = self._north + lx * s + ay * c
+        else:
+            h[0] = self._east + ax * c - ay * s
+            h[1] = self._north + ax * s + ay * c
         w = self.weights
-        mean = w @ h
-        dev = h - mean
-        cov = (dev * w[:, None]).T @ dev
+        mean = h @ w
+        dev = h - mean[:, None]
+        cov = (dev * w) @ dev.T
         s_mat = cov + r_m2
-        innov = np.asarray(y_m, dtype=float) - mean
-        nis = float(innov @ np.linalg.solve(s_mat, innov))
+        innov = np.array([float(y_m[0]) - mean[0], float(y_m[1]) - mean[1]])
+        # NIS with the closed-form 2x2 inverse
+        s00, s01, s11 = float(s_mat[0, 0]), float(s_mat[0, 1]), float(s_mat[1, 1])
+        det = s00 * s11 - s01 * s01
+        i0, i1 = float(innov[0]), float(innov[1])
+        nis = (s11 * i0 * i0 - 2.0 * s01 * i0 * i1 + s00 * i1 * i1) / det if det > 0 else math.inf
         return FixPrediction(h=h, innovation_m=innov, innovation_cov_m2=s_mat, nis=nis)
 
     @_mutates
     def update(self, y_m: F64, r_m2: F64, pred: FixPrediction) -> float:
         """Weight update with the GNSS likelihood (eq. 18, Table I line 12), normalize (line 15)
         and resample when ``N_eff < threshold N`` (line 16). Returns the log marginal likelihood.
+
+        ``pred.h`` holds the predicted antenna positions ``(2, N)`` of :meth:`predict_fix`.
         """
-        diff = np.asarray(y_m, dtype=float) - pred.h
-        r_inv = np.linalg.inv(r_m2)
-        maha = np.einsum("ni,ij,nj->n", diff, r_inv, diff)
+        self._flush()
+        r00, r01, r11 = float(r_m2[0, 0]), float(r_m2[0, 1]), float(r_m2[1, 1])
+        det = r00 * r11 - r01 * r01
+        d0 = float(y_m[0]) - pred.h[0]
+        d1 = float(y_m[1]) - pred.h[1]
+        # Mahalanobis distance with the closed-form inverse of R (2x2)
+        maha = (r11 * d0 * d0 - 2.0 * r01 * d0 * d1 + r00 * d1 * d1) / det
         # eq. (13c) Gaussian GNSS likelihood p(y_k | x_k^(i))
-        loglik = -0.5 * maha - 0.5 * (2 * LOG_2PI + math.log(np.linalg.det(r_m2)))
+        loglik = -0.5 * maha - 0.5 * (2 * LOG_2PI + math.log(det))
         with np.errstate(divide="ignore"):
             log_w = np.log(self.weights) + loglik
         # eq. (18) w_k = w_{k-1} p(y_k | x_k), Table I line 15: normalize
@@ -381,17 +524,16 @@ class RadiusMPF:
     @_mutates
     def resample(self) -> None:
         """Resample particles and their NiW statistics; uniform weights (Table I line 16)."""
+        self._flush()
         w = self.weights
         if self.kernel_a > 0.0:
             mbar = self._mu @ w
             dev = self._mu - mbar[:, None]
             v_cloud = (dev * w) @ dev.T
         idx = self.resample_fn(w, self.rng)
-        self.east[:] = self.east[idx]
-        self.north[:] = self.north[idx]
-        self.yaw[:] = self.yaw[idx]
-        self.speed[:] = self.speed[idx]
-        self.stats.take(idx)
+        for a in (self._east, self._north, self._yaw, self._speed):
+            a[:] = a[idx]
+        self._stats.take(idx)
         self.weights[:] = 1.0 / self.n
         self.resample_count += 1
         if self.kernel_a > 0.0:
@@ -410,34 +552,69 @@ class RadiusMPF:
         Used while the estimation is paused: keeps the pose tied to GNSS without letting a
         model mismatch (braking slip, low speed) select radius hypotheses.
         """
+        self._flush()
         cov = pred.innovation_cov_m2 - r_m2
         gain = cov @ np.linalg.inv(pred.innovation_cov_m2)
         shift = gain @ pred.innovation_m
-        self.east += shift[0]
-        self.north += shift[1]
+        self._east += shift[0]
+        self._north += shift[1]
 
     @_mutates
     def clip_mean(self, upper_m: F64) -> None:
         """Project each particle's NiW mean onto ``mu <= upper_m`` (2,) (non-increasing radii)."""
+        self._flush()
         np.minimum(self._mu, np.asarray(upper_m, dtype=float)[:, None], out=self._mu)
 
     # ------------------------------------------------------------------ estimates
     def estimate(self) -> MpfEstimate:
         """Weighted pose mean/covariance and the NiW MMSE (eq. 30, Table I lines 17-18)."""
+        self._flush()
         w = self.weights
-        yaw_mean = math.atan2(float(w @ np.sin(self.yaw)), float(w @ np.cos(self.yaw)))
-        x = np.stack(
-            [self.east, self.north, np.angle(np.exp(1j * (self.yaw - yaw_mean))) + yaw_mean],
-            axis=1,
-        )
-        mean = w @ x
-        dev = x - mean
-        cov = (dev * w[:, None]).T @ dev
+        yaw = self._yaw
+        yaw_mean = math.atan2(float(np.sin(yaw) @ w), float(np.cos(yaw) @ w))
+        x = np.empty((3, self.n))
+        x[0] = self._east
+        x[1] = self._north
+        # headings unwrapped around their circular mean
+        np.subtract(yaw, yaw_mean, out=x[2])
+        x[2] += math.pi
+        np.mod(x[2], 2.0 * math.pi, out=x[2])
+        x[2] += yaw_mean - math.pi
+        mean = x @ w
+        dev = x - mean[:, None]
+        cov = (dev * w) @ dev.T
         mean[2] = math.atan2(math.sin(mean[2]), math.cos(mean[2]))
         return MpfEstimate(
             pose=mean,
             pose_cov=0.5 * (cov + cov.T),
-            radius=niw.mmse(self.stats, w),
+            radius=self._radius_mmse(),
             n_eff=ess(w),
             resample_count=self.resample_count,
+        )
+
+    def _radius_mmse(self) -> niw.NiwEstimate:
+        """:func:`niw.mmse` for the shared-gamma/nu, particle-last 2x2 layout (same values)."""
+        w = self.weights
+        st = self._stats
+        d = self.D
+        nu = float(st.dof)
+        gam = float(st.gamma)
+        mu = self._mu
+        # eq. (30a) mu_hat = sum_i w_i mu_i
+        mean = mu @ w
+        dev = mu - mean[:, None]
+        spread = (dev * w) @ dev.T
+        lam_w = self._lam.reshape(d * d, self.n) @ w
+        lam_w = lam_w.reshape(d, d)
+        # E[Sigma | stats_i] = Lambda_i / (nu - d - 1)  (Ozkan et al. eq. 32)
+        noise_cov = lam_w / (nu - d - 1.0)
+        mean_cov = gam * noise_cov + spread
+        # eq. (30b) as printed in the T-ITS paper
+        cov30 = lam_w * ((nu - d + 1.0) / (nu - d - 1.0)) + spread
+        return niw.NiwEstimate(
+            mean=mean,
+            mean_cov=0.5 * (mean_cov + mean_cov.T),
+            noise_cov=0.5 * (noise_cov + noise_cov.T),
+            noise_cov_eq30b=0.5 * (cov30 + cov30.T),
+            dof=nu,
         )

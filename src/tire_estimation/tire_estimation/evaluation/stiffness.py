@@ -43,7 +43,12 @@ def eval_config(n: int, **kw: Any) -> StiffnessEstimatorConfig:
 
 
 def run(sim: SimResult, cfg: StiffnessEstimatorConfig, seed: int) -> dict[str, np.ndarray]:
-    """Replay ``sim`` through the estimator; arrays on the IMU grid."""
+    """Replay ``sim`` through the estimator; arrays on the IMU grid.
+
+    Keys: ``t`` (ns), ``c``/``std`` stiffness and its std (K, 3), ``vy`` (CG) and ``r`` (yaw
+    rate) estimates, ``active`` (learning on), ``ready`` (filter initialized), the truth
+    ``truth_c``/``truth_vy`` (CG), ``t_s`` from the first IMU sample and ``step_ms``.
+    """
     est = StiffnessEstimator(cfg, sim.vehicle, np.random.default_rng(seed))
     ws, st, imu = sim.wheel_speeds, sim.steering, sim.imu
     ev: list[tuple[int, int, Any]] = [
@@ -57,7 +62,15 @@ def run(sim: SimResult, cfg: StiffnessEstimatorConfig, seed: int) -> dict[str, n
         )
     ]
     ev.sort(key=lambda e: (e[0], e[1]))
-    out: dict[str, list[Any]] = {"t": [], "c": [], "std": [], "vy": [], "active": []}
+    out: dict[str, list[Any]] = {
+        "t": [],
+        "c": [],
+        "std": [],
+        "vy": [],
+        "r": [],
+        "active": [],
+        "ready": [],
+    }
     dt_total = 0.0
     for t, kind, v in ev:
         if kind == 0:
@@ -73,7 +86,9 @@ def run(sim: SimResult, cfg: StiffnessEstimatorConfig, seed: int) -> dict[str, n
             out["c"].append(e.stiffness)
             out["std"].append(e.stiffness_std)
             out["vy"].append(e.vy_m_s)
+            out["r"].append(e.yaw_rate_rad_s)
             out["active"].append(e.active)
+            out["ready"].append(est.mpf.initialized)
     res = {k: np.asarray(v) for k, v in out.items()}
     tr = sim.truth
     j = np.searchsorted(tr.t_ns, res["t"]).clip(0, tr.t_ns.size - 1)
