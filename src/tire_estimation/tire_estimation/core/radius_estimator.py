@@ -622,9 +622,9 @@ class RadiusEstimator:
             active=tuple(bool(a) for a in active),
             pose=_sanitize(pose),
             pose_cov=_sanitize(pose_cov, 1e6),
-            speed_m_s=float(np.nan_to_num(v)),
-            yaw_rate_rad_s=float(np.nan_to_num(yr)),
-            n_eff=float(np.nan_to_num(est.n_eff)),
+            speed_m_s=_finite_or_zero(v),
+            yaw_rate_rad_s=_finite_or_zero(yr),
+            n_eff=_finite_or_zero(est.n_eff),
             resample_count=est.resample_count,
             state=state,
             state_reason=self._reason,
@@ -718,6 +718,11 @@ class RadiusEstimator:
 
 def _is_int(x: Any) -> bool:
     return isinstance(x, (int, np.integer)) and not isinstance(x, bool)
+
+
+def _finite_or_zero(x: Any) -> float:
+    v = float(x)
+    return v if math.isfinite(v) else 0.0
 
 
 def _sanitize(a: Any, fill: float = 0.0) -> F64:

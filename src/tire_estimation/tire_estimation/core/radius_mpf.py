@@ -356,6 +356,29 @@ class RadiusMPF:
         st = self._stats
         g = float(st.gamma)
         nu = float(st.dof)
+        lm = self._lam
+        mu = self._mu
+        if k == 1:
+            # one sample: eq. (24) + (23) directly
+            gp = g / lam
+            c1 = 1.0 / (1.0 + gp)
+            e3 = d3[0] - mu[0]
+            e4 = d4[0] - mu[1]
+            # eq. (24d) + (23d) Lambda = lambda Lambda + e e^T / (1 + gamma_{k|k-1})
+            lm *= lam
+            ce3 = c1 * e3
+            lm[0, 0] += ce3 * e3
+            lm[1, 1] += c1 * e4 * e4
+            lm[0, 1] += ce3 * e4
+            lm[1, 0] = lm[0, 1]
+            # eq. (23a), (23b) mean += gamma_{k|k} e
+            g = gp * c1
+            mu[0] += g * e3
+            mu[1] += g * e4
+            st.gamma[...] = g
+            # eq. (24c) + (23c)
+            st.dof[...] = lam * nu + 1.0
+            return
         gain = [0.0] * k
         cj = [0.0] * k
         for j in range(k):
@@ -372,9 +395,7 @@ class RadiusMPF:
         # the final mean)
         bmat = np.tril(np.outer(f, gv / f[1:]), -1)
         q = np.array(cj) * lam ** np.arange(k - 1, -1, -1)
-        lm = self._lam
         lam_k = lam**k
-        mu = self._mu
         run3 = bmat @ d3
         run3 += np.outer(f, mu[0])
         run4 = bmat @ d4

@@ -63,6 +63,13 @@ _LINEARITY = {
 }
 
 
+#: rows/columns of x, y and yaw in the REP-103 6x6 covariance order (x, y, z, roll, pitch, yaw)
+_PLANAR = (0, 1, 5)
+#: twist covariance of the odometry: speed (0.1 m/s)^2, lateral and vertical speed (0.1 m/s)^2
+#: (planar, non-holonomic), roll/pitch rates unknown, yaw rate (0.01 rad/s)^2
+_TWIST_COV = np.diag([0.01, 0.01, 0.01, 1e6, 1e6, 1e-4]).reshape(36)
+
+
 def _yaw_to_quaternion(yaw_rad: float) -> tuple[float, float, float, float]:
     """(x, y, z, w) of a rotation about z by ``yaw_rad``."""
     return 0.0, 0.0, math.sin(0.5 * yaw_rad), math.cos(0.5 * yaw_rad)
@@ -302,23 +309,14 @@ class EstimatorNode(Node):
         msg.pose.pose.orientation.y = qy
         msg.pose.pose.orientation.z = qz
         msg.pose.pose.orientation.w = qw
-        p = np.asarray(est.pose_cov, dtype=float)
         cov = np.zeros((6, 6))
         # REP-103 6x6 order (x, y, z, roll, pitch, yaw); z/roll/pitch are not estimated (planar)
-        idx = (0, 1, 5)
-        for i, a in enumerate(idx):
-            for j, b in enumerate(idx):
-                cov[a, b] = p[i, j]
+        cov[np.ix_(_PLANAR, _PLANAR)] = est.pose_cov
         cov[2, 2] = cov[3, 3] = cov[4, 4] = 1e6
-        msg.pose.covariance = cov.ravel().tolist()
+        msg.pose.covariance = cov.reshape(36)
         msg.twist.twist.linear.x = float(est.speed_m_s)
         msg.twist.twist.angular.z = float(est.yaw_rate_rad_s)
-        tw = np.zeros((6, 6))
-        tw[0, 0] = float(getattr(est, "speed_var_m2_s2", 0.01))
-        tw[5, 5] = float(getattr(est, "yaw_rate_var_rad2_s2", 1e-4))
-        tw[1, 1] = tw[2, 2] = 0.01
-        tw[3, 3] = tw[4, 4] = 1e6
-        msg.twist.covariance = tw.ravel().tolist()
+        msg.twist.covariance = _TWIST_COV
         return msg
 
     def _radii(self, est: Any, t_ns: int) -> TireRadii:
