@@ -13,8 +13,13 @@ Written out (Cf, Cr axle cornering stiffness N/rad; lf, lr m; m kg; Iz kg m^2)::
     alpha_f = delta - (vy + lf r) / vx                   (27)
     alpha_r = (lr r - vy) / vx                           (28)
 
-so dx/dt = A(vx) x + B delta; it is discretized exactly for a zero-order-hold input (matrix
-exponential of the augmented system) over each step.
+so dx/dt = A(vx) x + B delta; it is discretized exactly (matrix exponential of the augmented
+system) over each step, for a steering angle that is either held (zero-order hold) or, when the
+angle at the start of the step is given, linear between its two samples (first-order hold).
+
+The tyre-force KF uses the first-order hold: a steering sensor samples a continuous angle, and
+holding the newest sample over the step that ends at it would advance the model's input by half
+a step (5 ms at 100 Hz), a yaw-rate error proportional to the yaw acceleration.
 """
 
 from __future__ import annotations
@@ -154,8 +159,19 @@ class SingleTrackModel:
             return kinematic_state(self.params, vx_m_s, delta_rad)
         return steady_state(self.params, vx_m_s, delta_rad)
 
-    def step(self, dt_s: float, vx_m_s: float, delta_rad: float) -> F64:
-        """Advance by ``dt_s`` with vx and delta held; return the new [vy_cg, r], shape (2,)."""
+    def step(
+        self,
+        dt_s: float,
+        vx_m_s: float,
+        delta_rad: float,
+        delta_start_rad: float | None = None,
+    ) -> F64:
+        """Advance by ``dt_s``; return the new [vy_cg, r], shape (2,).
+
+        vx is held over the step. ``delta_rad`` is the steer angle at the end of the step; with
+        ``delta_start_rad`` (the angle at its start) the angle is taken as linear in between
+        (first-order hold), else ``delta_rad`` is held over the whole step (zero-order hold).
+        """
         if not self.initialized:
             self.reset(vx_m_s, delta_rad)
             return self.x.copy()
@@ -163,12 +179,24 @@ class SingleTrackModel:
             self.x = kinematic_state(self.params, vx_m_s, delta_rad)
             return self.x.copy()
         a, b = continuous_matrices(self.params, vx_m_s)
-        # zero-order-hold discretization: expm([[A, B], [0, 0]] T) = [[Ad, Bd], [0, 1]]
-        aug = np.zeros((3, 3))
+        if delta_start_rad is None or dt_s <= 0.0:
+            # zero-order-hold discretization: expm([[A, B], [0, 0]] T) = [[Ad, Bd], [0, 1]]
+            aug = np.zeros((3, 3))
+            aug[:2, :2] = a * dt_s
+            aug[:2, 2] = b * dt_s
+            e = expm_small(aug)
+            self.x = e[:2, :2] @ self.x + e[:2, 2] * delta_rad
+            return self.x.copy()
+        # eq. (23)-(28) with a first-order hold: delta(s) = delta0 + w s on [0, T],
+        # w = (delta1 - delta0) / T; d/dt [x, delta, w] = [[A, B, 0], [0, 0, 1], [0, 0, 0]]
+        # [x, delta, w], so x(T) = E11 x(0) + E12 delta0 + E13 w, E = expm(that matrix T)
+        aug = np.zeros((4, 4))
         aug[:2, :2] = a * dt_s
         aug[:2, 2] = b * dt_s
+        aug[2, 3] = dt_s
         e = expm_small(aug)
-        self.x = e[:2, :2] @ self.x + e[:2, 2] * delta_rad
+        slope = (delta_rad - delta_start_rad) / dt_s
+        self.x = e[:2, :2] @ self.x + e[:2, 2] * delta_start_rad + e[:2, 3] * slope
         return self.x.copy()
 
     def axle_forces(self, vx_m_s: float, delta_rad: float) -> F64:

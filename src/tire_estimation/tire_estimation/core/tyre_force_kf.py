@@ -16,9 +16,10 @@ A linear Kalman filter on ``x = [vy_cg m/s, r rad/s, Fy_front N, Fy_rear N]``:
 
 The filter runs at every tyre-force sample; steering and forward speed (from the wheel speeds
 of the undriven axle, "vehicle velocity from the CAN bus" in the paper) are held from their
-latest samples. Internally vy is that of the centre of gravity (the paper's); the published
-:class:`LateralEstimate` is of ``base_link`` (centre of the rear axle, REP-103 axes) as the
-``LateralState`` message requires: vy_base = vy_cg - lr r.
+latest samples, except that the single-track model takes the steer angle as linear between the
+samples of consecutive filter steps (first-order hold). Internally vy is that of the centre of
+gravity (the paper's); the published :class:`LateralEstimate` is of ``base_link`` (centre of
+the rear axle, REP-103 axes) as the ``LateralState`` message requires: vy_base = vy_cg - lr r.
 
 Bad input never raises out of the ``on_*`` methods: the sample is dropped and counted in
 :attr:`TyreForceEstimator.stats` by kind.
@@ -472,6 +473,8 @@ class TyreForceEstimator:
         self._moment_nm = 0.0
         self._deviation_n = 0.0
         self._measured_axle_n = np.zeros(2)
+        #: Steer angle of the previous filter step (start of the single-track model's step).
+        self._st_delta_rad = 0.0
 
     def _drop(self, kind: str) -> None:
         self.stats[kind] = self.stats.get(kind, 0) + 1
@@ -641,6 +644,7 @@ class TyreForceEstimator:
     def _initialize(self, t: int, vx: float, delta: float, forces: F64) -> None:
         c = self.config
         self.single_track.reset(vx, delta)
+        self._st_delta_rad = delta
         x0 = np.concatenate([self.single_track.x, forces])
         p0 = np.array(
             [
@@ -674,8 +678,11 @@ class TyreForceEstimator:
             self._initialize(t, max(vx, 0.0), delta, np.where(have, measured, self.kf.x[2:]))
             return
         self._t_ns = t
-        # reference model (eq. 23-28): open-loop vy, r and nominal axle forces
-        st = self.single_track.step(dt, vx, delta)
+        # reference model (eq. 23-28): open-loop vy, r and nominal axle forces; the steer
+        # angle is linear between the previous step's sample and this one (first-order hold:
+        # holding the newest sample over the step would lead the truth by half a step)
+        st = self.single_track.step(dt, vx, delta, self._st_delta_rad)
+        self._st_delta_rad = delta
         f_st = self.single_track.axle_forces(vx, delta)
         # linearity (eq. 29) and relay (Fig. 7), on the axles that are measured
         # low-pass of the signed per-axle differences (beyond the paper: removes the bias that
