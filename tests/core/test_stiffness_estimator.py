@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from tire_estimation.core.stiffness_config import StiffnessEstimatorConfig
-from tire_estimation.core.stiffness_estimator import StiffnessEstimator
+from tire_estimation.core.stiffness_estimator import SlidingWindow, StiffnessEstimator
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.errors import ConfigError, InputError
 
@@ -84,3 +84,70 @@ def test_rear_drive_variant_by_config() -> None:
     )
     assert est.params.drive == "rear"
     assert est.params.nominal[0] == VehicleParams().longitudinal_stiffness_rear_n
+
+
+def _drive(
+    est: StiffnessEstimator,
+    t0_s: float,
+    seconds: float,
+    steer: float = 0.0,
+    accel_x: float | np.ndarray = 0.0,
+) -> float:
+    """Constant 20 m/s, steering ``steer``, ax ``accel_x`` (scalar or per 10 ms sample)."""
+    w = 20.0 / 0.31
+    n = round(seconds * 100)
+    ax = np.broadcast_to(np.asarray(accel_x, dtype=float), (n,))
+    for k in range(n):
+        t = 1_000_000_000 + round((t0_s + 0.01 * k) * 1e9)
+        est.on_wheel_speeds(t, [w, w, w, w])
+        est.on_steering(t + 1, steer)
+        est.on_imu(t + 2, [0.0, 0.0, 0.0], [float(ax[k]), 0.0, 9.81])
+    return t0_s + 0.01 * n
+
+
+def test_sliding_window_matches_numpy() -> None:
+    rng = np.random.default_rng(7)
+    win = SlidingWindow(0.5)
+    t = np.cumsum(rng.integers(5_000_000, 15_000_000, 300))
+    v = rng.standard_normal(300) * 0.3 + 0.1
+    for i in range(300):
+        win.add(int(t[i]), float(v[i]))
+        inside = v[: i + 1][t[: i + 1] > t[i] - 500_000_000]
+        assert np.isclose(win.rms, np.sqrt(np.mean(inside**2)), rtol=1e-9)
+        assert np.isclose(win.std, np.std(inside), rtol=1e-6, atol=1e-12)
+
+
+def test_learning_stops_one_window_after_the_steering_ends() -> None:
+    # Sec. V: learning must pause on straight driving. The old exponential mean of delta^2
+    # needed ln((0.05 / 0.003)^2) = 5.6 windows to fall below the threshold.
+    est = _est()
+    t = _drive(est, 0.0, 2.0, steer=0.05)
+    assert est.estimate().active
+    t = _drive(est, t, 1.05)
+    e = est.estimate()
+    assert not e.active and e.reason == "no lateral excitation"
+    frozen = est.mpf.stats.mean.copy()
+    _drive(est, t, 2.0)
+    # no NiW update any more: every particle's mean is one of the frozen ones (resampling
+    # only copies them)
+    now = est.mpf.stats.mean
+    assert (now[:, None, :] == frozen[None, :, :]).all(axis=-1).any(axis=-1).all()
+
+
+def test_cx_frozen_without_longitudinal_excitation() -> None:
+    # lateral excitation, constant (biased) ax: Cx is confounded with the accelerometer bias
+    # and must keep its prior (Sec. II-B), while the cornering stiffnesses are learned
+    est = _est()
+    _drive(est, 0.0, 4.0, steer=0.02, accel_x=0.4)
+    e = est.estimate()
+    assert e.active and not e.cx_active
+    assert e.stiffness[0] == e.nominal[0]
+    assert np.all(est.mpf.stats.mean[:, 0] == 0.0)
+    assert np.any(est.mpf.stats.mean[:, 1:] != 0.0)
+    # square-wave ax of +-1 m/s^2 (drive force steps): Cx is learned
+    est2 = _est()
+    square = np.where((np.arange(400) // 50) % 2 == 0, 1.0, -1.0)
+    _drive(est2, 0.0, 4.0, steer=0.02, accel_x=square)
+    e2 = est2.estimate()
+    assert e2.active and e2.cx_active
+    assert e2.stiffness[0] != e2.nominal[0]

@@ -4,12 +4,15 @@ from __future__ import annotations
 
 import numpy as np
 
+from tire_estimation.core.stiffness_config import StiffnessEstimatorConfig
 from tire_estimation.core.stiffness_model import (
     SingleTrackParams,
     linearize,
     slip_angles,
     wheel_slip,
+    wheel_speed_gain,
 )
+from tire_estimation.core.stiffness_mpf import StiffnessMpf
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.sim import simulate
 
@@ -71,3 +74,58 @@ def test_measurement_model_matches_simulator_truth() -> None:
     assert np.sqrt(np.mean(e[:, 2] ** 2)) < 0.02
     # longitudinal: within 0.5 m/s^2 (accelerometer bias, slip/radius offsets)
     assert np.sqrt(np.mean(e[:, 0] ** 2)) < 0.5
+
+
+def test_wheel_speed_gain_matches_finite_difference() -> None:
+    # d y / d(R w) of the driven axle(s), y = h + d w with w = [cx - Cx_n, 0, 0] (eq. 2-3, 12)
+    x = np.array([[20.0, 0.3, 0.1], [15.0, -0.2, -0.05]])
+    cx = np.array([120_000.0, 90_000.0])
+    cases = (("front", (20.3, 20.0)), ("front", (19.7, 20.0)), ("rear", (20.0, 20.25)))
+    for drive, ws in (*cases, ("all", (20.2, 19.9))):
+        p = SingleTrackParams.from_vehicle(VehicleParams(), drive=drive)
+        g = wheel_speed_gain(x, 0.05, ws, p, cx)
+
+        def y(front: float, rear: float, p: SingleTrackParams = p) -> np.ndarray:
+            lin = linearize(x, 0.05, (front, rear), p)
+            w = np.zeros((2, 3))
+            w[:, 0] = cx - p.nominal[0]
+            return lin.h + np.einsum("nij,nj->ni", lin.d, w)
+
+        h = 1e-5
+        d_front = (y(ws[0] + h, ws[1]) - y(ws[0] - h, ws[1])) / (2 * h)
+        d_rear = (y(ws[0], ws[1] + h) - y(ws[0], ws[1] - h)) / (2 * h)
+        expected = {"front": [d_front], "rear": [d_rear], "all": [d_front, d_rear]}[drive]
+        assert g.shape == (2, len(expected), 3)
+        for j, e in enumerate(expected):
+            np.testing.assert_allclose(g[:, j], e, rtol=1e-6, atol=1e-9)
+        # order of magnitude: Cx / (m v) ~ 4 m/s^2 per m/s on the ax row
+        assert 3.0 < np.abs(g[:, 0, 0]).max() < 5.0
+
+
+def test_measurement_noise_covers_wheel_speed_noise_in_simulator() -> None:
+    # Straight constant-speed drive, truth states: the spread of the ax residual is the IMU
+    # noise plus the ABS wheel-speed noise carried through the slip (eq. 2-3); the filter's
+    # measurement covariance must account for both (R alone is ~17 times too small).
+    sim = simulate("asphalt_sine", seed=0, minutes=0.3)
+    v = sim.vehicle
+    cfg = StiffnessEstimatorConfig(n_particles=1, rolling_resistance_n=176.58, drag_n_s2_m2=0.42)
+    p = SingleTrackParams.from_vehicle(v, rolling_resistance_n=176.58, drag_n_s2_m2=0.42)
+    mpf = StiffnessMpf(cfg, p, np.random.default_rng(0))
+    tr, imu, ws = sim.truth, sim.imu, sim.wheel_speeds
+    k = np.flatnonzero(np.isin(imu.t_ns, tr.t_ns) & np.isin(imu.t_ns, ws.t_ns))[50:]
+    j = np.searchsorted(tr.t_ns, imu.t_ns[k])
+    jw = np.searchsorted(ws.t_ns, imu.t_ns[k])
+    js = np.searchsorted(sim.steering.t_ns, imu.t_ns[k]).clip(0, sim.steering.t_ns.size - 1)
+    resid, var = [], []
+    for kk, jj, ww, ss in zip(k, j, jw, js, strict=True):
+        r = tr.yaw_rate_rad_s[jj]
+        mpf.x = np.array([[tr.velocity_m_s[jj, 0], tr.velocity_m_s[jj, 1] + v.lr_m * r, r]])
+        w_axle = ws.wheel_speed_rad_s[ww] * v.nominal_tire_radius_m
+        u = (float(w_axle[:2].mean()), float(w_axle[2:].mean()))
+        delta = float(sim.steering.angle_rad[ss])
+        lin = linearize(mpf.x, delta, u, p)
+        resid.append(imu.linear_acceleration_m_s2[kk, 0] - lin.h[0, 0])
+        var.append(mpf.measurement_cov(delta, u)[0, 0, 0])
+    e = np.asarray(resid)
+    ratio = np.var(e) / np.mean(var)
+    assert 0.6 < ratio < 1.6

@@ -41,12 +41,20 @@ class StiffnessEstimatorConfig:
         max_stiffness_fraction: upper projection bound, fraction of nominal, 1 (default 3.0).
         accel_noise_std_m_s2: accelerometer white-noise std (R), m/s^2 (default 0.05).
         gyro_noise_std_rad_s: gyro white-noise std (R), rad/s (default 0.00175).
+        wheel_speed_noise_std_m_s: std of the axle-mean wheel speed ``R_w omega`` (ABS edge
+            timing); carried into ``y`` through the slip (eq. 2-3) it is added to R, m/s
+            (default 0.035, the simulator's 48-tooth sensor).
         accel_bias_std_m_s2: initial accelerometer bias std (P_0), m/s^2 (default 0.1).
         gyro_bias_std_rad_s: initial gyro bias std (P_0), rad/s (default 0.005).
         accel_bias_walk_m_s2_sqrt_s: accelerometer bias random walk (Q, eq. 11), m/s^2/sqrt(s)
             (default 0.0005).
         gyro_bias_walk_rad_s_sqrt_s: gyro bias random walk (Q, eq. 11), rad/s/sqrt(s) (default
             0.0001).
+        bias_gate_sigma: while the stiffness is learned, the bias update (eq. 30) runs only
+            when the RMS of the normalized yaw-rate innovations (weighted over particles,
+            exponential mean over ``bias_gate_window_s``) is at most this, 1 (default 3.0). On
+            straight driving it always runs; after initialization the gate starts closed.
+        bias_gate_window_s: time constant of that mean, s (default 1.0).
         initial_vx_std_m_s: initial std of vX around the measured speed, m/s (default 0.3).
         initial_vy_std_m_s: initial std of vY, m/s (default 0.3).
         initial_yaw_rate_std_rad_s: initial std of the yaw rate, rad/s (default 0.0175).
@@ -63,9 +71,16 @@ class StiffnessEstimatorConfig:
         roll_gain: c_phi g of Sec. II-A; measured ay is divided by 1 + roll_gain, 1 (default
             0.0).
         min_speed_m_s: below this speed the stiffness statistics are frozen, m/s (default 5.0).
-        activation_window_s: window of the excitation measures (exponential), s (default 1.0).
-        activation_steer_rad: minimum RMS road-wheel angle to activate learning (Sec. V), rad
-            (default 0.003).
+        activation_window_s: length of the sliding (box) window of the excitation measures, s
+            (default 1.0). Learning stops at most one window after the excitation ends.
+        activation_steer_rad: minimum RMS road-wheel angle over the window to learn the
+            stiffness (Sec. V: lateral excitation), rad (default 0.003).
+        activation_accel_x_window_s: length of the sliding window of the longitudinal
+            excitation measure, s (default 3.0).
+        activation_accel_x_std_m_s2: minimum standard deviation of the measured longitudinal
+            acceleration over its window to learn Cx (Sec. II-B: the wheel slip must vary, else
+            Cx is confounded with the accelerometer bias and the resistances); otherwise the Cx
+            statistics are frozen, m/s^2 (default 0.2).
         max_gap_s: a larger gap between IMU samples re-initializes the filter, s (default 0.5).
         max_input_age_s: wheel speed / steering / velocity older than this are stale, s
             (default 0.2).
@@ -84,10 +99,13 @@ class StiffnessEstimatorConfig:
     max_stiffness_fraction: float = 3.0
     accel_noise_std_m_s2: float = 0.05
     gyro_noise_std_rad_s: float = 0.00175
+    wheel_speed_noise_std_m_s: float = 0.035
     accel_bias_std_m_s2: float = 0.1
     gyro_bias_std_rad_s: float = 0.005
     accel_bias_walk_m_s2_sqrt_s: float = 0.0005
     gyro_bias_walk_rad_s_sqrt_s: float = 0.0001
+    bias_gate_sigma: float = 3.0
+    bias_gate_window_s: float = 1.0
     initial_vx_std_m_s: float = 0.3
     initial_vy_std_m_s: float = 0.3
     initial_yaw_rate_std_rad_s: float = 0.0175
@@ -101,6 +119,8 @@ class StiffnessEstimatorConfig:
     min_speed_m_s: float = 5.0
     activation_window_s: float = 1.0
     activation_steer_rad: float = 0.003
+    activation_accel_x_window_s: float = 3.0
+    activation_accel_x_std_m_s2: float = 0.2
     max_gap_s: float = 0.5
     max_input_age_s: float = 0.2
 
@@ -123,13 +143,17 @@ class StiffnessEstimatorConfig:
         for name in (
             "accel_noise_std_m_s2",
             "gyro_noise_std_rad_s",
+            "bias_gate_sigma",
+            "bias_gate_window_s",
             "min_speed_m_s",
             "activation_window_s",
+            "activation_accel_x_window_s",
             "max_gap_s",
             "max_input_age_s",
         ):
             require_positive(name, getattr(self, name))
         for name in (
+            "wheel_speed_noise_std_m_s",
             "accel_bias_std_m_s2",
             "gyro_bias_std_rad_s",
             "accel_bias_walk_m_s2_sqrt_s",
@@ -143,6 +167,7 @@ class StiffnessEstimatorConfig:
             "rolling_resistance_n",
             "drag_n_s2_m2",
             "activation_steer_rad",
+            "activation_accel_x_std_m_s2",
         ):
             require_non_negative(name, getattr(self, name))
         require_range("wheel_radius_m", self.wheel_radius_m, 0.0, 1.5)

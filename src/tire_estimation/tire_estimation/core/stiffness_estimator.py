@@ -9,6 +9,7 @@ dropped and counted in :attr:`StiffnessEstimator.stats`.
 from __future__ import annotations
 
 import math
+from collections import deque
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -38,6 +39,7 @@ class StiffnessEstimate:
         stiffness_std: sqrt(diag) of eq. (27b), same units, (3,).
         nominal: nominal stiffness C_n, (3,).
         active: learning active (excitation, Sec. V).
+        cx_active: learning of Cx active (longitudinal excitation as well).
         reason: why learning is (in)active.
         gyro_bias_rad_s: (0, 0, b_r), (3,).
         accel_bias_m_s2: (b_ax, b_ay, 0), (3,).
@@ -55,6 +57,7 @@ class StiffnessEstimate:
     stiffness_std: F64
     nominal: F64
     active: bool
+    cx_active: bool
     reason: str
     gyro_bias_rad_s: F64
     accel_bias_m_s2: F64
@@ -68,6 +71,53 @@ class StiffnessEstimate:
 
 def _is_int(x: Any) -> bool:
     return isinstance(x, (int, np.integer)) and not isinstance(x, bool)
+
+
+class SlidingWindow:
+    """Mean and mean square of the samples of the last ``window_s`` seconds (box window).
+
+    A sample stops counting ``window_s`` after its stamp, so the measures reach the level of
+    the new samples at most one window after a change (an exponential mean of ``v^2`` needs
+    ``ln(v_old^2 / v_new^2)`` time constants).
+    """
+
+    def __init__(self, window_s: float) -> None:
+        self.window_ns = round(window_s * 1e9)
+        self._samples: deque[tuple[int, float]] = deque()
+        self._sum = 0.0
+        self._sum2 = 0.0
+
+    def reset(self) -> None:
+        """Forget every sample."""
+        self._samples.clear()
+        self._sum = self._sum2 = 0.0
+
+    def add(self, t_ns: int, value: float) -> None:
+        """Add ``value`` at ``t_ns`` (non-decreasing stamps)."""
+        self._samples.append((t_ns, value))
+        self._sum += value
+        self._sum2 += value * value
+        while self._samples[0][0] <= t_ns - self.window_ns:
+            old = self._samples.popleft()[1]
+            self._sum -= old
+            self._sum2 -= old * old
+        if len(self._samples) == 1:
+            self._sum, self._sum2 = value, value * value
+
+    @property
+    def rms(self) -> float:
+        """Root mean square over the window (0 when empty)."""
+        n = len(self._samples)
+        return math.sqrt(max(self._sum2, 0.0) / n) if n else 0.0
+
+    @property
+    def std(self) -> float:
+        """Standard deviation over the window (0 when empty)."""
+        n = len(self._samples)
+        if n == 0:
+            return 0.0
+        mean = self._sum / n
+        return math.sqrt(max(self._sum2 / n - mean * mean, 0.0))
 
 
 class StiffnessEstimator:
@@ -113,8 +163,10 @@ class StiffnessEstimator:
         self._wheel: F64 | None = None
         self._steer = 0.0
         self._vx_meas: float | None = None
-        self._steer_ms = 0.0
+        self._steer_window = SlidingWindow(self.config.activation_window_s)
+        self._accel_x_window = SlidingWindow(self.config.activation_accel_x_window_s)
         self._active = False
+        self._cx_active = False
         self._reason = "not initialized"
         self._t_ns = 0
 
@@ -225,28 +277,34 @@ class StiffnessEstimator:
         if not self.mpf.initialized:
             if speed < 0.5 * c.min_speed_m_s:
                 self._reason = "speed below minimum"
-                self._active = False
+                self._active = self._cx_active = False
                 return
             x0 = np.array([speed, 0.0, float(gyro[2])])
             std = np.array(
                 [c.initial_vx_std_m_s, c.initial_vy_std_m_s, c.initial_yaw_rate_std_rad_s]
             )
             self.mpf.initialize(x0, std)
-            self._steer_ms = steer * steer
+            self._steer_window.reset()
+            self._accel_x_window.reset()
             dt = None
-        # Sec. V activation: exponential RMS of the steering angle and a speed floor
-        if dt is not None:
-            a = min(1.0, dt / c.activation_window_s)
-            self._steer_ms += a * (steer * steer - self._steer_ms)
+        # Sec. V activation over sliding windows: RMS road-wheel angle (lateral excitation)
+        # and, for Cx, the variation (std) of the measured longitudinal acceleration
+        self._steer_window.add(t, steer)
+        self._accel_x_window.add(t, float(acc[0]))
         if speed < c.min_speed_m_s:
             self._active, self._reason = False, "speed below minimum"
-        elif math.sqrt(self._steer_ms) < c.activation_steer_rad:
+        elif self._steer_window.rms < c.activation_steer_rad:
             self._active, self._reason = False, "no lateral excitation"
         else:
             self._active, self._reason = True, "excited"
+        self._cx_active = (
+            self._active and self._accel_x_window.std >= c.activation_accel_x_std_m_s2
+        )
+        if self._active and not self._cx_active:
+            self._reason = "excited (Cx frozen: no longitudinal excitation)"
         if dt is not None:
-            self.mpf.predict(dt, self._active)
-        self.mpf.update(y, steer, (wf, wr), self._active, vx_in)
+            self.mpf.predict(dt, self._active, self._cx_active)
+        self.mpf.update(y, steer, (wf, wr), self._active, vx_in, self._cx_active)
 
     # ------------------------------------------------------------------ outputs
     def estimate(self) -> StiffnessEstimate:
@@ -260,6 +318,7 @@ class StiffnessEstimator:
             stiffness_std=e.stiffness_std,
             nominal=self.mpf.nominal.copy(),
             active=self._active,
+            cx_active=self._cx_active,
             reason=self._reason,
             gyro_bias_rad_s=np.array([0.0, 0.0, e.bias[2]]),
             accel_bias_m_s2=np.array([e.bias[0], e.bias[1], 0.0]),

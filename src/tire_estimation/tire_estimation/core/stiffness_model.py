@@ -228,6 +228,44 @@ def linearize(
     return Linearized(rate=rate, a=a, h=h, d=d)
 
 
+def wheel_speed_gain(
+    x: F64,
+    delta_rad: float,
+    wheel_speed_m_s: tuple[float, float],
+    p: SingleTrackParams,
+    cx: F64,
+) -> F64:
+    """Sensitivity of the measurement ``y`` to the driven axles' ``R_w omega``, (N, A, 3).
+
+    ``A`` = 1 (front or rear drive) or 2 (all-wheel drive: front, rear). The slip (eq. 3)
+    changes by ``d lambda / d(R_w omega)`` per m/s of wheel speed, the force by ``Cx`` times that
+    (eq. 2), and ``y`` by the force column of eq. (1) at the IMU (as in :func:`linearize`).
+    ``cx`` is each particle's longitudinal stiffness, (N,). Wheel-speed noise of std ``s``
+    therefore adds ``s^2 G^T G`` to the measurement-noise covariance of ``y``.
+    """
+    n = x.shape[0]
+    m, iz, lf = p.mass_kg, p.yaw_inertia_kg_m2, p.lf_m
+    cd, sd = np.cos(delta_rad), np.sin(delta_rad)
+    px, py = p.imu_x_m, p.imu_y_m
+    axles: list[tuple[float, F64]] = []
+    if p.drive in ("front", "all"):
+        # eq. (1) column of Fxf: [cos d / m, sin d / m, lf sin d / I]
+        axles.append((wheel_speed_m_s[0], np.array([cd / m, sd / m, lf * sd / iz])))
+    if p.drive in ("rear", "all"):
+        # eq. (1) column of Fxr: [1 / m, 0, 0]
+        axles.append((wheel_speed_m_s[1], np.array([1.0 / m, 0.0, 0.0])))
+    lever = np.array([[1.0, 0.0, -py], [0.0, 1.0, px], [0.0, 0.0, 0.0]])
+    out = np.zeros((n, len(axles), 3))
+    vx = x[:, 0]
+    for j, (rw, col) in enumerate(axles):
+        den = np.maximum(np.maximum(vx, rw), MIN_SPEED_M_S)
+        # eq. (3) lambda = (R w - vX) / max(vX, R w): d lambda / d(R w) = vX / (R w)^2 when
+        # R w is the denominator, else 1 / max(vX, floor)
+        dslip = np.where(rw > np.maximum(vx, MIN_SPEED_M_S), vx / (den * den), 1.0 / den)
+        out[:, j, :] = (cx * dslip)[:, None] * (lever @ col)[None, :]
+    return out
+
+
 def roll_compensate(accel_y_m_s2: float, roll_gain: float) -> float:
     """Sec. II-A: divide the measured lateral acceleration by ``1 + c_phi g``."""
     return accel_y_m_s2 / (1.0 + roll_gain)

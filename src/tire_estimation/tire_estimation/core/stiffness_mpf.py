@@ -10,16 +10,25 @@ Per particle ``i`` (all arrays vectorized over ``N`` particles):
   (``core.niw``),
 * IMU bias ``b`` (N, 3) = [b_ax, b_ay, b_r] with covariance ``P`` (N, 3, 3) (Kalman, eq. 29-30).
 
-Step order at IMU sample ``k`` (after :meth:`StiffnessMpf.predict` to time k):
-weights (36) -> normalize, N_eff, resample (lines 6-10) -> sample ``w_k`` from the conditional
-predictive (39)-(41) -> NiW update (19) -> bias update (30) -> estimates (27, 42) -> store the
-state derivative for the prediction (9) of the next step, which also applies (20) and (29).
+Step order at IMU sample ``k`` (after :meth:`StiffnessMpf.predict` to time k, which applies (9),
+(20) and (29)): weights (36) -> normalize, N_eff, resample (lines 6-10) -> sample ``w_k`` from
+the conditional predictive (39)-(41) -> NiW update (19) -> bias update (30) -> estimates (27,
+42) -> store the state derivative for the prediction (9) of the next step.
 
 Documented deviations from the printed paper: (i) eq. (40) is implemented as the conditional of
 the joint Student-t of Approximation 1 per eq. (41) (dof ``nu~ + n_e``, gain ``L11 d^T L22^-1``),
 the printed (40) mixes transposes and dofs; (ii) eq. (30) uses ``P - K S K^T`` (the printed
 ``K S^-1 K^T`` is dimensionally a typo); (iii) a small optional random walk ("jitter") on the
-states keeps particle diversity when Sigma becomes small.
+states keeps particle diversity when Sigma becomes small; (iv) the measurement noise ``R`` is
+augmented by the wheel-speed noise that the slip (eq. 3) carries into ``y`` (the wheel speeds
+are inputs ``u``); (v) the bias update (30) treats the total noise as the Student-t of
+Approximation 1 (a residual far outside ``S`` barely moves the bias) and, while the stiffness
+is learned, runs only while the particles' yaw rate plus bias agrees with the gyro
+(:func:`yaw_rate_nis`, exponential mean below ``bias_gate_sigma^2``; the gyro row of ``d`` is
+zero, so otherwise the per-particle bias filters absorb every yaw-rate model error, after which
+the gyro no longer constrains the yaw rate and the filter diverges);
+(vi) without longitudinal excitation the Cx part of the statistics is frozen
+(:func:`freeze_component`).
 """
 
 from __future__ import annotations
@@ -31,7 +40,12 @@ from numpy.typing import NDArray
 
 from tire_estimation.core import niw, resampling
 from tire_estimation.core.stiffness_config import StiffnessEstimatorConfig
-from tire_estimation.core.stiffness_model import Linearized, SingleTrackParams, linearize
+from tire_estimation.core.stiffness_model import (
+    Linearized,
+    SingleTrackParams,
+    linearize,
+    wheel_speed_gain,
+)
 
 F64 = NDArray[np.float64]
 #: Dimension of w (eq. 8) and of the measurement (n_e, eq. 12).
@@ -45,7 +59,14 @@ def bias_predict(p_bias: F64, q_cov: F64) -> None:
     p_bias += q_cov
 
 
-def bias_update(b: F64, p_bias: F64, resid: F64, extra_cov: F64, r_cov: F64) -> None:
+def bias_update(
+    b: F64,
+    p_bias: F64,
+    resid: F64,
+    extra_cov: F64,
+    r_cov: F64,
+    dof: F64 | float | None = None,
+) -> None:
     """Kalman measurement update of the bias (eq. 30), in place, vectorized over particles.
 
     Args:
@@ -54,9 +75,24 @@ def bias_update(b: F64, p_bias: F64, resid: F64, extra_cov: F64, r_cov: F64) -> 
         resid: y - h - d mu_{k|k} - b_{k|k-1}, (N, 3).
         extra_cov: d Sigma_{k|k} d^T, (N, 3, 3).
         r_cov: measurement-noise covariance R, (3, 3).
+        dof: degrees of freedom nu~ of the Student-t total noise (Approximation 1), scalar or
+            (N,); ``None`` is the Gaussian update as printed. With ``dof`` the noise covariance
+            ``R + d Sigma d^T`` of a particle is scaled by ``(nu~ + m) / (nu~ + n_e)``, ``m`` its
+            squared Mahalanobis residual: the precision weight of a Student-t noise given the
+            residual (one expectation step of the scale-mixture form), so that a residual far
+            outside ``S`` (state or model error) does not move the bias.
     """
+    noise = r_cov + extra_cov
     # eq. (30) S = P + R + d Sigma d^T
-    s = p_bias + r_cov + extra_cov
+    s = p_bias + noise
+    if dof is not None:
+        sol = np.linalg.solve(s, resid[..., None])[..., 0]
+        maha = np.sum(resid * sol, axis=-1)
+        nu = np.asarray(dof, dtype=float)
+        # Student-t noise (eq. 35) as a scale mixture: E[precision scale | resid] =
+        # (nu + n_e) / (nu + m); the noise covariance is divided by it
+        scale = (nu + NE) / (nu + maha)
+        s = p_bias + noise / scale[:, None, None]
     # eq. (30) K = P S^-1  (S symmetric: K = (S^-1 P)^T)
     k = np.swapaxes(np.linalg.solve(s, p_bias), -1, -2)
     # eq. (30) b_{k|k} = b_{k|k-1} + K (y - h - d mu - b_{k|k-1})
@@ -101,6 +137,20 @@ def log_likelihood(e_bar: F64, lp: LikelihoodParams) -> F64:
     """Log of St(e_bar; mu_e, Lambda_e, nu~) (eq. 35-36), (N, 3) -> (N,)."""
     # eq. (36) q_k ∝ q_{k-1} St(y; h + b + d mu, Lambda*, nu~)
     return niw.student_t_logpdf(e_bar, lp.loc, lp.shape, lp.dof)
+
+
+def yaw_rate_nis(e_bar: F64, lp: LikelihoodParams, weights: F64) -> float:
+    """Weighted mean normalized squared yaw-rate innovation of the predictive (35), 1.
+
+    ``z_i = (e_bar_i - mu_e,i)_r / sqrt(var_i)`` with the Student-t variance ``var = Lambda~_e,rr
+    nu~ / (nu~ - 2)`` (= ``R_rr + P_rr``: the gyro row of ``d`` is zero), averaged with the
+    particle weights before this step's update. About 1 when the particles' predicted yaw rate
+    plus bias matches the gyro; much larger when the model is wrong for every particle.
+    """
+    nu = np.asarray(lp.dof, dtype=float)
+    var = lp.shape[:, 2, 2] * nu / (nu - 2.0)
+    z2 = (e_bar[:, 2] - lp.loc[:, 2]) ** 2 / var
+    return float(weights @ z2)
 
 
 @dataclass(frozen=True)
@@ -151,6 +201,25 @@ def sample_student_t(cp: ConditionalPredictive, rng: np.random.Generator) -> F64
         cp.shape + 1e-9 * np.eye(dim) * np.trace(cp.shape, axis1=1, axis2=2)[:, None, None]
     )
     return niw.student_t_from_draws(cp.loc, chol, cp.dof, z, chi2)
+
+
+def freeze_component(stats: niw.NiwStats, before: niw.NiwStats, j: int) -> None:
+    """Undo this step's NiW prediction (20) and update (19) for component ``j``, in place.
+
+    Used for Cx without longitudinal excitation (Sec. II-B: the Gramian is singular for zero
+    wheel slip): the mean of ``w_j`` and its expected variance ``E[Sigma_jj] = Lambda_jj /
+    (nu - d - 1)`` (eq. 27b) stay as in ``before``; its covariances with the other components
+    are set to zero, which keeps ``Lambda`` positive definite. ``gamma`` and ``nu`` are shared.
+    """
+    d = stats.d
+    nu_new = np.asarray(stats.dof, dtype=float) - d - 1.0
+    nu_old = np.asarray(before.dof, dtype=float) - d - 1.0
+    ratio = nu_new / nu_old
+    # eq. (27b) E[Sigma_jj] = Lambda_jj / (nu - 4) unchanged: Lambda_jj scales with nu - 4
+    stats.mean[:, j] = before.mean[:, j]
+    stats.scale[:, j, :] = 0.0
+    stats.scale[:, :, j] = 0.0
+    stats.scale[:, j, j] = before.scale[:, j, j] * ratio
 
 
 @dataclass(frozen=True)
@@ -227,6 +296,11 @@ class StiffnessMpf:
         self.stats = self.prior_stats()
         self.n_eff = float(self.n)
         self.resample_count = 0
+        self.yaw_rate_nis = 0.0
+        self.yaw_rate_nis_mean = 0.0
+        self.bias_updated = False
+        self._dt_s = 0.0
+        self._before_learning: niw.NiwStats | None = None
 
     def prior_stats(self) -> niw.NiwStats:
         """Prior NiW statistics: mean at the initial guess, E[Sigma] and gamma from config."""
@@ -250,19 +324,29 @@ class StiffnessMpf:
         self.log_w = np.full(self.n, -np.log(self.n))
         self.weights = np.full(self.n, 1.0 / self.n)
         self.initialized = True
+        # the gate of the bias update starts closed: the yaw rate must first prove consistent
+        self.yaw_rate_nis_mean = 4.0 * self.config.bias_gate_sigma**2
 
-    def predict(self, dt_s: float, learn: bool) -> None:
-        """Time update to the next IMU sample: eq. (9) state, (20) NiW, (29) bias."""
+    def predict(self, dt_s: float, learn: bool, learn_cx: bool | None = None) -> None:
+        """Time update to the next IMU sample: eq. (9) state, (20) NiW, (29) bias.
+
+        ``learn`` applies (20); ``learn_cx`` False (default ``learn``) keeps the statistics
+        before (20) for the Cx freeze of the following :meth:`update`.
+        """
         # eq. (9) x_{k+1} = f + g w_k with the stored rate = rate_n + a w_k
         self.x += dt_s * self.rate
         if np.any(self.jitter > 0.0):
             self.x += self.rng.standard_normal((self.n, 3)) * (self.jitter * np.sqrt(dt_s))
         self.x[:, 0] = np.maximum(self.x[:, 0], 0.0)
+        self._before_learning = None
         if learn:
+            if learn_cx is False:
+                self._before_learning = self.stats.copy()
             # eq. (20) gamma/lambda, mu, lambda nu, lambda Lambda
             niw.time_update(self.stats, self.config.forgetting)
         # eq. (29) P_{k+1} = P_k + Q
         bias_predict(self.p_bias, self.q_rate * dt_s)
+        self._dt_s = dt_s
 
     def update(
         self,
@@ -271,18 +355,31 @@ class StiffnessMpf:
         wheel_speed_m_s: tuple[float, float],
         learn: bool,
         vx_m_s: float | None = None,
+        learn_cx: bool | None = None,
     ) -> None:
         """Measurement part of Algorithm 1 at one IMU sample ``y`` (3,) = [ax, ay, r].
 
-        ``learn`` enables the NiW update (19) (activation, Sec. V). ``vx_m_s`` (optional)
-        replaces the particles' vX by a measured speed (no wheel speeds).
+        ``learn`` enables the NiW update (19) (activation, Sec. V); ``learn_cx`` (default
+        ``learn``) False keeps the Cx part of the statistics as it was before this step's (20)
+        and (19) (no longitudinal excitation, see :func:`freeze_component`). ``vx_m_s``
+        (optional) replaces the particles' vX by a measured speed (no wheel speeds).
         """
         if vx_m_s is not None:
             self.x[:, 0] = vx_m_s
+        freeze_cx = learn and learn_cx is False
+        before = self._before_learning
+        if freeze_cx and before is None:
+            before = self.stats.copy()
+        self._before_learning = None
         lin = linearize(self.x, delta_rad, wheel_speed_m_s, self.params)
         # e_bar = y - h - b_{k|k-1} (eq. 12)
         e_bar = y[None, :] - lin.h - self.b
-        lp = likelihood_params(self.stats, lin.d, self.r_cov, self.p_bias)
+        r_cov = self.measurement_cov(delta_rad, wheel_speed_m_s)
+        lp = likelihood_params(self.stats, lin.d, r_cov, self.p_bias)
+        self.yaw_rate_nis = yaw_rate_nis(e_bar, lp, self.weights)
+        a = min(1.0, self._dt_s / self.config.bias_gate_window_s)
+        self.yaw_rate_nis_mean += a * (self.yaw_rate_nis - self.yaw_rate_nis_mean)
+        self._dt_s = 0.0
         # Algorithm 1 line 3: eq. (36)
         self.log_w += log_likelihood(e_bar, lp)
         # line 6-7: normalize, N_eff
@@ -296,6 +393,7 @@ class StiffnessMpf:
             self._take(idx)
             lin = Linearized(rate=lin.rate[idx], a=lin.a[idx], h=lin.h[idx], d=lin.d[idx])
             e_bar = e_bar[idx]
+            r_cov = r_cov[idx]
             lp = LikelihoodParams(
                 loc=lp.loc[idx],
                 shape=lp.shape[idx],
@@ -314,15 +412,39 @@ class StiffnessMpf:
             # line 4: eq. (19) with w_bar = w_k (Remark 3)
             niw.measurement_update(self.stats, w)
             np.clip(self.stats.mean, self.lower, self.upper, out=self.stats.mean)
+            if freeze_cx and before is not None:
+                freeze_component(self.stats, before, 0)
         # line 15: eq. (30) with mu_{k|k} and Sigma_{k|k} = Lambda / (nu - 4)
         sigma = self.stats.scale / np.reshape(
             np.asarray(self.stats.dof) - NW - 1.0, (-1, 1, 1) if np.ndim(self.stats.dof) else ()
         )
         extra = np.einsum("nij,njk,nlk->nil", lin.d, sigma, lin.d)
         resid = e_bar - np.einsum("nij,nj->ni", lin.d, self.stats.mean)
-        bias_update(self.b, self.p_bias, resid, extra, self.r_cov)
+        # eq. (30) on straight driving; while learning only when the particles' yaw rate plus
+        # bias agrees with the gyro (else the bias filters absorb the yaw-rate model error)
+        self.bias_updated = (not learn) or (
+            self.yaw_rate_nis_mean <= self.config.bias_gate_sigma**2
+        )
+        if self.bias_updated:
+            bias_update(self.b, self.p_bias, resid, extra, r_cov, lp.dof)
         # line 18 (first half): derivative for eq. (9), applied in predict()
         self.rate = lin.rate + np.einsum("nij,nj->ni", lin.a, w)
+
+    def measurement_cov(self, delta_rad: float, wheel_speed_m_s: tuple[float, float]) -> F64:
+        """Measurement-noise covariance of ``y`` per particle, (N, 3, 3).
+
+        ``R`` of the IMU (eq. 12) plus the wheel-speed noise carried into ``y`` by the slip
+        (eq. 2-3): ``s^2 G^T G`` with ``G`` from :func:`wheel_speed_gain` at each particle's
+        mean Cx (nominal + mu, eq. 7) and ``s`` = ``wheel_speed_noise_std_m_s``.
+        """
+        s = self.config.wheel_speed_noise_std_m_s
+        r_cov = np.broadcast_to(self.r_cov, (self.n, NE, NE))
+        if s <= 0.0 or self.params.drive not in ("front", "rear", "all"):
+            return r_cov.copy()
+        cx = self.nominal[0] + self.stats.mean[:, 0]
+        g = wheel_speed_gain(self.x, delta_rad, wheel_speed_m_s, self.params, cx)
+        # input noise through eq. (2)-(3): Cov = s^2 sum_axles g g^T
+        return r_cov + (s * s) * np.einsum("nai,naj->nij", g, g)
 
     def _take(self, idx: NDArray[np.intp]) -> None:
         self.x = self.x[idx]

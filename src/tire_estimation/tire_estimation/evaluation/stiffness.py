@@ -3,6 +3,12 @@
 ``python -m tire_estimation.evaluation.stiffness --out DIR --runs R`` writes ``stiffness.json``:
 RMSE of vY vs N on ``stiffness_step`` (Fig. 5, Algorithm 1 only), steady-state cy_front error,
 and per-IMU-step time. Baselines (AUGPF, RLS, EKF) are not implemented yet.
+
+``python -m tire_estimation.evaluation.stiffness --out DIR --scenario NAME --seeds 0 1 2
+[--sim-imu-bias] [--bias-estimation] [--particles N ...] [--minutes M]`` runs the per-seed study
+(:func:`study`) instead and writes ``stiffness_<NAME>.json``: lateral state (vY at the CG and
+at ``base_link``, yaw rate) against the truth, final and steady stiffness errors, and the final
+gyro-bias estimate, with or without the simulator's IMU biases and the filter's bias estimation.
 """
 
 from __future__ import annotations
@@ -17,7 +23,10 @@ import numpy as np
 
 from tire_estimation.core.stiffness_config import StiffnessEstimatorConfig
 from tire_estimation.core.stiffness_estimator import StiffnessEstimator
+from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.sim import SensorConfig, SimResult, simulate
+from tire_estimation.sim.dynamics import GRAVITY_M_S2
+from tire_estimation.sim.tires import TireModelConfig
 
 NO_BIAS = SensorConfig(
     accel_bias_initial_std_m_s2=0.0,
@@ -25,19 +34,53 @@ NO_BIAS = SensorConfig(
     accel_bias_random_walk_m_s2_sqrt_s=0.0,
     gyro_bias_random_walk_rad_s_sqrt_s=0.0,
 )
+#: Bias estimation switched off (bias-free filter, paper Sec. VI-A).
+NO_BIAS_ESTIMATION: dict[str, float] = {
+    "accel_bias_std_m_s2": 0.0,
+    "gyro_bias_std_rad_s": 0.0,
+    "accel_bias_walk_m_s2_sqrt_s": 0.0,
+    "gyro_bias_walk_rad_s_sqrt_s": 0.0,
+}
+#: Study mode: the MPF's generator is seeded with the drive's seed plus this offset (as method
+#: (c) of ``evaluation/lateral_tyre.py``).
+STUDY_SEED_OFFSET = 1000
+#: Study mode: filter priors per scenario. ``stiffness_step`` draws the initial vY from the
+#: paper's P_0 (std 1 m/s, Sec. VI-A), which the paper also gives the filter.
+STUDY_PRIOR: dict[str, dict[str, float]] = {"stiffness_step": {"initial_vy_std_m_s": 1.0}}
+#: Study mode: samples before this time after the first IMU sample are not scored, s.
+STUDY_WARMUP_S = 1.0
 
 
 def eval_config(n: int, **kw: Any) -> StiffnessEstimatorConfig:
     """Configuration used by the evaluation (bias-free, paper Sec. VI-A; sim resistances)."""
     base: dict[str, Any] = {
         "n_particles": n,
-        "accel_bias_std_m_s2": 0.0,
-        "gyro_bias_std_rad_s": 0.0,
-        "accel_bias_walk_m_s2_sqrt_s": 0.0,
-        "gyro_bias_walk_rad_s_sqrt_s": 0.0,
+        **NO_BIAS_ESTIMATION,
         "rolling_resistance_n": 177.0,
         "drag_n_s2_m2": 0.42,
     }
+    base.update(kw)
+    return StiffnessEstimatorConfig(**base)
+
+
+def study_config(
+    vehicle: VehicleParams, n: int, bias_estimation: bool, **kw: Any
+) -> StiffnessEstimatorConfig:
+    """Default configuration with the simulator's resistances; bias estimation on or off.
+
+    The rolling resistance ``c_rr m g`` and drag coefficient ``0.5 rho CdA`` are those of the
+    simulator's default :class:`TireModelConfig` (as method (c) of ``lateral_tyre``).
+    """
+    tires = TireModelConfig()
+    base: dict[str, Any] = {
+        "n_particles": n,
+        "rolling_resistance_n": tires.rolling_resistance_coefficient
+        * vehicle.mass_kg
+        * GRAVITY_M_S2,
+        "drag_n_s2_m2": 0.5 * tires.air_density_kg_m3 * tires.drag_area_m2,
+    }
+    if not bias_estimation:
+        base.update(NO_BIAS_ESTIMATION)
     base.update(kw)
     return StiffnessEstimatorConfig(**base)
 
@@ -46,8 +89,10 @@ def run(sim: SimResult, cfg: StiffnessEstimatorConfig, seed: int) -> dict[str, n
     """Replay ``sim`` through the estimator; arrays on the IMU grid.
 
     Keys: ``t`` (ns), ``c``/``std`` stiffness and its std (K, 3), ``vy`` (CG) and ``r`` (yaw
-    rate) estimates, ``active`` (learning on), ``ready`` (filter initialized), the truth
-    ``truth_c``/``truth_vy`` (CG), ``t_s`` from the first IMU sample and ``step_ms``.
+    rate) estimates, ``gyro_bias`` (yaw-rate bias estimate, rad/s), ``active`` (learning on),
+    ``cx_active`` (Cx learning on), ``ready`` (filter initialized), the truth ``truth_c``
+    (stiffness at the next truth sample), ``truth_vy`` (CG) and ``truth_r`` (both linearly
+    interpolated at the IMU stamps), ``t_s`` from the first IMU sample and ``step_ms``.
     """
     est = StiffnessEstimator(cfg, sim.vehicle, np.random.default_rng(seed))
     ws, st, imu = sim.wheel_speeds, sim.steering, sim.imu
@@ -68,7 +113,9 @@ def run(sim: SimResult, cfg: StiffnessEstimatorConfig, seed: int) -> dict[str, n
         "std": [],
         "vy": [],
         "r": [],
+        "gyro_bias": [],
         "active": [],
+        "cx_active": [],
         "ready": [],
     }
     dt_total = 0.0
@@ -87,14 +134,21 @@ def run(sim: SimResult, cfg: StiffnessEstimatorConfig, seed: int) -> dict[str, n
             out["std"].append(e.stiffness_std)
             out["vy"].append(e.vy_m_s)
             out["r"].append(e.yaw_rate_rad_s)
+            out["gyro_bias"].append(float(e.gyro_bias_rad_s[2]))
             out["active"].append(e.active)
+            out["cx_active"].append(bool(getattr(e, "cx_active", e.active)))
             out["ready"].append(est.mpf.initialized)
     res = {k: np.asarray(v) for k, v in out.items()}
     tr = sim.truth
     j = np.searchsorted(tr.t_ns, res["t"]).clip(0, tr.t_ns.size - 1)
     res["truth_c"] = tr.stiffness[j]
+    t_tr = (tr.t_ns - tr.t_ns[0]).astype(float)
+    t_est = (res["t"] - tr.t_ns[0]).astype(float)
+    res["truth_r"] = np.interp(t_est, t_tr, tr.yaw_rate_rad_s)
     # base_link is at the rear axle: vy_cg = vy_base + lr r
-    res["truth_vy"] = tr.velocity_m_s[j, 1] + sim.vehicle.lr_m * tr.yaw_rate_rad_s[j]
+    res["truth_vy"] = (
+        np.interp(t_est, t_tr, tr.velocity_m_s[:, 1]) + sim.vehicle.lr_m * res["truth_r"]
+    )
     res["t_s"] = (res["t"] - res["t"][0]) * 1e-9
     res["step_ms"] = np.array(1e3 * dt_total / max(len(out["t"]), 1))
     return res
@@ -109,14 +163,119 @@ def settling(t_s: np.ndarray, rel: np.ndarray, start_s: float, tol: float = 0.05
     return float(t_s[last] - start_s) if last + 1 < t_s.size else float("nan")
 
 
+def _rmse(err: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(err * err))) if err.size else float("nan")
+
+
+def seed_scores(sim: SimResult, res: dict[str, np.ndarray]) -> dict[str, Any]:
+    """Scores of one :func:`run` on ``sim`` (scored from :data:`STUDY_WARMUP_S` on).
+
+    vY RMSE at the CG and at ``base_link`` (vy_cg - lr r), yaw-rate RMSE overall and over the
+    last 10 s, final and steady (``stiffness_step``: 15-29.5 s and after 45 s) relative
+    stiffness errors, learning fractions, and the final yaw-rate-bias estimate next to the
+    simulator's (gyro z minus true yaw rate, mean over the last 10 s).
+    """
+    ready = res["ready"].astype(bool)
+    t_s = res["t_s"]
+    m = ready & (t_s >= STUDY_WARMUP_S)
+    last = m & (t_s >= t_s[-1] - 10.0)
+    lr = sim.vehicle.lr_m
+    vy_err = res["vy"] - res["truth_vy"]
+    vy_base_err = vy_err - lr * (res["r"] - res["truth_r"])
+    r_err = res["r"] - res["truth_r"]
+    rel = res["c"] / res["truth_c"] - 1.0
+    out: dict[str, Any] = {
+        "vy_rmse_cg_m_s": _rmse(vy_err[m]),
+        "vy_rmse_base_link_m_s": _rmse(vy_base_err[m]),
+        "yaw_rate_rmse_deg_s": float(np.degrees(_rmse(r_err[m]))),
+        "yaw_rate_rmse_last_10s_deg_s": float(np.degrees(_rmse(r_err[last]))),
+        "final_stiffness_rel_error": rel[ready][-1].round(4).tolist() if ready.any() else None,
+        "learning_active_fraction": float(res["active"][ready].mean()) if ready.any() else 0.0,
+        "cx_learning_active_fraction": (
+            float(res["cx_active"][ready].mean()) if ready.any() else 0.0
+        ),
+    }
+    if sim.scenario == "stiffness_step":
+        steady = m & (((t_s > 15.0) & (t_s < 29.5)) | (t_s > 45.0))
+        out["steady_mean_rel_error"] = rel[steady].mean(axis=0).round(4).tolist()
+    imu = sim.imu
+    t_tr = (sim.truth.t_ns - sim.truth.t_ns[0]).astype(float)
+    t_imu = (imu.t_ns - sim.truth.t_ns[0]).astype(float)
+    tail = t_imu >= t_imu[-1] - 10e9
+    r_true = np.interp(t_imu[tail], t_tr, sim.truth.yaw_rate_rad_s)
+    out["gyro_bias_sim_deg_s"] = float(
+        np.degrees(np.mean(imu.angular_velocity_rad_s[tail, 2] - r_true))
+    )
+    out["gyro_bias_final_estimate_deg_s"] = (
+        float(np.degrees(res["gyro_bias"][ready][-1])) if ready.any() else None
+    )
+    return out
+
+
+def study(
+    scenario: str,
+    seeds: list[int],
+    n: int,
+    sim_imu_bias: bool,
+    bias_estimation: bool,
+    minutes: float = 1.0,
+) -> dict[str, Any]:
+    """Per-seed scores (:func:`seed_scores`) on ``scenario`` and their means.
+
+    ``sim_imu_bias`` switches the simulator's IMU biases on (:class:`SensorConfig` defaults,
+    else :data:`NO_BIAS`); ``bias_estimation`` the filter's bias Kalman filters
+    (:func:`study_config`, with :data:`STUDY_PRIOR`). The MPF is seeded with seed +
+    :data:`STUDY_SEED_OFFSET`.
+    """
+    sensors = SensorConfig() if sim_imu_bias else NO_BIAS
+    per_seed: dict[str, Any] = {}
+    for seed in seeds:
+        sim = simulate(scenario, seed=seed, minutes=minutes, sensors=sensors)
+        cfg = study_config(sim.vehicle, n, bias_estimation, **STUDY_PRIOR.get(scenario, {}))
+        res = run(sim, cfg, seed + STUDY_SEED_OFFSET)
+        per_seed[str(seed)] = {**seed_scores(sim, res), "step_ms": float(res["step_ms"])}
+    keys = ("vy_rmse_cg_m_s", "vy_rmse_base_link_m_s", "yaw_rate_rmse_deg_s")
+    return {
+        "scenario": scenario,
+        "minutes": minutes,
+        "n_particles": n,
+        "sim_imu_bias": sim_imu_bias,
+        "bias_estimation": bias_estimation,
+        "mean_over_seeds": {k: float(np.mean([v[k] for v in per_seed.values()])) for k in keys},
+        "per_seed": per_seed,
+    }
+
+
 def main(argv: list[str] | None = None) -> None:
     """Command line entry point."""
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--out", type=Path, required=True)
     ap.add_argument("--runs", type=int, default=2)
     ap.add_argument("--particles", type=int, nargs="+", default=[50, 100, 200, 500])
+    ap.add_argument("--scenario", help="run the per-seed study on this scenario instead")
+    ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2], help="study seeds")
+    ap.add_argument("--minutes", type=float, default=1.0, help="study drive length")
+    ap.add_argument("--sim-imu-bias", action="store_true", help="study: simulator IMU biases on")
+    ap.add_argument(
+        "--bias-estimation", action="store_true", help="study: filter bias estimation on"
+    )
     args = ap.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
+    if args.scenario is not None:
+        results = [
+            study(
+                args.scenario,
+                args.seeds,
+                n,
+                args.sim_imu_bias,
+                args.bias_estimation,
+                args.minutes,
+            )
+            for n in args.particles
+        ]
+        (args.out / f"stiffness_{args.scenario}.json").write_text(json.dumps(results, indent=2))
+        print(json.dumps(results, indent=2))
+        return
     report: dict[str, Any] = {"fig5_vy_rmse": {}, "cy_front": {}, "timing_ms": {}, "sine": {}}
     for n in args.particles:
         rmse, err_mean = [], []
