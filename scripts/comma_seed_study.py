@@ -40,7 +40,9 @@ def main() -> None:
         for seed in range(args.seeds):
             with tempfile.TemporaryDirectory() as d:
                 cfg = RadiusEstimatorConfig(gnss_latency_s=latency, seed=seed)
-                m = run_replay(BAG, d, config=cfg, plots=False, progress=False).metrics
+                m = run_replay(
+                    BAG, d, config=cfg, plots=False, progress=False, stiffness=False
+                ).metrics
             r = m["radii"]["final_radius_error_m"]
             t = m["residuals"]["tests"]
             rows.append(

@@ -235,3 +235,103 @@ def _to_ros_joint(msg: Any) -> Any:
     out.name = list(msg.name)
     out.position = [float(v) for v in msg.position]
     return out
+
+
+def _imu_msg(t_ns: int, gyro: Any, acc: Any) -> Any:
+    from sensor_msgs.msg import Imu
+
+    m = Imu()
+    m.header.stamp.sec, m.header.stamp.nanosec = divmod(t_ns, 1_000_000_000)
+    m.header.frame_id = "base_link"
+    m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z = (float(v) for v in gyro)
+    a = m.linear_acceleration
+    a.x, a.y, a.z = (float(v) for v in acc)
+    return m
+
+
+def test_stiffness_estimator_publishes_stiffness_and_lateral_state(
+    ros: Any, tmp_path: Path
+) -> None:
+    from tire_estimation.bag.messages import joint_state
+    from tire_estimation.sim import simulate
+
+    node = _node(ros, tmp_path, **{"stiffness.n_particles": 100})
+    stiffness: list[Any] = []
+    lateral: list[Any] = []
+    node.pub_stiffness.publish = stiffness.append  # capture instead of DDS
+    node.pub_lateral.publish = lateral.append
+    cb = _callbacks(node)
+    res = simulate("lane_change", seed=1, minutes=0.3)
+    ws, st, imu = res.wheel_speeds, res.steering, res.imu
+    events = [(t, 0, i) for i, t in enumerate(ws.t_ns.tolist())]
+    events += [(t, 1, i) for i, t in enumerate(st.t_ns.tolist())]
+    events += [(t, 2, i) for i, t in enumerate(imu.t_ns.tolist())]
+    for t, kind, i in sorted(events):
+        if kind == 0:
+            cb["/vehicle/wheel_speeds"](_wheels(t, ws.wheel_speed_rad_s[i].tolist()))
+        elif kind == 1:
+            msg = joint_state(t, ["front_wheel_angle"], position=[float(st.angle_rad[i])])
+            cb["/vehicle/steering"](_to_ros_joint(msg))
+        else:
+            cb["/imu/data"](
+                _imu_msg(t, imu.angular_velocity_rad_s[i], imu.linear_acceleration_m_s2[i])
+            )
+    # bad input on the new streams is dropped and counted
+    t_end = int(imu.t_ns[-1])
+    cb["/imu/data"](_imu_msg(t_end + 10_000_000, [0.0, 0.0, math.nan], [0.0, 0.0, 9.8]))
+    assert node.dropped["imu:nan"] == 1
+    # about 10 Hz over the 18 s drive (header time)
+    assert 150 <= len(stiffness) <= 190
+    last = stiffness[-1]
+    assert list(last.names) == ["cx_front", "cy_front", "cy_rear"]
+    assert all(np.isfinite(last.stiffness)) and all(s > 0 for s in last.stiffness_std)
+    assert last.nominal[1] == pytest.approx(node.vehicle.cornering_stiffness_front_n_rad)
+    # no tyre forces: the lateral state comes from the stiffness MPF, in base_link
+    assert lateral and all(m.source == "stiffness_mpf" for m in lateral)
+    msg = lateral[-1]
+    t_msg = msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+    k = min(int(np.searchsorted(res.truth.t_ns, t_msg)), res.truth.t_ns.size - 1)
+    assert abs(msg.lateral_velocity_m_s - res.truth.velocity_m_s[k, 1]) < 0.2
+    assert abs(msg.yaw_rate_rad_s - res.truth.yaw_rate_rad_s[k]) < 0.02
+    cov = np.asarray(msg.covariance).reshape(3, 3)
+    assert np.allclose(cov, cov.T) and np.all(np.linalg.eigvalsh(cov) >= -1e-12)
+    status = node.diagnostic_statuses()[-1]
+    values = {kv.key: kv.value for kv in status.values}
+    assert status.name == "tire_estimation: stiffness estimator"
+    assert float(values["cy_front"]) == pytest.approx(float(last.stiffness[1]), rel=0.05)
+    node.destroy_node()
+
+
+def test_stiffness_runs_on_measured_velocity_without_wheel_speeds(
+    ros: Any, tmp_path: Path
+) -> None:
+    from geometry_msgs.msg import TwistWithCovarianceStamped
+
+    from tire_estimation.bag.messages import joint_state
+
+    node = _node(ros, tmp_path, **{"stiffness.n_particles": 50})
+    cb = _callbacks(node)
+    t0 = 1_000_000_000_000
+
+    def vel(t_ns: int, vx: float, frame: str = "base_link") -> Any:
+        m = TwistWithCovarianceStamped()
+        m.header.stamp.sec, m.header.stamp.nanosec = divmod(t_ns, 1_000_000_000)
+        m.header.frame_id = frame
+        m.twist.twist.linear.x = vx
+        return m
+
+    for k in range(300):  # 3 s at 100 Hz, straight at 20 m/s
+        t = t0 + k * 10_000_000
+        cb["/vehicle/velocity"](vel(t, 20.0))
+        cb["/vehicle/steering"](
+            _to_ros_joint(joint_state(t, ["front_wheel_angle"], position=[0.0]))
+        )
+        cb["/imu/data"](_imu_msg(t, [0.0, 0.0, 0.0], [0.0, 0.0, 9.81]))
+    cb["/vehicle/velocity"](vel(t0 + 4_000_000_000, 20.0, frame="map"))
+    assert node.dropped["velocity:wrong_frame"] == 1
+    # no wheel-speed clock: samples are released 0.5 s behind the newest (ordering.py)
+    assert node.stiffness is not None and node.stiffness.mpf.initialized
+    est = node.stiffness.estimate()
+    assert est.vx_m_s == pytest.approx(20.0, abs=0.5)
+    assert not est.active and est.reason == "no lateral excitation"
+    node.destroy_node()

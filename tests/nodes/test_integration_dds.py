@@ -50,6 +50,9 @@ def test_tire_radii_over_dds_converge_to_truth(sim_bag: Path, tmp_path: Path) ->
             "-p", "persistence_file:=''",
             "-p", "sensor_qos:=reliable",
             "-p", "radius.n_particles:=300",
+            # the stiffness MPF (tested in-process in test_estimator_node.py) would add 1-3 ms
+            # per IMU sample: at 3x real time the node then falls behind on this machine
+            "-p", "stiffness_enabled:=false",
         ],
         stdout=log, stderr=subprocess.STDOUT, env=os.environ.copy(),
     )  # fmt: skip

@@ -83,6 +83,7 @@ def _cmd_replay(args: argparse.Namespace) -> int:
         config_path=args.config,
         plots=not args.no_plots,
         progress=not args.no_progress,
+        stiffness=False if args.no_stiffness else None,
     )
     print(report.summary())
     return 0
@@ -131,6 +132,12 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--config", type=Path, default=None, help="estimator parameters (YAML)")
     rep.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     rep.add_argument("--no-progress", action="store_true", help="no progress bar")
+    rep.add_argument(
+        "--no-stiffness",
+        action="store_true",
+        help="do not run the stiffness MPF (and its linear-KF baseline), whatever the "
+        "configuration's stiffness_enabled says",
+    )
     rep.set_defaults(func=_cmd_replay)
 
     try:  # measured-data converters (tire_estimation.convert) register their own sub-commands

@@ -200,6 +200,7 @@ def render_params_yaml(node_name: str, sections: list[tuple[str, type, str]]) ->
 def estimator_sections() -> list[tuple[str, type, str]]:
     """The parameter sections of ``estimator_node`` (node options, vehicle, radius filter)."""
     from tire_estimation.core.config import RadiusEstimatorConfig
+    from tire_estimation.core.stiffness_config import StiffnessEstimatorConfig
     from tire_estimation.core.tyre_force_kf import TyreForceKFConfig
     from tire_estimation.core.vehicle import VehicleParams
     from tire_estimation.node_config import EstimatorNodeOptions
@@ -209,6 +210,11 @@ def estimator_sections() -> list[tuple[str, type, str]]:
         ("vehicle", VehicleParams, "vehicle (ignored when vehicle_file is set)"),
         ("radius", RadiusEstimatorConfig, "tire-radius MPF (Lundquist et al. 2014)"),
         ("tyre_force", TyreForceKFConfig, "lateral state from tyre forces (Tuononen 2009)"),
+        (
+            "stiffness",
+            StiffnessEstimatorConfig,
+            "tyre stiffness and lateral state, noise-adaptive MPF (Berntorp & Di Cairano 2018)",
+        ),
     ]
 
 

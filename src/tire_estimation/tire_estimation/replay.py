@@ -16,7 +16,7 @@ import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 import yaml
@@ -25,26 +25,38 @@ from tire_estimation.bag import topics
 from tire_estimation.bag.reader import BagData, read_bag
 from tire_estimation.core.config import RadiusEstimatorConfig
 from tire_estimation.core.geodesy import LocalTangentPlane
+from tire_estimation.core.linear_lateral_kf import LinearLateralKF, LinearLateralKFConfig
 from tire_estimation.core.radius_estimator import RadiusEstimator
+from tire_estimation.core.stiffness_config import StiffnessEstimatorConfig
+from tire_estimation.core.stiffness_estimator import StiffnessEstimator
 from tire_estimation.core.tyre_force_kf import TyreForceEstimator, TyreForceKFConfig
 from tire_estimation.errors import BagError, ConfigError
 from tire_estimation.evaluation import metrics as ev
 from tire_estimation.evaluation.residuals import analyze_trace as analyze_residuals
 from tire_estimation.evaluation.runner import (
+    ImuLateralTrace,
     LateralTrace,
     RadiusTrace,
+    run_imu_lateral_estimator,
     run_lateral_estimator,
     run_radius_estimator,
 )
+from tire_estimation.node_config import EstimatorNodeOptions
+from tire_estimation.params import build_config, parameter_specs
 
 NODE_NAME = "estimator_node"
+T = TypeVar("T")
+#: Seed-sequence key of the stiffness MPF's generator: ``default_rng([radius.seed, key])``,
+#: independent of the radius MPF's stream (the node uses the same).
+STIFFNESS_RNG_KEY = 1
 
 
 def load_config_sections(path: Path | None) -> dict[str, dict[str, Any]]:
     """Sections of a parameter YAML: ``{"radius": {...}, "tyre_force": {...}, ...}``.
 
     Accepted layouts: the ROS params file (``estimator_node: ros__parameters: radius.x: v``),
-    a mapping with one sub-mapping per section, or flat ``section.x`` keys.
+    a mapping with one sub-mapping per section, or flat ``section.x`` keys. Top-level scalar keys
+    (the node options, e.g. ``stiffness_enabled``) go to the section ``""``.
     """
     sections: dict[str, dict[str, Any]] = {}
     if path is None:
@@ -67,7 +79,18 @@ def load_config_sections(path: Path | None) -> dict[str, dict[str, Any]]:
         elif "." in key:
             section, name = key.split(".", 1)
             sections.setdefault(section, {})[name] = value
+        else:
+            sections.setdefault("", {})[key] = value
     return sections
+
+
+def section_config(cls: type[T], prefix: str, values: dict[str, Any]) -> T:
+    """``cls`` from one section's values; an unknown key raises ConfigError naming it."""
+    names = {spec.field for spec in parameter_specs(cls, prefix)}
+    unknown = sorted(set(values) - names)
+    if unknown:
+        raise ConfigError(f"{prefix}.{unknown[0]}", values[unknown[0]], "unknown parameter")
+    return build_config(cls, prefix, {f"{prefix}.{k}": v for k, v in values.items()})
 
 
 def load_radius_config(
@@ -120,15 +143,27 @@ class ReplayReport:
         pos = m["position"]["rmse_m"]
         if pos is not None:
             lines.append(f"  position RMSE vs {m['position']['against']}: {pos:.2f} m")
-        lat = m.get("lateral")
-        if lat and lat.get("vy_rmse_m_s") is not None:
+        for name, lat in (m.get("lateral_by_source") or {}).items():
+            if lat.get("vy_rmse_m_s") is None:
+                continue
             lines.append(
-                f"  lateral (tyre-force KF) vs {lat['against']}: vy RMSE "
+                f"  lateral ({name}) vs {lat['against']}: vy RMSE "
                 f"{lat['vy_rmse_m_s']:.3f} m/s, sideslip {lat['sideslip_rmse_deg']:.2f} deg, "
                 f"yaw rate {lat['yaw_rate_rmse_deg_s']:.2f} deg/s"
             )
+        stiff = m.get("stiffness")
+        if stiff and stiff.get("final"):
+            text = ", ".join(f"{k} {v / 1e3:.1f}k" for k, v in stiff["final"].items())
+            lines.append(f"  stiffness (final): {text}")
+            rel = stiff.get("rel_rmse_vs_truth")
+            if rel:
+                errs = ", ".join(f"{k} {100 * v:.1f} %" for k, v in rel.items())
+                lines.append(
+                    f"  stiffness relative RMSE vs truth ({stiff['rel_rmse_window']}): {errs}"
+                )
         res = m["residuals"]
-        lines.append(f"  innovations consistent: {res['consistent']}")
+        if res["consistent"] is not None:
+            lines.append(f"  innovations consistent: {res['consistent']}")
         lines.append(f"  report: {self.out_dir / 'metrics.json'}")
         return "\n".join(lines)
 
@@ -224,14 +259,28 @@ def run_replay(
     config: RadiusEstimatorConfig | None = None,
     plots: bool = True,
     progress: bool = True,
+    stiffness: bool | None = None,
 ) -> ReplayReport:
-    """Replay ``bag_path`` through the radius estimator; write ``out_dir/metrics.json`` + PNGs."""
+    """Replay ``bag_path`` through the estimators; write ``out_dir/metrics.json`` + PNGs.
+
+    What runs depends on the bag, as in the node: the radius MPF on wheel speeds + GNSS, the
+    tyre-force KF on ``/vehicle/tire_forces``, the stiffness MPF on IMU + steering + wheel
+    speeds or ``/vehicle/velocity`` (``stiffness``: None = the node option
+    ``stiffness_enabled`` of the configuration, default true; the linear single-track KF runs
+    beside it as the lateral baseline). A bag that feeds none of them is an error.
+    """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     stale = out / "metrics.json"
     stale.unlink(missing_ok=True)
+    sections = load_config_sections(config_path)
     cfg = config if config is not None else load_radius_config(config_path)
-    tyre_cfg = TyreForceKFConfig.from_dict(load_config_sections(config_path).get("tyre_force", {}))
+    tyre_cfg = TyreForceKFConfig.from_dict(sections.get("tyre_force", {}))
+    stiff_cfg = section_config(
+        StiffnessEstimatorConfig, "stiffness", sections.get("stiffness", {})
+    )
+    options = build_config(EstimatorNodeOptions, "", sections.get("", {}))
+    run_stiffness = options.stiffness_enabled if stiffness is None else stiffness
 
     wall0 = time.perf_counter()
     bag = read_bag(
@@ -241,34 +290,62 @@ def run_replay(
             topics.STEERING,
             topics.IMU_DATA,
             topics.GNSS_FIX,
+            topics.VEHICLE_VELOCITY,
             topics.TRUTH_FIX,
             topics.TRUTH_WHEEL_RADII,
+            topics.TRUTH_TIRE_STIFFNESS,
             topics.REFERENCE_ODOMETRY,
+            topics.REFERENCE_LATERAL_STATE,
             topics.TIRE_FORCES_TOPIC,
             topics.TRUTH_ODOMETRY,
         ),
-        require=(topics.WHEEL_SPEEDS, topics.GNSS_FIX),
     )
-    if bag.wheel_speeds is None or bag.wheel_speeds.t_ns.size == 0:
-        raise BagError(f"{bag_path}: no wheel speed samples on {topics.WHEEL_SPEEDS}")
-    if bag.gnss is None or bag.gnss.t_ns.size == 0:
+    has_wheels = bag.wheel_speeds is not None and bag.wheel_speeds.t_ns.size > 0
+    has_gnss = bag.gnss is not None and bag.gnss.t_ns.size > 0
+    has_speed = has_wheels or (
+        bag.vehicle_velocity is not None and bag.vehicle_velocity.t_ns.size > 0
+    )
+    has_lateral_inputs = (
+        bag.imu is not None
+        and bag.imu.t_ns.size > 0
+        and bag.steering is not None
+        and bag.steering.t_ns.size > 0
+        and has_speed
+    )
+    has_forces = bag.tire_forces is not None and bag.tire_forces.t_ns.size > 0
+    # a bag with wheel speeds is a radius bag: it needs its GNSS. Without wheel speeds (a
+    # measured-velocity export such as the Revs data) only the lateral estimators run.
+    if has_wheels and not has_gnss:
         raise BagError(f"{bag_path}: no usable GNSS fix on {topics.GNSS_FIX}")
+    if not has_wheels and not ((run_stiffness and has_lateral_inputs) or has_forces):
+        need = [topics.WHEEL_SPEEDS, topics.GNSS_FIX]
+        if run_stiffness:
+            need = [topics.WHEEL_SPEEDS]
+        raise BagError(
+            f"{bag_path}: no messages on {' and '.join(need)} (the radius MPF needs "
+            f"{topics.WHEEL_SPEEDS} and {topics.GNSS_FIX}; the stiffness MPF alone needs "
+            f"{topics.IMU_DATA}, {topics.STEERING} and {topics.VEHICLE_VELOCITY})"
+        )
     t_read = time.perf_counter()
 
-    estimator = RadiusEstimator(cfg, bag.vehicle, np.random.default_rng(cfg.seed))
-    total = bag.wheel_speeds.t_ns.size + bag.gnss.t_ns.size
-    total += bag.steering.t_ns.size if bag.steering is not None else 0
-    total += bag.imu.t_ns.size if bag.imu is not None else 0
-    trace = run_radius_estimator(
-        estimator,
-        bag.wheel_speeds,
-        bag.gnss,
-        bag.steering,
-        bag.imu,
-        progress=_progress_printer(total, progress),
-    )
+    trace = RadiusTrace()
+    if has_wheels and has_gnss:
+        assert bag.wheel_speeds is not None and bag.gnss is not None
+        estimator = RadiusEstimator(cfg, bag.vehicle, np.random.default_rng(cfg.seed))
+        total = bag.wheel_speeds.t_ns.size + bag.gnss.t_ns.size
+        total += bag.steering.t_ns.size if bag.steering is not None else 0
+        total += bag.imu.t_ns.size if bag.imu is not None else 0
+        trace = run_radius_estimator(
+            estimator,
+            bag.wheel_speeds,
+            bag.gnss,
+            bag.steering,
+            bag.imu,
+            progress=_progress_printer(total, progress),
+        )
     lateral = None
-    if bag.tire_forces is not None and bag.tire_forces.t_ns.size:
+    if has_forces:
+        assert bag.tire_forces is not None
         lateral = run_lateral_estimator(
             TyreForceEstimator(tyre_cfg, bag.vehicle),
             bag.tire_forces,
@@ -276,13 +353,32 @@ def run_replay(
             bag.steering,
             bag.imu,
         )
+    imu_lateral: dict[str, ImuLateralTrace] = {}
+    if run_stiffness and has_lateral_inputs:
+        assert bag.imu is not None
+        velocity = None if has_wheels else bag.vehicle_velocity
+        wheels = bag.wheel_speeds if has_wheels else None
+        rng = np.random.default_rng([cfg.seed, STIFFNESS_RNG_KEY])
+        imu_lateral["stiffness_mpf"] = run_imu_lateral_estimator(
+            StiffnessEstimator(stiff_cfg, bag.vehicle, rng),
+            bag.imu,
+            bag.steering,
+            wheels,
+            velocity,
+        )
+        lin_cfg = section_config(LinearLateralKFConfig, "linear_kf", sections.get("linear_kf", {}))
+        imu_lateral["linear_kf"] = run_imu_lateral_estimator(
+            LinearLateralKF(lin_cfg, bag.vehicle), bag.imu, bag.steering, wheels, velocity
+        )
     t_run = time.perf_counter()
-    metrics = build_metrics(bag, trace, cfg, lateral)
+    metrics = build_metrics(bag, trace, cfg, lateral, imu_lateral)
     metrics["wall_s"] = time.perf_counter() - wall0
     metrics["timing_s"] = {"read": t_read - wall0, "estimate": t_run - t_read}
     metrics["realtime_factor"] = metrics["duration_s"] / max(metrics["wall_s"], 1e-9)
     if plots:
         write_plots(out, bag, trace)
+        if "stiffness_mpf" in imu_lateral:
+            write_lateral_plots(out, bag, imu_lateral)
     metrics["plots"] = sorted(p.name for p in out.glob("*.png")) if plots else []
     _atomic_json(stale, _clean(metrics))
     return ReplayReport(out, _clean(metrics))
@@ -293,8 +389,14 @@ def build_metrics(
     trace: RadiusTrace,
     cfg: RadiusEstimatorConfig,
     lateral: LateralTrace | None = None,
+    imu_lateral: dict[str, ImuLateralTrace] | None = None,
 ) -> dict[str, Any]:
-    """The contract's metrics.json content (minus the wall-clock fields)."""
+    """The contract's metrics.json content (minus the wall-clock fields).
+
+    ``lateral`` is the tyre-force KF's when it ran, else the stiffness MPF's; every lateral
+    estimator that ran is in ``lateral_by_source`` (the linear single-track KF is the baseline).
+    """
+    imu_lateral = imu_lateral or {}
     arr = trace.arrays()
     nominal = bag.vehicle.nominal_tire_radius_m
     truth = _truth_radius_error(bag)
@@ -337,7 +439,21 @@ def build_metrics(
     ltp = LocalTangentPlane(*trace.origin_lla) if trace.origin_lla is not None else None
     ref_en, against = _reference_positions(bag, arr["t_ns"], ltp)
     pos_rmse = ev.position_rmse_m(arr["pose"][:, :2], ref_en) if ref_en is not None else None
-    residual_report = analyze_residuals(trace)
+    if arr["innov_t_ns"].size:
+        residual_report = analyze_residuals(trace)
+    else:
+        residual_report = {
+            "consistent": None,
+            "tests": {"note": "no GNSS innovations: the radius MPF did not run on this bag"},
+            "suspected_effects": [],
+        }
+    by_source: dict[str, Any] = {}
+    if lateral is not None:
+        by_source["tyre_force_kf"] = _lateral_metrics(bag, lateral)
+    for name, imu_trace in imu_lateral.items():
+        by_source[name] = _imu_lateral_metrics(bag, name, imu_trace)
+    primary = by_source.get("tyre_force_kf") or by_source.get("stiffness_mpf")
+    stiff = imu_lateral.get("stiffness_mpf")
     return {
         "bag": str(bag.path),
         "duration_s": bag.duration_s,
@@ -347,8 +463,9 @@ def build_metrics(
         "radii": radii,
         "position": {"rmse_m": pos_rmse, "against": against},
         "detection": {"alarms": []},
-        "stiffness": None,
-        "lateral": _lateral_metrics(bag, lateral),
+        "stiffness": _stiffness_metrics(bag, stiff) if stiff is not None else None,
+        "lateral": primary,
+        "lateral_by_source": by_source or None,
         "residuals": residual_report,
         "dropped_samples": trace.dropped,
         "resample_count": trace.resample_count,
@@ -384,6 +501,153 @@ def _lateral_metrics(bag: BagData, lateral: LateralTrace | None) -> dict[str, An
         )
     )
     return out
+
+
+def _imu_lateral_reference(
+    bag: BagData, t_ns: np.ndarray
+) -> tuple[dict[str, np.ndarray], str, str] | None:
+    """Reference at ``t_ns``: (``vx``, ``vy``, ``r`` arrays, topic, point) or None.
+
+    ``/reference/lateral_state`` gives the CG (point ``cg``); truth or reference odometry gives
+    ``base_link`` (the rear-axle centre).
+    """
+    lat = bag.reference_lateral
+    if lat is not None and lat.t_ns.size:
+        col = {n: i for i, n in enumerate(lat.names)}
+        ref = {
+            key: np.interp(t_ns, lat.t_ns, lat.values[:, col[name]])
+            for key, name in (("vx", "vx_cg"), ("vy", "vy_cg"), ("r", "yaw_rate"))
+        }
+        return ref, topics.REFERENCE_LATERAL_STATE, "cg"
+    odo, topic = bag.truth_odometry, topics.TRUTH_ODOMETRY
+    if odo is None:
+        odo, topic = bag.reference_odometry, topics.REFERENCE_ODOMETRY
+    if odo is None or odo.t_ns.size == 0:
+        return None
+    ref = {
+        "vx": np.interp(t_ns, odo.t_ns, odo.linear_velocity_m_s[:, 0]),
+        "vy": np.interp(t_ns, odo.t_ns, odo.linear_velocity_m_s[:, 1]),
+        "r": np.interp(t_ns, odo.t_ns, odo.angular_velocity_rad_s[:, 2]),
+    }
+    return ref, topic, "base_link"
+
+
+def _imu_lateral_metrics(bag: BagData, name: str, trace: ImuLateralTrace) -> dict[str, Any]:
+    """RMSE of vy, sideslip and yaw rate of an IMU-driven lateral estimator vs the reference.
+
+    The estimators estimate the CG's velocity; against a base_link reference it is moved to
+    the rear axle (``vy - lr r``, rigid body). Every recorded sample is scored.
+    """
+    arr = trace.arrays()
+    out: dict[str, Any] = {
+        "source": name,
+        "dropped_samples": trace.dropped,
+        "steps": trace.steps,
+        "time_per_step_ms": 1e3 * trace.wall_s / max(trace.steps, 1),
+        "vy_rmse_m_s": None,
+        "sideslip_rmse_deg": None,
+        "yaw_rate_rmse_deg_s": None,
+    }
+    t = arr["t_ns"]
+    found = _imu_lateral_reference(bag, t) if t.size else None
+    if found is None:
+        return out
+    ref, topic, point = found
+    vx, vy, r = arr["vx_m_s"], arr["vy_m_s"], arr["yaw_rate_rad_s"]
+    if point == "base_link":
+        vy = vy - bag.vehicle.lr_m * r
+    e_vy = vy - ref["vy"]
+    e_beta = np.degrees(
+        np.arctan2(vy, np.maximum(vx, 0.1)) - np.arctan2(ref["vy"], np.maximum(ref["vx"], 0.1))
+    )
+    e_r = np.degrees(r - ref["r"])
+    out.update(
+        {
+            "against": topic,
+            "point": point,
+            "vy_rmse_m_s": float(np.sqrt(np.mean(e_vy**2))),
+            "sideslip_rmse_deg": float(np.sqrt(np.mean(e_beta**2))),
+            "yaw_rate_rmse_deg_s": float(np.sqrt(np.mean(e_r**2))),
+            "sideslip_max_abs_error_deg": float(np.max(np.abs(e_beta))),
+            "samples": int(t.size),
+        }
+    )
+    return out
+
+
+def _stiffness_metrics(bag: BagData, trace: ImuLateralTrace) -> dict[str, Any]:
+    """Final stiffness per name (and std, nominal), learning fraction, relative RMSE vs
+    ``/truth/tire_stiffness`` over the second half of the run (when the bag has it)."""
+    arr = trace.arrays()
+    names = trace.stiffness_names
+    out: dict[str, Any] = {
+        "source": "stiffness_mpf",
+        "final": None,
+        "rel_rmse_vs_truth": None,
+        "dropped_samples": trace.dropped,
+    }
+    if not names or arr["stiffness"].shape[0] == 0:
+        return out
+    c = arr["stiffness"]
+    out["final"] = dict(zip(names, c[-1].tolist(), strict=True))
+    out["final_std"] = dict(zip(names, arr["stiffness_std"][-1].tolist(), strict=True))
+    if trace.nominal is not None:
+        out["nominal"] = dict(zip(names, trace.nominal.tolist(), strict=True))
+    out["learning_active_fraction"] = float(np.mean(arr["active"]))
+    out["final_gyro_bias_rad_s"] = float(arr["gyro_bias_rad_s"][-1])
+    truth = bag.truth_stiffness
+    if truth is not None and truth.t_ns.size:
+        t = arr["t_ns"]
+        half = t >= t[0] + (t[-1] - t[0]) // 2
+        rel: dict[str, float] = {}
+        for j, n in enumerate(names):
+            if n not in truth.names:
+                continue
+            true_c = np.interp(t[half], truth.t_ns, truth.values[:, truth.names.index(n)])
+            rel[n] = float(np.sqrt(np.mean((c[half, j] / true_c - 1.0) ** 2)))
+        out["rel_rmse_vs_truth"] = rel
+        out["rel_rmse_window"] = "second half of the run"
+    return out
+
+
+def write_lateral_plots(out: Path, bag: BagData, traces: dict[str, ImuLateralTrace]) -> None:
+    """lateral_state.png (sideslip and yaw rate of each estimator against the reference) and
+    stiffness.png (learned stiffness with its std band)."""
+    from tire_estimation.evaluation import plots
+
+    series = {}
+    for name, trace in traces.items():
+        arr = trace.arrays()
+        if arr["t_ns"].size:
+            series[name] = arr
+    if not series:
+        return
+    ref = None
+    any_t = next(iter(series.values()))["t_ns"]
+    found = _imu_lateral_reference(bag, any_t)
+    if found is not None:
+        ref_vals, topic, point = found
+        vy = ref_vals["vy"]
+        ref = (
+            (any_t - bag.start_ns) * 1e-9,
+            np.arctan2(vy, np.maximum(ref_vals["vx"], 0.1)),
+            ref_vals["r"],
+            f"{topic} ({point})",
+            point,
+        )
+    plots.plot_lateral_state(
+        out / "lateral_state.png", bag.start_ns, bag.vehicle.lr_m, series, ref
+    )
+    stiff = traces.get("stiffness_mpf")
+    if stiff is not None and stiff.stiffness:
+        arr = stiff.arrays()
+        plots.plot_stiffness(
+            out / "stiffness.png",
+            (arr["t_ns"] - bag.start_ns) * 1e-9,
+            stiff.stiffness_names,
+            arr["stiffness"],
+            arr["stiffness_std"],
+        )
 
 
 def write_plots(out: Path, bag: BagData, trace: RadiusTrace) -> None:

@@ -32,6 +32,7 @@ from tire_estimation.sim.streams import (
     GnssStream,
     ImuStream,
     SimEvent,
+    SpeedStream,
     SteeringStream,
     TireForceStream,
     WheelSpeedStream,
@@ -102,12 +103,14 @@ class BagData:
     imu: ImuStream | None = None
     gnss: GnssStream | None = None
     tire_forces: TireForceStream | None = None
+    vehicle_velocity: SpeedStream | None = None
     truth_fix: GnssStream | None = None
     truth_odometry: OdometryArrays | None = None
     truth_wheel_radii: JointArrays | None = None
     truth_tire_pressure: JointArrays | None = None
     truth_stiffness: JointArrays | None = None
     reference_odometry: OdometryArrays | None = None
+    reference_lateral: JointArrays | None = None
     events: tuple[SimEvent, ...] = ()
     scenario: str | None = None
     seed: int | None = None
@@ -341,12 +344,15 @@ def fix_stream(
     )
 
 
-def velocity_arrays(batches: list[Batch], count: int, notes: list[str]) -> tuple[I64, F64, F64]:
-    """``/gnss/velocity`` as (t_ns, ENU velocity (K, 3) m/s, covariance (K, 3, 3) m^2/s^2)."""
+def velocity_arrays(
+    batches: list[Batch], count: int, notes: list[str], what: str = tp.GNSS_VELOCITY
+) -> tuple[I64, F64, F64]:
+    """A ``TwistWithCovarianceStamped`` topic (``/gnss/velocity``: ENU) as (t_ns, linear
+    velocity (K, 3) m/s, covariance (K, 3, 3) m^2/s^2)."""
     t = _all_stamps(batches, count)
     vel = np.column_stack([_column(batches, count, f"twist.twist.linear.{a}") for a in "xyz"])
     cov = _column(batches, count, "twist.covariance", 36).reshape(-1, 6, 6)[:, :3, :3]
-    keep = _order(t, tp.GNSS_VELOCITY, notes)
+    keep = _order(t, what, notes)
     return t[keep], vel[keep], np.ascontiguousarray(cov[keep])
 
 
@@ -565,6 +571,9 @@ def decode_topics(raw: dict[str, RawTopic], *, fast: bool = True) -> dict[str, A
         out["gnss"] = fix_stream(*batches[tp.GNSS_FIX], tp.GNSS_FIX, notes, velocity)
     if tp.TIRE_FORCES_TOPIC in batches:
         out["tire_forces"] = tire_force_stream(*batches[tp.TIRE_FORCES_TOPIC], notes)
+    if tp.VEHICLE_VELOCITY in batches:
+        t_v, vel, _ = velocity_arrays(*batches[tp.VEHICLE_VELOCITY], notes, tp.VEHICLE_VELOCITY)
+        out["vehicle_velocity"] = SpeedStream(t_v, np.ascontiguousarray(vel[:, 0]))
     if tp.TRUTH_FIX in batches:
         out["truth_fix"] = fix_stream(*batches[tp.TRUTH_FIX], tp.TRUTH_FIX, notes)
     for topic, key in (
@@ -577,6 +586,7 @@ def decode_topics(raw: dict[str, RawTopic], *, fast: bool = True) -> dict[str, A
         (tp.TRUTH_WHEEL_RADII, "truth_wheel_radii", WHEELS),
         (tp.TRUTH_TIRE_PRESSURE, "truth_tire_pressure", WHEELS),
         (tp.TRUTH_TIRE_STIFFNESS, "truth_stiffness", tp.STIFFNESS_NAMES),
+        (tp.REFERENCE_LATERAL_STATE, "reference_lateral", tp.REFERENCE_LATERAL_NAMES),
     ):
         if topic in batches:
             out[key] = joint_arrays(*batches[topic], names, "position", topic, notes)

@@ -25,6 +25,9 @@ IMU_DATA: Final = "/imu/data"
 GNSS_FIX: Final = "/gnss/fix"
 GNSS_VELOCITY: Final = "/gnss/velocity"
 TIRE_FORCES_TOPIC: Final = "/vehicle/tire_forces"
+#: Project-defined input (not in contract v1): measured body velocity of base_link in base_link
+#: axes (``TwistWithCovarianceStamped``; ``linear.x`` is used), for data without wheel speeds.
+VEHICLE_VELOCITY: Final = "/vehicle/velocity"
 
 # --- output topics ---
 OUT_ODOMETRY: Final = "/tire_estimation/odometry"
@@ -41,6 +44,15 @@ TRUTH_WHEEL_RADII: Final = "/truth/wheel_radii"
 TRUTH_TIRE_PRESSURE: Final = "/truth/tire_pressure"
 TRUTH_TIRE_STIFFNESS: Final = "/truth/tire_stiffness"
 REFERENCE_ODOMETRY: Final = "/reference/odometry"
+#: Project-defined reference: measured lateral state at the CG (JointState ``position`` by name,
+#: :data:`REFERENCE_LATERAL_NAMES`: m/s, m/s, rad, rad/s).
+REFERENCE_LATERAL_STATE: Final = "/reference/lateral_state"
+REFERENCE_LATERAL_NAMES: Final[tuple[str, str, str, str]] = (
+    "vx_cg",
+    "vy_cg",
+    "sideslip_cg",
+    "yaw_rate",
+)
 
 #: Names on ``/truth/tire_stiffness`` in the order of ``TruthStream.stiffness`` columns.
 STIFFNESS_NAMES: Final[tuple[str, str, str]] = ("cx_front", "cy_front", "cy_rear")
@@ -65,6 +77,8 @@ TOPIC_TYPES: Final[dict[str, str]] = {
     TRUTH_TIRE_PRESSURE: JOINT_STATE,
     TRUTH_TIRE_STIFFNESS: JOINT_STATE,
     REFERENCE_ODOMETRY: ODOMETRY,
+    VEHICLE_VELOCITY: TWIST_WITH_COVARIANCE_STAMPED,
+    REFERENCE_LATERAL_STATE: JOINT_STATE,
 }
 
 INPUT_TOPICS: Final = (
@@ -74,6 +88,7 @@ INPUT_TOPICS: Final = (
     GNSS_FIX,
     GNSS_VELOCITY,
     TIRE_FORCES_TOPIC,
+    VEHICLE_VELOCITY,
 )
 TRUTH_TOPICS: Final = (
     TRUTH_FIX,
@@ -82,7 +97,7 @@ TRUTH_TOPICS: Final = (
     TRUTH_TIRE_PRESSURE,
     TRUTH_TIRE_STIFFNESS,
 )
-REFERENCE_TOPICS: Final = (REFERENCE_ODOMETRY,)
+REFERENCE_TOPICS: Final = (REFERENCE_ODOMETRY, REFERENCE_LATERAL_STATE)
 
 # --- frame ids ---
 BASE_LINK: Final = "base_link"

@@ -73,10 +73,10 @@ F64 = NDArray[np.float64]
 
 WHAT = "revs250lm data"
 #: Project-defined input topic: measured body velocity (TwistWithCovarianceStamped, base_link).
-VEHICLE_VELOCITY = "/vehicle/velocity"
+VEHICLE_VELOCITY = tp.VEHICLE_VELOCITY
 #: Project-defined reference topic: measured lateral state at the CG (JointState positions).
-REFERENCE_LATERAL = "/reference/lateral_state"
-LATERAL_NAMES = ("vx_cg", "vy_cg", "sideslip_cg", "yaw_rate")
+REFERENCE_LATERAL = tp.REFERENCE_LATERAL_STATE
+LATERAL_NAMES = tp.REFERENCE_LATERAL_NAMES
 COLUMNS = ("t", "vx", "vy", "yawRate", "axCG", "ayCG", "delta", "beta_true")
 
 REVS_VEHICLE_COMMENT = """\

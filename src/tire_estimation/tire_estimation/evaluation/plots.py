@@ -105,3 +105,62 @@ def plot_innovations(
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def plot_lateral_state(
+    path: Path,
+    start_ns: int,
+    lr_m: float,
+    series: dict[str, dict[str, NDArray[np.generic]]],
+    reference: tuple[F64, F64, F64, str, str] | None,
+) -> None:
+    """Sideslip (deg) and yaw rate (deg/s) of each lateral estimator against the reference.
+
+    ``series``: name -> arrays of an ``ImuLateralTrace`` (CG values). ``reference`` = (t_s,
+    sideslip rad, yaw rate rad/s, label, point); with point ``base_link`` the estimates are
+    moved to the rear axle (vy - lr r) before the sideslip is taken.
+    """
+    fig, axes = plt.subplots(2, 1, figsize=(11, 6), sharex=True)
+    point = reference[4] if reference is not None else "cg"
+    if reference is not None:
+        axes[0].plot(reference[0], np.degrees(reference[1]), color="k", lw=1.0, label=reference[3])
+        axes[1].plot(reference[0], np.degrees(reference[2]), color="k", lw=1.0, label=reference[3])
+    for i, (name, arr) in enumerate(series.items()):
+        t_s = (np.asarray(arr["t_ns"], dtype=np.int64) - start_ns) * 1e-9
+        vx = np.asarray(arr["vx_m_s"], dtype=float)
+        vy = np.asarray(arr["vy_m_s"], dtype=float)
+        r = np.asarray(arr["yaw_rate_rad_s"], dtype=float)
+        if point == "base_link":
+            vy = vy - lr_m * r
+        beta = np.arctan2(vy, np.maximum(vx, 0.1))
+        axes[0].plot(t_s, np.degrees(beta), color=f"C{i}", lw=0.9, label=name)
+        axes[1].plot(t_s, np.degrees(r), color=f"C{i}", lw=0.9, label=name)
+    axes[0].set_ylabel(f"sideslip at {point} [deg]")
+    axes[1].set_ylabel("yaw rate [deg/s]")
+    axes[1].set_xlabel("time from start of bag [s]")
+    for ax in axes:
+        ax.grid(True, alpha=0.3)
+        ax.legend(loc="upper right", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def plot_stiffness(path: Path, t_s: F64, names: tuple[str, ...], stiffness: F64, std: F64) -> None:
+    """Learned stiffness per name (kN per unit slip or kN/rad) with a +-2 std band."""
+    n = len(names)
+    fig, axes = plt.subplots(n, 1, figsize=(10, 2.4 * n), sharex=True, squeeze=False)
+    for j, name in enumerate(names):
+        ax = axes[j, 0]
+        k = 1e-3 * stiffness[:, j]
+        band = 2e-3 * std[:, j]
+        ax.fill_between(t_s, k - band, k + band, color="C0", alpha=0.2, label="±2σ")
+        ax.plot(t_s, k, color="C0", lw=1.0, label=name)
+        unit = "kN/unit slip" if name.startswith("cx") else "kN/rad"
+        ax.set_ylabel(f"{name} [{unit}]")
+        ax.grid(True, alpha=0.3)
+        ax.legend(loc="upper right", fontsize=8)
+    axes[-1, 0].set_xlabel("time from start of bag [s]")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

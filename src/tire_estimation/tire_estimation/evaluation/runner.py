@@ -7,6 +7,7 @@ then IMU, then GNSS), which is what the node's reorder buffer reproduces online.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -264,3 +265,127 @@ def run_lateral_estimator(
             trace.relay.append(_RELAY_CODE.get(est.linearity, 0))
     trace.dropped = dict(getattr(estimator, "stats", {}))
     return trace
+
+
+VELOCITY = 5
+
+
+@dataclass
+class ImuLateralTrace:
+    """Estimates of an IMU-driven lateral estimator (stiffness MPF, linear single-track KF).
+
+    Recorded after IMU samples, at most one per ``record_period_s``: ``t_ns`` (K,), ``vx_m_s``,
+    ``vy_m_s`` (at the CG), ``yaw_rate_rad_s``, ``sideslip_rad`` (at the CG) (K,); for
+    estimators that learn the stiffness also ``stiffness`` / ``stiffness_std`` (K, 3) in the
+    order of ``stiffness_names``, ``active`` (K,) and ``gyro_bias_rad_s`` (K,) (yaw-rate bias).
+    """
+
+    t_ns: list[int] = field(default_factory=list)
+    vx_m_s: list[float] = field(default_factory=list)
+    vy_m_s: list[float] = field(default_factory=list)
+    yaw_rate_rad_s: list[float] = field(default_factory=list)
+    sideslip_rad: list[float] = field(default_factory=list)
+    stiffness_names: tuple[str, ...] = ()
+    nominal: NDArray[np.float64] | None = None
+    stiffness: list[NDArray[np.float64]] = field(default_factory=list)
+    stiffness_std: list[NDArray[np.float64]] = field(default_factory=list)
+    active: list[bool] = field(default_factory=list)
+    gyro_bias_rad_s: list[float] = field(default_factory=list)
+    dropped: dict[str, int] = field(default_factory=dict)
+    wall_s: float = 0.0
+    steps: int = 0
+
+    def arrays(self) -> dict[str, NDArray[Any]]:
+        """The lists as arrays."""
+        k = len(self.stiffness_names)
+        return {
+            "t_ns": np.asarray(self.t_ns, dtype=np.int64),
+            "vx_m_s": np.asarray(self.vx_m_s, dtype=float),
+            "vy_m_s": np.asarray(self.vy_m_s, dtype=float),
+            "yaw_rate_rad_s": np.asarray(self.yaw_rate_rad_s, dtype=float),
+            "sideslip_rad": np.asarray(self.sideslip_rad, dtype=float),
+            "stiffness": np.asarray(self.stiffness) if self.stiffness else np.zeros((0, k)),
+            "stiffness_std": (
+                np.asarray(self.stiffness_std) if self.stiffness_std else np.zeros((0, k))
+            ),
+            "active": np.asarray(self.active, dtype=bool),
+            "gyro_bias_rad_s": np.asarray(self.gyro_bias_rad_s, dtype=float),
+        }
+
+
+def run_imu_lateral_estimator(
+    estimator: Any,
+    imu: ImuStream,
+    steering: SteeringStream | None,
+    wheel_speeds: WheelSpeedStream | None = None,
+    velocity: Any = None,
+    record_period_s: float = 0.01,
+) -> ImuLateralTrace:
+    """Feed an IMU-driven lateral estimator in stamp order; record its estimate.
+
+    ``estimator`` has ``on_wheel_speeds``, ``on_steering``, ``on_imu``, ``on_velocity`` (used
+    when ``velocity``, a :class:`~tire_estimation.sim.streams.SpeedStream`, is given) and
+    ``estimate()``; its ``initialized`` flag (or ``mpf.initialized``) says when an estimate
+    exists. On equal stamps speeds and steering go before the IMU sample they belong to.
+    """
+    parts: list[tuple[NDArray[np.int64], int]] = []
+    if wheel_speeds is not None:
+        parts.append((wheel_speeds.t_ns, WHEEL))
+    if velocity is not None:
+        parts.append((velocity.t_ns, VELOCITY))
+    if steering is not None:
+        parts.append((steering.t_ns, STEER))
+    parts.append((imu.t_ns, IMU))
+    t = np.concatenate([p[0] for p in parts])
+    s = np.concatenate([np.full(p[0].size, p[1]) for p in parts])
+    i = np.concatenate([np.arange(p[0].size) for p in parts])
+    order = np.lexsort((s, t))
+    trace = ImuLateralTrace()
+    period_ns = round(record_period_s * 1e9)
+    next_ns: int | None = None
+    i_t = imu.t_ns.tolist()
+    i_w, i_a = imu.angular_velocity_rad_s, imu.linear_acceleration_m_s2
+    s_t = steering.t_ns.tolist() if steering is not None else []
+    s_v = steering.angle_rad.tolist() if steering is not None else []
+    v_t = velocity.t_ns.tolist() if velocity is not None else []
+    v_v = velocity.vx_m_s.tolist() if velocity is not None else []
+    w_t = wheel_speeds.t_ns.tolist() if wheel_speeds is not None else []
+    mpf = getattr(estimator, "mpf", None)
+    ready_of = mpf if mpf is not None else estimator
+    wall0 = time.perf_counter()
+    for sid, row in zip(s[order].tolist(), i[order].tolist(), strict=True):
+        if sid == WHEEL:
+            estimator.on_wheel_speeds(w_t[row], wheel_speeds.wheel_speed_rad_s[row])  # type: ignore[union-attr]
+        elif sid == VELOCITY:
+            estimator.on_velocity(v_t[row], v_v[row])
+        elif sid == STEER:
+            estimator.on_steering(s_t[row], s_v[row])
+        else:
+            t_row = i_t[row]
+            estimator.on_imu(t_row, i_w[row], i_a[row])
+            trace.steps += 1
+            if not getattr(ready_of, "initialized", False):
+                continue
+            if next_ns is not None and t_row < next_ns:
+                continue
+            next_ns = t_row + period_ns
+            _record_lateral(trace, estimator.estimate(), t_row)
+    trace.wall_s = time.perf_counter() - wall0
+    trace.dropped = dict(getattr(estimator, "stats", {}))
+    return trace
+
+
+def _record_lateral(trace: ImuLateralTrace, est: Any, t_ns: int) -> None:
+    trace.t_ns.append(t_ns)
+    trace.vx_m_s.append(float(est.vx_m_s))
+    trace.vy_m_s.append(float(est.vy_m_s))
+    trace.yaw_rate_rad_s.append(float(est.yaw_rate_rad_s))
+    trace.sideslip_rad.append(float(est.sideslip_rad))
+    if hasattr(est, "stiffness"):
+        if not trace.stiffness_names:
+            trace.stiffness_names = tuple(est.names)
+            trace.nominal = np.asarray(est.nominal, dtype=float).copy()
+        trace.stiffness.append(np.asarray(est.stiffness, dtype=float).copy())
+        trace.stiffness_std.append(np.asarray(est.stiffness_std, dtype=float).copy())
+        trace.active.append(bool(est.active))
+        trace.gyro_bias_rad_s.append(float(est.gyro_bias_rad_s[2]))

@@ -92,6 +92,22 @@ def imu_from_msg(msg: Any) -> tuple[int, np.ndarray, np.ndarray]:
     return t_ns, gyro, acc
 
 
+def velocity_from_msg(msg: Any) -> tuple[int, float]:
+    """TwistWithCovarianceStamped in base_link -> (t_ns, vx m/s).
+
+    Another frame raises ``wrong_frame`` (an empty frame id is taken as base_link); a
+    non-finite speed raises ``nan``.
+    """
+    t_ns = stamp_ns(msg.header)
+    frame = str(msg.header.frame_id)
+    if frame not in ("base_link", ""):
+        raise InputError("wrong_frame", f"/vehicle/velocity must be in base_link, got {frame!r}")
+    vx = float(msg.twist.twist.linear.x)
+    if not math.isfinite(vx):
+        raise InputError("nan", "velocity not finite")
+    return t_ns, vx
+
+
 def gnss_from_msg(msg: Any) -> tuple[int, float, float, float, np.ndarray | None]:
     """NavSatFix -> (t_ns, lat deg, lon deg, alt m, ENU covariance (3, 3) m^2 or None).
 

@@ -1,12 +1,16 @@
 """estimator_node: thin rclpy adapter over the core estimators.
 
 Subscribes (contract v1): ``/vehicle/wheel_speeds``, ``/vehicle/steering``, ``/imu/data``,
-``/gnss/fix`` and, when present, ``/vehicle/tire_forces``. Publishes
+``/gnss/fix`` and, when present, ``/vehicle/tire_forces`` and ``/vehicle/velocity``
+(project-defined: measured vx for vehicles without wheel speeds). Publishes
 ``/tire_estimation/odometry`` and ``/tire_estimation/tire_radii`` (tire-radius MPF,
 :class:`~tire_estimation.core.radius_estimator.RadiusEstimator`),
-``/tire_estimation/lateral_state`` (tyre-force Kalman filter,
-:class:`~tire_estimation.core.tyre_force_kf.TyreForceEstimator`, once tyre forces arrive) and
-``/diagnostics``. Services: ``~/reset`` (std_srvs/Trigger) forgets the learned radii.
+``/tire_estimation/tire_stiffness`` (stiffness MPF,
+:class:`~tire_estimation.core.stiffness_estimator.StiffnessEstimator`, on IMU + steering +
+speed), ``/tire_estimation/lateral_state`` (tyre-force Kalman filter,
+:class:`~tire_estimation.core.tyre_force_kf.TyreForceEstimator`, while tyre forces arrive; else
+the stiffness MPF's lateral state) and ``/diagnostics``. Services: ``~/reset``
+(std_srvs/Trigger) forgets the learned radii and stiffness.
 
 The node converts messages, hands them to the same core object the bag replay drives, and
 publishes what the core estimates. Bad input never stops it: the sample is dropped, counted by
@@ -24,6 +28,7 @@ from typing import Any
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import TwistWithCovarianceStamped
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, qos_profile_sensor_data
@@ -33,6 +38,8 @@ from std_srvs.srv import Trigger
 from tire_estimation.core.config import RadiusEstimatorConfig
 from tire_estimation.core.ordering import StampOrderedDispatcher
 from tire_estimation.core.radius_estimator import RadiusEstimator
+from tire_estimation.core.stiffness_config import StiffnessEstimatorConfig
+from tire_estimation.core.stiffness_estimator import StiffnessEstimate, StiffnessEstimator
 from tire_estimation.core.tyre_force_kf import TyreForceEstimator, TyreForceKFConfig
 from tire_estimation.core.vehicle import VehicleParams, load_vehicle_yaml
 from tire_estimation.errors import InputError, TireEstimationError
@@ -46,7 +53,7 @@ from tire_estimation.params import (
     parameter_specs,
 )
 from tire_estimation.persistence import Identity, delete_state
-from tire_estimation_msgs.msg import LateralState, TireForces, TireRadii
+from tire_estimation_msgs.msg import LateralState, TireForces, TireRadii, TireStiffness
 
 SECTIONS = estimator_sections()
 _STATE = {
@@ -62,6 +69,13 @@ _LINEARITY = {
     "nonlinear": LateralState.LINEARITY_NONLINEAR,
 }
 
+
+#: Seed-sequence key of the stiffness MPF's generator (``default_rng([radius.seed, key])``), as in
+#: the replay, so a live run and a replay draw the same numbers.
+STIFFNESS_RNG_KEY = 1
+#: The stiffness MPF publishes the lateral state only when the tyre-force KF has not for this
+#: long (header time), ns.
+TYRE_FORCE_PRIORITY_NS = 500_000_000
 
 #: rows/columns of x, y and yaw in the REP-103 6x6 covariance order (x, y, z, roll, pitch, yaw)
 _PLANAR = (0, 1, 5)
@@ -94,7 +108,17 @@ class EstimatorNode(Node):
             )
             self.lateral = TyreForceEstimator(tyre_cfg, self.vehicle)
         self._last_lateral_pub_ns = 0
+        self._last_tyre_force_pub_ns: int | None = None
         self._lateral_period_ns = int(self.options.lateral_publish_period_s * 1e9)
+        self.stiffness: StiffnessEstimator | None = None
+        if self.options.stiffness_enabled:
+            stiff_cfg = build_config(
+                StiffnessEstimatorConfig, "stiffness", self._values(self._specs["stiffness"])
+            )
+            stiff_rng = np.random.default_rng([self.config.seed, STIFFNESS_RNG_KEY])
+            self.stiffness = StiffnessEstimator(stiff_cfg, self.vehicle, stiff_rng)
+        self._last_stiffness_pub_ns = 0
+        self._stiffness_period_ns = int(self.options.stiffness_publish_period_s * 1e9)
 
         self.dropped: Counter[str] = Counter()
         self.received: Counter[str] = Counter()
@@ -128,6 +152,13 @@ class EstimatorNode(Node):
         self.create_subscription(
             NavSatFix, "/gnss/fix", self._guard("gnss_fix", self._on_gnss), sensor_qos
         )
+        if self.stiffness is not None:
+            self.create_subscription(
+                TwistWithCovarianceStamped,
+                "/vehicle/velocity",
+                self._guard("velocity", self._on_velocity),
+                sensor_qos,
+            )
         if self.lateral is not None:
             self.create_subscription(
                 TireForces,
@@ -137,6 +168,9 @@ class EstimatorNode(Node):
             )
         self.pub_lateral = self.create_publisher(
             LateralState, "/tire_estimation/lateral_state", 10
+        )
+        self.pub_stiffness = self.create_publisher(
+            TireStiffness, "/tire_estimation/tire_stiffness", 10
         )
         self.pub_odom = self.create_publisher(Odometry, "/tire_estimation/odometry", 10)
         self.pub_radii = self.create_publisher(TireRadii, "/tire_estimation/tire_radii", 10)
@@ -188,10 +222,12 @@ class EstimatorNode(Node):
 
     def _on_reset(self, _: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
         self.estimator.reset()
+        if self.stiffness is not None:
+            self.stiffness.reset()
         if self._persist_path is not None:
             delete_state(self._persist_path)
         response.success = True
-        response.message = "learned tire radii reset to the prior"
+        response.message = "learned tire radii and stiffness reset to the prior"
         self.get_logger().info(response.message)
         return response
 
@@ -234,34 +270,103 @@ class EstimatorNode(Node):
         t_ns, lat, lon, alt, cov = conv.gnss_from_msg(msg)
         self._dispatch(t_ns, "gnss_fix", (lat, lon, alt, cov))
 
+    def _on_velocity(self, msg: TwistWithCovarianceStamped) -> None:
+        t_ns, vx = conv.velocity_from_msg(msg)
+        self._dispatch(t_ns, "velocity", vx)
+
     def _on_tire_forces(self, msg: TireForces) -> None:
         t_ns, fx, fy, fz, valid = conv.tire_forces_from_msg(msg)
         self._dispatch(t_ns, "tire_forces", (fx, fy, fz, valid))
 
     def _dispatch(self, t_ns: int, kind: str, payload: Any) -> None:
         """Hand samples to the core estimators in header-stamp order (see core.ordering)."""
-        lateral = self.lateral
+        lateral, stiffness = self.lateral, self.stiffness
         for t, k, value in self.dispatcher.push(t_ns, kind, payload):
             if k == "wheel_speeds":
                 self.estimator.on_wheel_speeds(t, value)
                 if lateral is not None:
                     lateral.on_wheel_speeds(t, value)
+                if stiffness is not None:
+                    stiffness.on_wheel_speeds(t, value)
                 self._publish(t)
             elif k == "steering":
                 self.estimator.on_steering(t, value)
                 if lateral is not None:
                     lateral.on_steering(t, value)
+                if stiffness is not None:
+                    stiffness.on_steering(t, value)
             elif k == "imu":
                 self.estimator.on_imu(t, value[0], value[1])
                 if lateral is not None:
                     lateral.on_imu(t, value[0], value[1])
+                if stiffness is not None:
+                    stiffness.on_imu(t, value[0], value[1])
+                    self._publish_stiffness(stiffness, t)
+            elif k == "velocity":
+                if stiffness is not None:
+                    stiffness.on_velocity(t, value)
             elif k == "tire_forces":
                 if lateral is not None:
                     est = lateral.on_tire_forces(t, *value)
                     if est is not None:
+                        self._last_tyre_force_pub_ns = t
                         self._publish_lateral(est, t)
             else:
                 self.estimator.on_gnss_fix(t, *value)
+
+    def _publish_stiffness(self, stiffness: StiffnessEstimator, t_ns: int) -> None:
+        """TireStiffness at its period and, while the tyre-force KF is silent, LateralState."""
+        if not stiffness.mpf.initialized:
+            return
+        stiff_due = t_ns - self._last_stiffness_pub_ns >= self._stiffness_period_ns
+        last_tf = self._last_tyre_force_pub_ns
+        lateral_due = (
+            last_tf is None or t_ns - last_tf > TYRE_FORCE_PRIORITY_NS
+        ) and t_ns - self._last_lateral_pub_ns >= self._lateral_period_ns
+        if not (stiff_due or lateral_due):
+            return
+        est = stiffness.estimate()
+        if stiff_due:
+            self._last_stiffness_pub_ns = t_ns
+            self.pub_stiffness.publish(self._stiffness_msg(est, t_ns))
+        if lateral_due:
+            self._last_lateral_pub_ns = t_ns
+            self.pub_lateral.publish(self._stiffness_lateral_msg(est, t_ns))
+
+    def _stiffness_msg(self, est: StiffnessEstimate, t_ns: int) -> TireStiffness:
+        msg = TireStiffness()
+        conv.ns_to_stamp(t_ns, msg.header.stamp)
+        msg.header.frame_id = "base_link"
+        msg.names = list(est.names)
+        msg.stiffness = [float(v) for v in est.stiffness]
+        msg.stiffness_std = [float(v) for v in est.stiffness_std]
+        msg.nominal = [float(v) for v in est.nominal]
+        msg.active = bool(est.active)
+        msg.reason = "" if est.reason == "excited" else str(est.reason)
+        msg.gyro_bias_rad_s = [float(v) for v in est.gyro_bias_rad_s]
+        msg.accel_bias_m_s2 = [float(v) for v in est.accel_bias_m_s2]
+        msg.effective_sample_size = float(est.n_eff)
+        return msg
+
+    def _stiffness_lateral_msg(self, est: StiffnessEstimate, t_ns: int) -> LateralState:
+        """The stiffness MPF's CG state moved to base_link: vy_b = vy_cg - lr r (REP-103)."""
+        lr = self.vehicle.lr_m
+        msg = LateralState()
+        conv.ns_to_stamp(t_ns, msg.header.stamp)
+        msg.header.frame_id = "base_link"
+        msg.source = "stiffness_mpf"
+        vy_b = est.vy_m_s - lr * est.yaw_rate_rad_s
+        msg.longitudinal_velocity_m_s = float(est.vx_m_s)
+        msg.lateral_velocity_m_s = float(vy_b)
+        msg.yaw_rate_rad_s = float(est.yaw_rate_rad_s)
+        msg.sideslip_rad = float(math.atan2(vy_b, max(est.vx_m_s, 1e-3)))
+        # covariance of J [vx, vy_cg, r] with J = [[1, 0, 0], [0, 1, -lr], [0, 0, 1]]
+        jac = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, -lr], [0.0, 0.0, 1.0]])
+        cov = jac @ np.asarray(est.covariance, dtype=float) @ jac.T
+        msg.covariance = [float(v) for v in cov.ravel()]
+        msg.axle_lateral_force_n = [0.0, 0.0]
+        msg.linearity = LateralState.LINEARITY_UNKNOWN
+        return msg
 
     def _publish_lateral(self, est: Any, t_ns: int) -> None:
         if t_ns - self._last_lateral_pub_ns < self._lateral_period_ns:
@@ -398,7 +503,39 @@ class EstimatorNode(Node):
                 KeyValue(key="active", value=str(active).lower()),
             ]
             statuses.append(st)
+        if self.stiffness is not None:
+            statuses.append(self._stiffness_status())
         return statuses
+
+    def _stiffness_status(self) -> DiagnosticStatus:
+        """Status of the stiffness MPF: learning or holding and why, N_eff, estimates, drops."""
+        stiffness = self.stiffness
+        assert stiffness is not None
+        st = DiagnosticStatus()
+        st.name = "tire_estimation: stiffness estimator"
+        st.hardware_id = self.vehicle.name
+        est = stiffness.estimate()
+        if not stiffness.mpf.initialized:
+            st.level, st.message = DiagnosticStatus.WARN, f"initializing: {est.reason}"
+        else:
+            st.level = DiagnosticStatus.OK
+            st.message = "learning" if est.active else f"holding: {est.reason}"
+        values = {
+            "active": str(bool(est.active)).lower(),
+            "reason": est.reason,
+            "effective_sample_size": f"{float(est.n_eff):.1f}",
+            "resample_count": str(int(stiffness.mpf.resample_count)),
+            "particles": str(stiffness.config.n_particles),
+            "gyro_bias_z_rad_s": f"{float(est.gyro_bias_rad_s[2]):.5f}",
+            "received.velocity": str(self.received.get("velocity", 0)),
+        }
+        for name, c, s in zip(est.names, est.stiffness, est.stiffness_std, strict=True):
+            values[name] = f"{float(c):.0f}"
+            values[f"{name}_std"] = f"{float(s):.0f}"
+        for key, count in sorted(stiffness.stats.items()):
+            values[f"dropped.core.{key}"] = str(count)
+        st.values = [KeyValue(key=k, value=v) for k, v in values.items()]
+        return st
 
 
 def main(args: list[str] | None = None) -> None:

@@ -55,6 +55,17 @@ class SteeringStream:
 
 
 @dataclass(frozen=True)
+class SpeedStream:
+    """Measured longitudinal speed of ``base_link``, ``vx_m_s``: (M,), m/s (no wheel speeds)."""
+
+    t_ns: I64
+    vx_m_s: F64
+
+    def __post_init__(self) -> None:
+        _check("speed", self.t_ns, vx_m_s=self.vx_m_s)
+
+
+@dataclass(frozen=True)
 class ImuStream:
     """IMU in ``base_link`` axes.
 

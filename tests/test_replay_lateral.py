@@ -1,0 +1,89 @@
+"""Replay of the lateral estimators: stiffness MPF and linear single-track KF beside the
+tyre-force KF on a simulated bag, and the lateral-only path of a measured-velocity bag."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from tests.convert.test_revs250lm import make_export
+from tire_estimation.cli import main
+
+
+@pytest.fixture(scope="module")
+def lane_change_bag(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("lat") / "lc"
+    args = ["simulate", "lane_change", "--minutes", "0.3", "--seed", "1", "--out", str(out)]
+    assert main(args) == 0
+    return out
+
+
+def test_replay_reports_every_lateral_estimator(lane_change_bag: Path, tmp_path: Path) -> None:
+    config = tmp_path / "cfg.yaml"
+    config.write_text(
+        yaml.safe_dump({"radius": {"n_particles": 100}, "stiffness": {"n_particles": 100}})
+    )
+    out = tmp_path / "report"
+    argv = ["replay", str(lane_change_bag), "--out", str(out), "--config", str(config)]
+    assert main([*argv, "--no-progress"]) == 0
+    m = json.loads((out / "metrics.json").read_text())
+    by_source = m["lateral_by_source"]
+    assert set(by_source) == {"tyre_force_kf", "stiffness_mpf", "linear_kf"}
+    # the primary lateral state is the tyre-force KF's where tyre forces are measured
+    assert m["lateral"]["source"] == "tyre_force_kf"
+    mpf = by_source["stiffness_mpf"]
+    assert mpf["against"] == "/truth/odometry" and mpf["point"] == "base_link"
+    # measured on this drive: 0.02-0.03 m/s and 0.07-0.1 deg/s (simulator IMU biases on)
+    assert mpf["vy_rmse_m_s"] < 0.1
+    assert mpf["yaw_rate_rmse_deg_s"] < 0.5
+    assert by_source["linear_kf"]["vy_rmse_m_s"] < 0.5
+    stiff = m["stiffness"]
+    assert set(stiff["final"]) == {"cx_front", "cy_front", "cy_rear"}
+    assert stiff["nominal"]["cy_front"] > 0
+    # lane changes excite the cornering stiffness: learned within 30 % of the truth
+    assert stiff["rel_rmse_vs_truth"]["cy_front"] < 0.3
+    assert 0.0 < stiff["learning_active_fraction"] <= 1.0
+    assert {"lateral_state.png", "stiffness.png"} <= set(m["plots"])
+
+
+def test_no_stiffness_flag_skips_the_lateral_imu_estimators(
+    lane_change_bag: Path, tmp_path: Path
+) -> None:
+    out = tmp_path / "report"
+    argv = ["replay", str(lane_change_bag), "--out", str(out), "--no-plots", "--no-progress"]
+    assert main([*argv, "--no-stiffness"]) == 0
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["stiffness"] is None
+    assert set(m["lateral_by_source"]) == {"tyre_force_kf"}
+
+
+def test_measured_velocity_bag_runs_the_lateral_estimators_only(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    export = make_export(tmp_path, n=600)
+    bag = tmp_path / "revs_bag"
+    assert main(["convert", "revs250lm", str(export), "--out", str(bag)]) == 0
+    out = tmp_path / "report"
+    config = tmp_path / "cfg.yaml"
+    config.write_text(yaml.safe_dump({"stiffness": {"n_particles": 50}}))
+    argv = ["replay", str(bag), "--out", str(out), "--config", str(config), "--no-progress"]
+    assert main(argv) == 0
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["radii"]["final_radius_error_m"] == {}
+    assert m["position"]["rmse_m"] is None
+    assert m["residuals"]["consistent"] is None
+    lat = m["lateral"]
+    assert lat["source"] == "stiffness_mpf"
+    assert lat["against"] == "/reference/lateral_state" and lat["point"] == "cg"
+    assert np.isfinite(lat["sideslip_rmse_deg"]) and lat["samples"] > 500
+    assert m["lateral_by_source"]["linear_kf"]["samples"] > 500
+    capsys.readouterr()
+    # without the stiffness MPF nothing can run on such a bag: a one-line error, no report
+    assert main([*argv, "--no-stiffness"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "/vehicle/wheel_speeds" in err[0]
+    assert not (out / "metrics.json").exists()
