@@ -505,7 +505,36 @@ class EstimatorNode(Node):
             statuses.append(st)
         if self.stiffness is not None:
             statuses.append(self._stiffness_status())
+        if self.lateral is not None:
+            statuses.append(self._tyre_force_status())
         return statuses
+
+    def _tyre_force_status(self) -> DiagnosticStatus:
+        """Status of the tyre-force lateral KF: waiting for forces, or running with its relay."""
+        lateral = self.lateral
+        assert lateral is not None
+        st = DiagnosticStatus()
+        st.name = "tire_estimation: tyre-force lateral KF"
+        st.hardware_id = self.vehicle.name
+        est = lateral.estimate()
+        received = self.received.get("tire_forces", 0)
+        if received == 0:
+            st.level, st.message = DiagnosticStatus.OK, "idle: no tyre forces received"
+        elif est.linearity == "unknown":
+            st.level, st.message = DiagnosticStatus.WARN, "initializing"
+        else:
+            st.level, st.message = DiagnosticStatus.OK, f"running ({est.linearity})"
+        values = {
+            "linearity": str(est.linearity),
+            "received.tire_forces": str(received),
+            "lateral_velocity_m_s": f"{float(est.vy_m_s):.3f}",
+            "yaw_rate_rad_s": f"{float(est.yaw_rate_rad_s):.4f}",
+            "virtual_sensor_method": lateral.config.virtual_sensor_method,
+        }
+        for key, count in sorted(lateral.stats.items()):
+            values[f"dropped.core.{key}"] = str(count)
+        st.values = [KeyValue(key=k, value=v) for k, v in values.items()]
+        return st
 
     def _stiffness_status(self) -> DiagnosticStatus:
         """Status of the stiffness MPF: learning or holding and why, N_eff, estimates, drops."""
