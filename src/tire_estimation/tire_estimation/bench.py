@@ -1,4 +1,5 @@
-"""Benchmarks (``make bench``): filter step time, replay real-time factor, node latency.
+"""Benchmarks (``make bench``): filter step time (radius MPF, stiffness MPF), replay real-time
+factor, node latency.
 
 Not part of the tests: numbers depend on the machine and its load. Results are printed as JSON
 (and written to ``--out`` if given); docs/results.md quotes them with the command.
@@ -64,6 +65,45 @@ def step_time_us(n_particles: int, seconds: float = 60.0, seed: int = 0) -> dict
     arr = np.asarray(times) * 1e6
     return {"mean_us": float(arr.mean()), "median_us": float(np.median(arr)),
             "p99_us": float(np.quantile(arr, 0.99))}  # fmt: skip
+
+
+def stiffness_step_time_ms(
+    n_particles: int, seconds: float = 10.0, seed: int = 0
+) -> dict[str, float]:
+    """Wall time per IMU step of the stiffness MPF (issue 5: under 1 ms at N = 500), in ms.
+
+    A simulated ``asphalt_sine`` drive is fed through :class:`StiffnessEstimator`; the steps of
+    the ``seconds`` after its sine steering starts (at about 20 s; learning active) are timed.
+    """
+    from tire_estimation.core.stiffness_config import StiffnessEstimatorConfig
+    from tire_estimation.core.stiffness_estimator import StiffnessEstimator
+    from tire_estimation.sim import simulate
+
+    settle_s = 22.0
+    sim = simulate("asphalt_sine", seed=seed, minutes=(settle_s + seconds) / 60.0)
+    est = StiffnessEstimator(
+        StiffnessEstimatorConfig(n_particles=n_particles), sim.vehicle, np.random.default_rng(seed)
+    )
+    ws, st, imu = sim.wheel_speeds, sim.steering, sim.imu
+    iw = np.searchsorted(ws.t_ns, imu.t_ns, side="right") - 1
+    ist = np.searchsorted(st.t_ns, imu.t_ns, side="right") - 1
+    times, active = [], 0
+    warm = int(np.searchsorted(imu.t_ns, imu.t_ns[0] + round(settle_s * 1e9)))
+    for k in range(imu.t_ns.size):
+        t = int(imu.t_ns[k])
+        if iw[k] >= 0:
+            est.on_wheel_speeds(int(ws.t_ns[iw[k]]), ws.wheel_speed_rad_s[iw[k]])
+        if ist[k] >= 0:
+            est.on_steering(int(st.t_ns[ist[k]]), float(st.angle_rad[ist[k]]))
+        start = time.perf_counter()
+        est.on_imu(t, imu.angular_velocity_rad_s[k], imu.linear_acceleration_m_s2[k])
+        if k >= warm:
+            times.append(time.perf_counter() - start)
+            active += int(est.estimate().active)
+    arr = np.asarray(times) * 1e3
+    return {"mean_ms": float(arr.mean()), "median_ms": float(np.median(arr)),
+            "p99_ms": float(np.quantile(arr, 0.99)),
+            "learning_fraction": active / max(len(times), 1)}  # fmt: skip
 
 
 def replay_rtf(n_particles: int, bag: Path = DEMO_BAG) -> dict[str, float]:
@@ -162,6 +202,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     results: dict[str, Any] = {"machine": {"cpus": os.cpu_count(), "load": os.getloadavg()}}
     results["step_time"] = {str(n): step_time_us(n) for n in args.particles}
+    results["stiffness_step_time"] = {str(n): stiffness_step_time_ms(n) for n in args.particles}
     results["replay"] = {str(n): replay_rtf(n) for n in args.particles}
     if not args.skip_node:
         results["node_latency"] = node_latency(args.latency_seconds)
