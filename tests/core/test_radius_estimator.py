@@ -9,6 +9,7 @@ from tests.core.test_radius_mpf import R_NOM, TRACK, TRUE_REAR_ERR, WHEELBASE, m
 from tire_estimation.core.config import RadiusEstimatorConfig
 from tire_estimation.core.geodesy import LocalTangentPlane
 from tire_estimation.core.radius_estimator import RadiusEstimator
+from tire_estimation.core.radius_model import RadiusMotionModel
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.errors import ConfigError
 
@@ -202,6 +203,9 @@ def test_config_validation_names_the_field():
         ({"wheels": "front"}, "wheels"),
         ({"min_speed_m_s": float("nan")}, "min_speed_m_s"),
         ({"run_aug_kf": "yes"}, "run_aug_kf"),
+        ({"gnss_antenna_offset_x_m": 6.0}, "gnss_antenna_offset_x_m"),
+        ({"gnss_antenna_offset_y_m": float("nan")}, "gnss_antenna_offset_y_m"),
+        ({"radius_speed_coefficient_m_per_m2_s2": 1e-3}, "radius_speed_coefficient_m_per_m2_s2"),
     ]:
         with pytest.raises(ConfigError) as info:
             RadiusEstimatorConfig(**kwargs)
@@ -272,3 +276,74 @@ def test_pose_initialization_uses_the_calibrated_gnss_latency():
     nis = np.array([f.nis for f in after])
     assert all(f.accepted for f in after)
     assert np.median(nis) < 6.0, nis
+
+
+def test_pose_initialization_ties_each_position_to_its_heading():
+    """With a compensated latency the initialization inverts ``y = p + R(yaw) l`` with the
+    lever ``l = (-v tau, 0)`` (7.5 m for 0.3 s at 25 m/s). Each particle's position follows its
+    own heading, so the antenna positions ``p_i + R(yaw_i) l`` of the initial cloud scatter like
+    the fix (covariance R), not by ``|l| yaw_std`` more across the track."""
+    drive = make_drive(duration_s=30.0, gnss_rate_hz=10.0, gnss_std_m=0.2, seed=6)
+    lag = 30  # samples of 10 ms
+    gi = drive["gi"][drive["gi"] >= lag]
+    noise = 0.2 * np.random.default_rng(7).standard_normal((gi.size, 2))
+    drive["gnss"] = np.stack([drive["east"][gi - lag], drive["north"][gi - lag]], 1) + noise
+    drive["gi"] = gi
+    cfg = RadiusEstimatorConfig(gnss_latency_s=0.3, n_particles=2000)
+    est = RadiusEstimator(cfg, VEH, np.random.default_rng(6))
+    clouds = []
+
+    def at_init(k, _t):
+        if est._pose_ok and not clouds:
+            lx = -0.3 * float(drive["v"][k])
+            mpf = est.mpf
+            h = np.stack([mpf.east + lx * np.cos(mpf.yaw), mpf.north + lx * np.sin(mpf.yaw)])
+            clouds.append((np.cov(h), float(np.std(mpf.yaw))))
+
+    feed(est, drive, hook=at_init)
+    cov, yaw_std = clouds[0]
+    r_trace = 2 * 0.2**2
+    # independent heading and position (the former initialization) would add (7.5 yaw_std)^2
+    assert 7.5**2 * yaw_std**2 > r_trace
+    assert np.trace(cov) < 1.2 * r_trace, (cov, yaw_std)
+
+
+def test_speed_dependent_radius_switch_estimates_the_standstill_radius():
+    """Wheels rolling on r = r_n + delta + k v^2: with ``radius_speed_coefficient_m_per_m2_s2``
+    = k the estimate is delta; without it the estimate absorbs k v^2 (2.9 mm at 25-28 m/s)."""
+    k = 4e-6
+    drive = make_drive(duration_s=90.0, gnss_rate_hz=10.0, gnss_std_m=0.5, seed=8)
+    m = RadiusMotionModel(R_NOM, TRACK, WHEELBASE)
+    radii = R_NOM + np.array([0.0, 0.0, *TRUE_REAR_ERR])[None, :] + k * drive["v"][:, None] ** 2
+    drive["ws"] = m.kinematic_wheel_speeds(drive["v"], drive["yr"], drive["steer"], radii)
+    tail = drive["t"] > 60.0
+    errs = {}
+    for coeff in (0.0, k):
+        cfg = RadiusEstimatorConfig(n_particles=300, radius_speed_coefficient_m_per_m2_s2=coeff)
+        est = RadiusEstimator(cfg, VEH, np.random.default_rng(8))
+        hist: list[np.ndarray] = []
+
+        def record(i, _t, est=est, hist=hist):
+            if tail[i] and i % 50 == 0:
+                hist.append(est.estimate().radius_error_m)
+
+        feed(est, drive, hook=record)
+        errs[coeff] = np.mean(hist, axis=0) - np.array(TRUE_REAR_ERR)
+    kv2 = k * float(np.mean(drive["v"][tail] ** 2))
+    assert np.all(np.abs(errs[k]) < 0.3e-3), errs
+    # without the switch the estimate drifts towards delta + k v^2 (2.9 mm here; 1.5 mm of it
+    # after 60-90 s with the 3 mm prior)
+    assert np.all((errs[0.0] > 1.0e-3) & (errs[0.0] < kv2 + 0.3e-3)), (errs, kv2)
+
+
+def test_gnss_antenna_offset_is_added_to_the_vehicle_lever_arm():
+    veh = VehicleParams(
+        name="synthetic", nominal_tire_radius_m=R_NOM, gnss_antenna_position_m=(0.5, 0.1, 1.2)
+    )
+    cfg = RadiusEstimatorConfig(gnss_antenna_offset_x_m=0.7, gnss_antenna_offset_y_m=-0.3)
+    est = RadiusEstimator(cfg, veh, np.random.default_rng(0))
+    np.testing.assert_allclose(est.lever_arm_m, [1.2, -0.2])
+    assert np.allclose(
+        RadiusEstimator(RadiusEstimatorConfig(), veh, np.random.default_rng(0)).lever_arm_m,
+        [0.5, 0.1],
+    )

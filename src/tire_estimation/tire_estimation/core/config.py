@@ -91,6 +91,16 @@ class RadiusEstimatorConfig:
         wheel_speed_time_offset_s: compensated wheel-speed stamp delay, s: a wheel-speed sample
             stamped ``t`` is taken to describe the wheels at ``t - offset`` (the pose is
             extrapolated forward by ``speed * offset`` before a fix). In [-1, 1]; default 0.
+        gnss_antenna_offset_x_m: calibrated correction of the GNSS antenna position along
+            ``base_link`` x (forward), m, added to ``VehicleParams.gnss_antenna_position_m``: the
+            fix is taken as ``position + R(yaw) a`` with the corrected lever arm ``a``. In
+            [-5, 5]; default 0 (off).
+        gnss_antenna_offset_y_m: the same along ``base_link`` y (left), m. In [-5, 5]; default 0.
+        radius_speed_coefficient_m_per_m2_s2: speed dependence ``k`` of the rolling radius,
+            ``r = r0 + k v^2`` (centrifugal growth), m per (m/s)^2: every wheel speed ``omega``
+            is scaled by ``1 + k omega^2 r_nominal`` before use, so the estimated radius errors
+            are those of ``r0`` (at standstill). In [-1e-4, 1e-4]; default 0 (off); about 2e-6 is
+            typical of passenger-car tyres.
         seed: seed for the node's ``np.random.Generator``. Default 0.
     """
 
@@ -127,6 +137,9 @@ class RadiusEstimatorConfig:
     aug_kf_radius_random_walk_m_sqrt_s: float = 2e-5
     gnss_latency_s: float = 0.0
     wheel_speed_time_offset_s: float = 0.0
+    gnss_antenna_offset_x_m: float = 0.0
+    gnss_antenna_offset_y_m: float = 0.0
+    radius_speed_coefficient_m_per_m2_s2: float = 0.0
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -175,6 +188,14 @@ class RadiusEstimatorConfig:
         )
         require_range("gnss_latency_s", self.gnss_latency_s, -1.0, 1.0)
         require_range("wheel_speed_time_offset_s", self.wheel_speed_time_offset_s, -1.0, 1.0)
+        require_range("gnss_antenna_offset_x_m", self.gnss_antenna_offset_x_m, -5.0, 5.0)
+        require_range("gnss_antenna_offset_y_m", self.gnss_antenna_offset_y_m, -5.0, 5.0)
+        require_range(
+            "radius_speed_coefficient_m_per_m2_s2",
+            self.radius_speed_coefficient_m_per_m2_s2,
+            -1e-4,
+            1e-4,
+        )
         require_int_range("seed", self.seed, 0, 2**63 - 1)
 
     @classmethod

@@ -152,7 +152,15 @@ class RadiusEstimator:
         self.vehicle = vehicle
         self.rng = rng
         self.model = RadiusMotionModel.from_vehicle(vehicle)
-        self.lever_arm_m = np.array(vehicle.gnss_antenna_position_m[:2], dtype=float)
+        # antenna (x, y) in base_link: the vehicle description plus the calibrated correction
+        ant = vehicle.gnss_antenna_position_m
+        self.lever_arm_m = np.array(
+            [ant[0] + config.gnss_antenna_offset_x_m, ant[1] + config.gnss_antenna_offset_y_m]
+        )
+        #: ``k r_nominal`` of the speed-dependent radius (0: not modelled)
+        self._speed_gain = (
+            config.radius_speed_coefficient_m_per_m2_s2 * vehicle.nominal_tire_radius_m
+        )
         self._gate = float(chi2.ppf(config.gnss_gate_probability, 2))
         c = config
         self.mpf = RadiusMPF(
@@ -295,6 +303,14 @@ class RadiusEstimator:
             self._drop(exc.kind if isinstance(exc, InputError) else "bad_value")
             return
         t_ns = int(t_ns)
+        if self._speed_gain:
+            # speed-dependent radius r = r_n + delta + k v^2 (r_n nominal, delta the radius
+            # error at standstill); with k v^2 ~ k omega^2 r_n^2:
+            # v = omega (r_n + delta + k omega^2 r_n^2) ~ omega (1 + k r_n omega^2) (r_n + delta)
+            # (neglected: about 3 k r_n omega^2 delta of radius, 0.04 mm for k = 4e-6,
+            # omega = 100 rad/s, delta = 1 mm); with the scaled speeds every model downstream
+            # (eq. 6, front wheels, gates) estimates delta
+            ws = ws * (1.0 + self._speed_gain * ws * ws)
         last = self._streams["wheel"].last_t_ns
         self._streams["wheel"].last_t_ns = t_ns
         prev = self._prev_ws
@@ -561,12 +577,20 @@ class RadiusEstimator:
         ext += c.wheel_speed_time_offset_s - c.gnss_latency_s
         lx = float(self.lever_arm_m[0]) + ext * self._speed_yaw_rate(self._prev_ws)[0]
         ly = float(self.lever_arm_m[1])
-        pos = y_m - np.array(
-            [lx * math.cos(yaw) - ly * math.sin(yaw), lx * math.sin(yaw) + ly * math.cos(yaw)]
-        )
-        cov = np.zeros((3, 3))
-        cov[:2, :2] = r_m2
-        cov[2, 2] = yaw_std**2
+        cy, sy = math.cos(yaw), math.sin(yaw)
+        pos = y_m - np.array([lx * cy - ly * sy, lx * sy + ly * cy])
+        # the inversion depends on the heading: pos = y - R(yaw) l, so d pos / d yaw =
+        # -R'(yaw) l = [lx sin + ly cos, -lx cos + ly sin]; each particle's position must
+        # follow its own heading (with an independent heading the cloud's antenna positions
+        # R(yaw_i) l scatter by |l| yaw_std, 7.5 m x 0.17 rad for a 0.3 s latency at 25 m/s)
+        jac = np.eye(3)
+        jac[0, 2] = lx * sy + ly * cy
+        jac[1, 2] = -lx * cy + ly * sy
+        cov0 = np.zeros((3, 3))
+        cov0[:2, :2] = r_m2
+        cov0[2, 2] = yaw_std**2
+        # cov = J diag(R, yaw_var) J^T (first-order propagation through the inversion)
+        cov = jac @ cov0 @ jac.T
         mean = np.array([pos[0], pos[1], math.atan2(math.sin(yaw), math.cos(yaw))])
         self.mpf.init_pose(mean, cov)
         if self.kf is not None:

@@ -22,6 +22,12 @@ filter absorbs part of a slowly varying residual into its position states):
   ``p + R(psi) a`` -> ``nu_e = a_x cos psi - a_y sin psi + c_e``,
   ``nu_n = a_x sin psi + a_y cos psi + c_n`` (constants ``c`` for the part the position states
   absorbed) -> regressor ``heading``; estimate ``a_x`` (m, reported), ``a_y`` in the tests.
+  A forward offset ``a_x`` is nearly unobservable for this filter: the antenna point then moves
+  like a unicycle whose heading is offset by ``atan(a_x kappa)`` (``kappa`` the path curvature),
+  which the filter absorbs into its heading (1.2 m gave no likelihood change on the 2-minute
+  test drive). A lateral offset ``a_y`` moves the antenna at ``v - r a_y`` (``r`` yaw rate), an
+  along-track speed error in curves that the filter absorbs into the radii (``gnss_lever_arm_y``
+  of the profile ranking, regressor ``yaw_rate``).
 * ``radius_speed_dependence`` (``r = r0 + k v^2``): a speed error ``v k v^2 / r0`` integrates
   into an along-track drift -> along-track on speed^2 beyond speed; the regression gives no
   reliable size (the filter absorbs the drift), so ``estimate`` is from the profile scan only.
@@ -31,7 +37,13 @@ time constant of tens of seconds), so they rank the effects but do not size them
 an effect is estimated by :func:`profile_scan`: re-run the estimator with the effect switched on
 at a few values and take the minimum of a parabola through the innovation negative
 log-likelihood ``sum_k 0.5 (NIS_k + log det S_k)`` (prediction-error decomposition, Schweppe
-1965), which is what the switched-on model is judged by.
+1965), which is what the switched-on model is judged by. :func:`assess` combines both: the model
+is consistent when the residual tests pass and no switchable effect improves the likelihood
+significantly (likelihood-ratio score below :data:`SCORE_THRESHOLD`).
+
+Gyro bias, road grade and load-dependent radii are not in this library: the radius estimator
+does not use the gyro (the IMU only feeds its acceleration gates), and it has no switch for the
+grade or the load transfer.
 """
 
 from __future__ import annotations
@@ -80,6 +92,12 @@ EFFECTS: tuple[Effect, ...] = (
         "along-track innovation = +speed x offset",
     ),
     Effect("gnss_lever_arm", "m", "heading", "ENU innovation = R(heading) lever arm"),
+    Effect(
+        "gnss_lever_arm_y",
+        "m",
+        "yaw_rate",
+        "along-track drift = -yaw rate x lateral antenna offset",
+    ),
     Effect(
         "radius_speed_dependence",
         "m/(m/s)^2",
@@ -336,17 +354,22 @@ def chi2_mean_bounds(n: int, dof: int = 2, p: float = 0.95) -> tuple[float, floa
 
 
 #: ``RadiusEstimatorConfig`` field that switches each effect on in the model (the lever arm is
-#: ``VehicleParams.gnss_antenna_position_m`` of the vehicle given to the estimator).
+#: scanned along ``base_link`` x, added to ``VehicleParams.gnss_antenna_position_m``).
 CONFIG_FIELDS: dict[str, str] = {
     "gnss_latency": "gnss_latency_s",
     "wheel_speed_time_offset": "wheel_speed_time_offset_s",
+    "gnss_lever_arm": "gnss_antenna_offset_x_m",
+    "gnss_lever_arm_y": "gnss_antenna_offset_y_m",
+    "radius_speed_dependence": "radius_speed_coefficient_m_per_m2_s2",
 }
 
 #: Scan grids of the effects that the estimator can switch on (0 = not modelled).
 DEFAULT_GRIDS: dict[str, tuple[float, ...]] = {
     "gnss_latency": (0.0, 0.1, 0.2, 0.4),
     "wheel_speed_time_offset": (0.0, 0.1, 0.2, 0.4),
-    "gnss_lever_arm": (0.0, 1.0, 2.0, 4.0),
+    "gnss_lever_arm": (-1.0, 0.0, 1.0, 2.0, 4.0),
+    "gnss_lever_arm_y": (-1.0, -0.5, 0.0, 0.5, 1.0),
+    "radius_speed_dependence": (0.0, 2e-6, 4e-6, 6e-6, 8e-6),
 }
 
 
@@ -398,3 +421,30 @@ def rank_effects(
         out.append(eff)
     out.sort(key=lambda e: -e["score"])
     return out
+
+
+def assess(
+    trace: Any,
+    rerun: Callable[[str, float], Any],
+    grids: dict[str, Sequence[float]] | None = None,
+    threshold: float = SCORE_THRESHOLD,
+) -> dict[str, Any]:
+    """Residual analysis of ``trace`` completed by the profile likelihood of the switchable
+    effects: :func:`analyze_trace` plus :func:`rank_effects` (``rerun`` as there).
+
+    The likelihood-ratio score of an effect is a test of the nested model (effect off) against
+    the model with the effect switched on, so the run is consistent only when the residual tests
+    pass *and* every score stays below ``threshold``. Returns the :func:`analyze` dictionary
+    with ``ranked_effects`` (all candidates, best first) and ``tests.likelihood_ratio_ok``;
+    ``suspected_effects`` are the candidates at or above the threshold when there are any.
+    """
+    res = analyze_trace(trace)
+    ranked = rank_effects(rerun, grids, baseline_nll=neg_log_likelihood(trace))
+    significant = [e for e in ranked if e["score"] >= threshold]
+    res["tests"]["likelihood_ratio_ok"] = not significant
+    res["tests"]["likelihood_ratio_threshold"] = float(threshold)
+    res["ranked_effects"] = ranked
+    if significant:
+        res["consistent"] = False
+        res["suspected_effects"] = significant
+    return res
