@@ -87,3 +87,22 @@ def test_measured_velocity_bag_runs_the_lateral_estimators_only(
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "/vehicle/wheel_speeds" in err[0]
     assert not (out / "metrics.json").exists()
+
+
+def test_rank_effects_fills_the_ranking_of_every_switchable_effect(
+    lane_change_bag: Path, tmp_path: Path
+) -> None:
+    from tire_estimation.evaluation.residuals import DEFAULT_GRIDS
+
+    config = tmp_path / "cfg.yaml"
+    config.write_text(yaml.safe_dump({"radius": {"n_particles": 100}}))
+    out = tmp_path / "report"
+    argv = ["replay", str(lane_change_bag), "--out", str(out), "--config", str(config)]
+    assert main([*argv, "--no-plots", "--no-progress", "--no-stiffness", "--rank-effects"]) == 0
+    res = json.loads((out / "metrics.json").read_text())["residuals"]
+    ranked = res["ranked_effects"]
+    assert {e["effect"] for e in ranked} == set(DEFAULT_GRIDS)
+    scores = [e["score"] for e in ranked]
+    assert scores == sorted(scores, reverse=True) and all(s >= 0.0 for s in scores)
+    assert isinstance(res["consistent"], bool)
+    assert "likelihood_ratio_ok" in res["tests"]

@@ -84,6 +84,7 @@ def _cmd_replay(args: argparse.Namespace) -> int:
         plots=not args.no_plots,
         progress=not args.no_progress,
         stiffness=False if args.no_stiffness else None,
+        rank_effects=args.rank_effects,
     )
     print(report.summary())
     return 0
@@ -132,6 +133,12 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--config", type=Path, default=None, help="estimator parameters (YAML)")
     rep.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     rep.add_argument("--no-progress", action="store_true", help="no progress bar")
+    rep.add_argument(
+        "--rank-effects",
+        action="store_true",
+        help="rank and size the switchable unmodelled effects by re-running the radius MPF "
+        "with each switched on (profile likelihood; about 20 re-runs of the bag)",
+    )
     rep.add_argument(
         "--no-stiffness",
         action="store_true",

@@ -260,6 +260,7 @@ def run_replay(
     plots: bool = True,
     progress: bool = True,
     stiffness: bool | None = None,
+    rank_effects: bool = False,
 ) -> ReplayReport:
     """Replay ``bag_path`` through the estimators; write ``out_dir/metrics.json`` + PNGs.
 
@@ -268,6 +269,10 @@ def run_replay(
     speeds or ``/vehicle/velocity`` (``stiffness``: None = the node option
     ``stiffness_enabled`` of the configuration, default true; the linear single-track KF runs
     beside it as the lateral baseline). A bag that feeds none of them is an error.
+
+    ``rank_effects`` completes the residual analysis with the profile likelihood of every
+    switchable effect (:func:`~tire_estimation.evaluation.residuals.assess`: the radius MPF is
+    re-run over the bag with each effect switched on over its grid, about 20 re-runs).
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -370,8 +375,11 @@ def run_replay(
         imu_lateral["linear_kf"] = run_imu_lateral_estimator(
             LinearLateralKF(lin_cfg, bag.vehicle), bag.imu, bag.steering, wheels, velocity
         )
+    residual_report = None
+    if rank_effects and trace.innov_t_ns:
+        residual_report = _assess_effects(bag, cfg, trace)
     t_run = time.perf_counter()
-    metrics = build_metrics(bag, trace, cfg, lateral, imu_lateral)
+    metrics = build_metrics(bag, trace, cfg, lateral, imu_lateral, residual_report)
     metrics["wall_s"] = time.perf_counter() - wall0
     metrics["timing_s"] = {"read": t_read - wall0, "estimate": t_run - t_read}
     metrics["realtime_factor"] = metrics["duration_s"] / max(metrics["wall_s"], 1e-9)
@@ -390,8 +398,12 @@ def build_metrics(
     cfg: RadiusEstimatorConfig,
     lateral: LateralTrace | None = None,
     imu_lateral: dict[str, ImuLateralTrace] | None = None,
+    residual_report: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """The contract's metrics.json content (minus the wall-clock fields).
+
+    ``residual_report`` (from :func:`_assess_effects`) replaces the regression-only residual
+    analysis when given.
 
     ``lateral`` is the tyre-force KF's when it ran, else the stiffness MPF's; every lateral
     estimator that ran is in ``lateral_by_source`` (the linear single-track KF is the baseline).
@@ -439,7 +451,9 @@ def build_metrics(
     ltp = LocalTangentPlane(*trace.origin_lla) if trace.origin_lla is not None else None
     ref_en, against = _reference_positions(bag, arr["t_ns"], ltp)
     pos_rmse = ev.position_rmse_m(arr["pose"][:, :2], ref_en) if ref_en is not None else None
-    if arr["innov_t_ns"].size:
+    if residual_report is not None:
+        pass
+    elif arr["innov_t_ns"].size:
         residual_report = analyze_residuals(trace)
     else:
         residual_report = {
@@ -501,6 +515,26 @@ def _lateral_metrics(bag: BagData, lateral: LateralTrace | None) -> dict[str, An
         )
     )
     return out
+
+
+def _assess_effects(
+    bag: BagData, cfg: RadiusEstimatorConfig, trace: RadiusTrace
+) -> dict[str, Any]:
+    """Residual analysis with the profile-likelihood ranking of the switchable effects."""
+    from tire_estimation.evaluation import residuals
+
+    assert bag.wheel_speeds is not None and bag.gnss is not None
+
+    def rerun(effect: str, value: float) -> RadiusTrace:
+        values = cfg.to_dict()
+        values[residuals.CONFIG_FIELDS[effect]] = value
+        est = RadiusEstimator(
+            RadiusEstimatorConfig.from_dict(values), bag.vehicle, np.random.default_rng(cfg.seed)
+        )
+        assert bag.wheel_speeds is not None and bag.gnss is not None
+        return run_radius_estimator(est, bag.wheel_speeds, bag.gnss, bag.steering, bag.imu)
+
+    return residuals.assess(trace, rerun)
 
 
 def _imu_lateral_reference(
