@@ -59,10 +59,12 @@ class StiffnessEstimatorConfig:
         initial_vy_std_m_s: initial std of vY, m/s (default 0.3).
         initial_yaw_rate_std_rad_s: initial std of the yaw rate, rad/s (default 0.0175).
         state_jitter_vx_m_s_sqrt_s: extra random walk on vX (particle diversity), m/s/sqrt(s)
-            (default 0.05).
-        state_jitter_vy_m_s_sqrt_s: extra random walk on vY, m/s/sqrt(s) (default 0.02).
+            (default 0.015). Not in the model the likelihood assumes: larger values bias the
+            learned cornering stiffness upwards, more so with more particles (docs/results.md
+            section 6); without any, one of five simulated drives with IMU biases diverged.
+        state_jitter_vy_m_s_sqrt_s: extra random walk on vY, m/s/sqrt(s) (default 0.006).
         state_jitter_yaw_rate_rad_s_sqrt_s: extra random walk on the yaw rate, rad/s/sqrt(s)
-            (default 0.002).
+            (default 0.0006).
         wheel_radius_m: effective wheel radius R_w of eq. (3), m; 0 uses the vehicle's nominal
             radius (default 0.0).
         rolling_resistance_n: known constant longitudinal resistance, N (default 0.0, the
@@ -109,9 +111,9 @@ class StiffnessEstimatorConfig:
     initial_vx_std_m_s: float = 0.3
     initial_vy_std_m_s: float = 0.3
     initial_yaw_rate_std_rad_s: float = 0.0175
-    state_jitter_vx_m_s_sqrt_s: float = 0.05
-    state_jitter_vy_m_s_sqrt_s: float = 0.02
-    state_jitter_yaw_rate_rad_s_sqrt_s: float = 0.002
+    state_jitter_vx_m_s_sqrt_s: float = 0.015
+    state_jitter_vy_m_s_sqrt_s: float = 0.006
+    state_jitter_yaw_rate_rad_s_sqrt_s: float = 0.0006
     wheel_radius_m: float = 0.0
     rolling_resistance_n: float = 0.0
     drag_n_s2_m2: float = 0.0
