@@ -219,8 +219,12 @@ def study(
     sim_imu_bias: bool,
     bias_estimation: bool,
     minutes: float = 1.0,
+    overrides: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Per-seed scores (:func:`seed_scores`) on ``scenario`` and their means.
+
+    ``overrides``: :class:`StiffnessEstimatorConfig` fields set on top of the study
+    configuration (``--set FIELD=VALUE`` on the command line).
 
     ``sim_imu_bias`` switches the simulator's IMU biases on (:class:`SensorConfig` defaults,
     else :data:`NO_BIAS`); ``bias_estimation`` the filter's bias Kalman filters
@@ -231,7 +235,8 @@ def study(
     per_seed: dict[str, Any] = {}
     for seed in seeds:
         sim = simulate(scenario, seed=seed, minutes=minutes, sensors=sensors)
-        cfg = study_config(sim.vehicle, n, bias_estimation, **STUDY_PRIOR.get(scenario, {}))
+        kw = {**STUDY_PRIOR.get(scenario, {}), **(overrides or {})}
+        cfg = study_config(sim.vehicle, n, bias_estimation, **kw)
         res = run(sim, cfg, seed + STUDY_SEED_OFFSET)
         per_seed[str(seed)] = {**seed_scores(sim, res), "step_ms": float(res["step_ms"])}
     keys = ("vy_rmse_cg_m_s", "vy_rmse_base_link_m_s", "yaw_rate_rmse_deg_s")
@@ -241,6 +246,7 @@ def study(
         "n_particles": n,
         "sim_imu_bias": sim_imu_bias,
         "bias_estimation": bias_estimation,
+        "overrides": dict(overrides or {}),
         "mean_over_seeds": {k: float(np.mean([v[k] for v in per_seed.values()])) for k in keys},
         "per_seed": per_seed,
     }
@@ -259,8 +265,21 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument(
         "--bias-estimation", action="store_true", help="study: filter bias estimation on"
     )
+    ap.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="FIELD=VALUE",
+        help="study: a StiffnessEstimatorConfig field (number) on top of the study configuration",
+    )
     args = ap.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
+    overrides: dict[str, Any] = {}
+    for item in args.set:
+        key, sep, value = item.partition("=")
+        if not sep:
+            ap.error(f"--set needs FIELD=VALUE, got {item!r}")
+        overrides[key.strip()] = float(value)
     if args.scenario is not None:
         results = [
             study(
@@ -270,6 +289,7 @@ def main(argv: list[str] | None = None) -> None:
                 args.sim_imu_bias,
                 args.bias_estimation,
                 args.minutes,
+                overrides,
             )
             for n in args.particles
         ]
