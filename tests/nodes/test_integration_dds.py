@@ -21,7 +21,7 @@ from tests.conftest import import_ros
 pytestmark = pytest.mark.ros
 
 MINUTES = 4.0
-RATE = 3.0  # bag seconds per wall second
+RATE = 2.0  # bag seconds per wall second (3x fell to 91-94 % received under load on 2 cores)
 
 
 @pytest.fixture(scope="module")
