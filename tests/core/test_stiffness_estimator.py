@@ -35,6 +35,14 @@ def test_config_errors_name_field() -> None:
         StiffnessEstimatorConfig(drive="left")
     with pytest.raises(ConfigError, match="prior_dof"):
         StiffnessEstimatorConfig(prior_dof=3.0)
+    with pytest.raises(ConfigError, match="measured_speed_model"):
+        StiffnessEstimatorConfig(measured_speed_model="replace")
+    with pytest.raises(ConfigError, match="friction_coefficient"):
+        StiffnessEstimatorConfig(friction_coefficient=-1.0)
+    with pytest.raises(ConfigError, match="speed_noise_std_m_s"):
+        StiffnessEstimatorConfig(speed_noise_std_m_s=0.0)
+    with pytest.raises(ConfigError, match="cornering_stiffness_front_n_rad"):
+        StiffnessEstimatorConfig(cornering_stiffness_front_n_rad=-5.0)
 
 
 def test_bad_input_is_counted_not_raised() -> None:
@@ -151,3 +159,52 @@ def test_cx_frozen_without_longitudinal_excitation() -> None:
     e2 = est2.estimate()
     assert e2.active and e2.cx_active
     assert e2.stiffness[0] != e2.nominal[0]
+
+
+def _drive_measured_speed(
+    est: StiffnessEstimator, seconds: float, steer: float, accel_x: np.ndarray
+) -> None:
+    """Measured speed 20 m/s (no wheel speeds), steering ``steer``, ax per 10 ms sample."""
+    for k in range(round(seconds * 100)):
+        t = 1_000_000_000 + k * 10_000_000
+        est.on_velocity(t, 20.0)
+        est.on_steering(t + 1, steer)
+        est.on_imu(t + 2, [0.0, 0.0, 0.0], [float(accel_x[k]), 0.0, 9.81])
+
+
+def test_cx_frozen_with_a_measured_speed() -> None:
+    # square-wave ax (longitudinal excitation) but no wheel speeds: the slip (eq. 3) is
+    # unknown, so Cx is not observable and keeps its prior, in both speed models
+    square = np.where((np.arange(400) // 50) % 2 == 0, 1.0, -1.0)
+    for model in ("input", "kinematic"):
+        est = StiffnessEstimator(
+            StiffnessEstimatorConfig(n_particles=50, measured_speed_model=model),
+            VehicleParams(),
+            np.random.default_rng(0),
+        )
+        _drive_measured_speed(est, 4.0, 0.02, square)
+        e = est.estimate()
+        assert e.active and not e.cx_active
+        assert "no wheel speeds" in e.reason
+        assert e.stiffness[0] == e.nominal[0]
+        assert np.isfinite(e.vy_m_s)
+
+
+def test_integer_config_values_and_nominal_override() -> None:
+    # zeros from YAML / ROS parameters arrive as int: the bias covariances must stay float
+    cfg = StiffnessEstimatorConfig(
+        n_particles=20,
+        accel_bias_std_m_s2=0,
+        gyro_bias_std_rad_s=0,
+        accel_bias_walk_m_s2_sqrt_s=0,
+        gyro_bias_walk_rad_s_sqrt_s=0,
+        accel_noise_std_m_s2=1,
+        cornering_stiffness_front_n_rad=70_000,
+        cornering_stiffness_rear_n_rad=90_000,
+    )
+    est = StiffnessEstimator(cfg, VehicleParams(), np.random.default_rng(0))
+    _drive(est, 0.0, 1.0, steer=0.02)
+    e = est.estimate()
+    assert est.mpf.p_bias.dtype == np.float64
+    assert e.nominal[1] == 70_000.0 and e.nominal[2] == 90_000.0
+    assert np.all(np.isfinite(e.stiffness))

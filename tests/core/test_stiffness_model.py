@@ -6,7 +6,10 @@ import numpy as np
 
 from tire_estimation.core.stiffness_config import StiffnessEstimatorConfig
 from tire_estimation.core.stiffness_model import (
+    GRAVITY_M_S2,
     SingleTrackParams,
+    kinematic_speed_row,
+    lateral_slip_function,
     linearize,
     slip_angles,
     wheel_slip,
@@ -129,3 +132,67 @@ def test_measurement_noise_covers_wheel_speed_noise_in_simulator() -> None:
     e = np.asarray(resid)
     ratio = np.var(e) / np.mean(var)
     assert 0.6 < ratio < 1.6
+
+
+def test_lateral_slip_function_linear_and_tanh() -> None:
+    a = np.linspace(-0.3, 0.3, 61)
+    # alpha_s = 0: the linear tyre of eq. (2)
+    assert np.array_equal(lateral_slip_function(a, 0.0), a)
+    s = 0.05
+    phi = lateral_slip_function(a, s)
+    # slope 1 at small slip (C is the cornering stiffness), 76 % of the peak at alpha_s,
+    # monotonic and bounded by alpha_s (the peak force C alpha_s)
+    assert np.isclose(lateral_slip_function(np.array(1e-6), s), 1e-6, rtol=1e-6)
+    assert np.isclose(lateral_slip_function(np.array(s), s), s * np.tanh(1.0))
+    assert np.all(np.abs(phi) < s) and np.all(np.diff(phi) > 0)
+    assert np.isclose(phi[-1], s * np.tanh(6.0))
+
+
+def test_friction_coefficient_saturates_the_axle_forces() -> None:
+    v = VehicleParams()
+    mu, cf = 1.1, 70e3
+    p = SingleTrackParams.from_vehicle(
+        v, friction_coefficient=mu, cornering_stiffness_front_n_rad=cf
+    )
+    lin_p = SingleTrackParams.from_vehicle(v, cornering_stiffness_front_n_rad=cf)
+    wheelbase = v.lf_m + v.lr_m
+    fz_f = v.mass_kg * GRAVITY_M_S2 * v.lr_m / wheelbase
+    fz_r = v.mass_kg * GRAVITY_M_S2 * v.lf_m / wheelbase
+    # nominal override and alpha_s = mu Fz / C_n (peak mu Fz at the nominal stiffness)
+    assert p.nominal[1] == cf and p.nominal[2] == v.cornering_stiffness_rear_n_rad
+    assert np.isclose(p.saturation_slip_front_rad * cf, mu * fz_f)
+    assert np.isclose(p.saturation_slip_rear_rad * p.nominal[2], mu * fz_r)
+    assert lin_p.saturation_slip_front_rad == 0.0 and lin_p.saturation_slip_rear_rad == 0.0
+    # straight ahead with 0.2 rad steer: the front slip angle is 0.2 rad, the rear 0
+    x = np.array([[20.0, 0.0, 0.0]])
+    delta = 0.2
+    sat = linearize(x, delta, (20.0, 20.0), p)
+    lin = linearize(x, delta, (20.0, 20.0), lin_p)
+    # linear tyre: ay = Cf alpha cos(d) / m; saturating: Cf alpha_s tanh(alpha / alpha_s) ...
+    assert np.isclose(lin.a[0, 1, 1], delta * np.cos(delta) / v.mass_kg)
+    a_s = p.saturation_slip_front_rad
+    assert np.isclose(sat.a[0, 1, 1], a_s * np.tanh(delta / a_s) * np.cos(delta) / v.mass_kg)
+    # ... so the modelled front force stays below mu Fz_f at the nominal stiffness
+    front_force = cf * sat.a[0, 1, 1] * v.mass_kg / np.cos(delta)
+    assert 0.85 * mu * fz_f < front_force < mu * fz_f
+    assert cf * lin.a[0, 1, 1] * v.mass_kg / np.cos(delta) > 1.4 * mu * fz_f
+
+
+def test_kinematic_speed_row_uses_measured_ax_and_vy_r() -> None:
+    v = VehicleParams()
+    p = SingleTrackParams.from_vehicle(v)
+    x = np.array([[20.0, 0.5, 0.2], [21.0, -0.5, 0.2]])
+    # wheel speed = each particle's vX: zero slip, no longitudinal tyre force at all
+    lin = linearize(x, 0.01, (x[:, 0], x[:, 0]), p)
+    assert np.all(lin.a[:, :, 0] == 0.0)
+    kin = kinematic_speed_row(lin, x, 1.5, p)
+    # dvX/dt = ax_cg + vY r with ax_cg = ax_imu + p_y dr + p_x r^2
+    ax_cg = 1.5 + p.imu_x_m * 0.04 + p.imu_y_m * lin.rate[:, 2]
+    assert np.allclose(kin.rate[:, 0], ax_cg + x[:, 1] * x[:, 2])
+    assert np.allclose(kin.a[:, 0, :], p.imu_y_m * lin.a[:, 2, :])
+    # row 0 of the measurement is the speed: y_0 = vX + e, independent of w
+    assert np.array_equal(kin.h[:, 0], x[:, 0])
+    assert np.all(kin.d[:, 0, :] == 0.0)
+    assert np.array_equal(kin.rate[:, 1:], lin.rate[:, 1:])
+    assert np.array_equal(kin.h[:, 1:], lin.h[:, 1:])
+    assert np.array_equal(kin.d[:, 1:], lin.d[:, 1:])

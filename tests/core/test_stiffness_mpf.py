@@ -309,3 +309,43 @@ def test_initial_transient_is_not_absorbed_by_the_biases() -> None:
     assert abs(bias_err) < 0.7
     assert scores["yaw_rate_rmse_deg_s"] < 1.0
     assert scores["vy_rmse_cg_m_s"] < 0.3
+
+
+def _kinematic_mpf(model: str) -> StiffnessMpf:
+    cfg = StiffnessEstimatorConfig(
+        n_particles=5,
+        measured_speed_model=model,
+        speed_noise_std_m_s=0.05,
+        state_jitter_vx_m_s_sqrt_s=0.0,
+        state_jitter_vy_m_s_sqrt_s=0.0,
+        state_jitter_yaw_rate_rad_s_sqrt_s=0.0,
+        resample_threshold=0.0,
+    )
+    mpf = StiffnessMpf(
+        cfg, SingleTrackParams.from_vehicle(VehicleParams()), np.random.default_rng(0)
+    )
+    mpf.initialize(np.array([20.0, 0.0, 0.3]), np.zeros(3))
+    mpf.x[:, 0] = 20.0 + np.array([-0.2, -0.1, 0.0, 0.1, 0.2])
+    mpf.x[:, 1] = np.linspace(-1.0, 1.0, 5)
+    return mpf
+
+
+def test_kinematic_speed_model_propagates_vx_with_measured_ax_and_weighs_the_speed() -> None:
+    y = np.array([0.7, 6.0, 0.3])
+    # input model: vX replaced by the measured speed
+    mpf = _kinematic_mpf("input")
+    mpf.update(y, 0.02, (20.0, 20.0), learn=False, vx_m_s=20.0)
+    assert np.all(mpf.x[:, 0] == 20.0)
+    # kinematic model: vX kept, weighted by the measured speed (closest particle wins) ...
+    mpf = _kinematic_mpf("kinematic")
+    x0 = mpf.x.copy()
+    mpf.update(y, 0.02, (20.0, 20.0), learn=False, vx_m_s=20.0)
+    assert np.array_equal(mpf.x[:, 0], x0[:, 0])
+    assert int(np.argmax(mpf.weights)) == 2
+    assert mpf.weights[2] > 2.0 * max(mpf.weights[1], mpf.weights[3])
+    # ... the ax bias is not estimated, and vX follows dvX/dt = ax + vY r (IMU x offset p_x)
+    assert np.all(mpf.b[:, 0] == 0.0)
+    mpf.predict(0.01, learn=False)
+    px = mpf.params.imu_x_m
+    expected = x0[:, 0] + 0.01 * (0.7 + px * x0[:, 2] ** 2 + x0[:, 1] * x0[:, 2])
+    assert np.allclose(mpf.x[:, 0], expected, atol=1e-4)

@@ -13,6 +13,7 @@ from tire_estimation.core.validation import (
 from tire_estimation.errors import ConfigError
 
 DRIVE_CHOICES = ("vehicle", "front", "rear", "all")
+SPEED_MODELS = ("input", "kinematic")
 RESAMPLERS = ("systematic", "stratified", "multinomial", "residual")
 
 
@@ -72,6 +73,23 @@ class StiffnessEstimatorConfig:
         drag_n_s2_m2: known aerodynamic drag coefficient k (F = k vX^2), N s^2/m^2 (default 0.0).
         roll_gain: c_phi g of Sec. II-A; measured ay is divided by 1 + roll_gain, 1 (default
             0.0).
+        friction_coefficient: friction coefficient mu of the saturating lateral tyre ``Fy = C
+            alpha_s tanh(alpha / alpha_s)`` with ``alpha_s = mu Fz / C_n`` per axle (static
+            axle load Fz): the axle force levels off at ``mu Fz`` (times the learned ``C / C_n``)
+            instead of growing linearly with the slip angle, 1; 0 keeps the paper's linear tyre
+            (eq. 2) (default 0.0). Take it from the peak |ay| / g the car reaches.
+        cornering_stiffness_front_n_rad: nominal front-axle cornering stiffness C_n (eq. 7),
+            N/rad; 0 takes the vehicle's (default 0.0).
+        cornering_stiffness_rear_n_rad: nominal rear-axle cornering stiffness, N/rad; 0 takes
+            the vehicle's (default 0.0).
+        measured_speed_model: use of a measured speed (``/vehicle/velocity``, no wheel speeds):
+            ``input`` replaces the particles' vX by it and models zero wheel slip, so the
+            longitudinal tyre force is taken as 0 in the ax row; ``kinematic`` leaves the
+            (unknown) longitudinal force out: the measured ax drives vX (dvX/dt = ax + vY r) and
+            the speed is measured with ``speed_noise_std_m_s``, which makes vY observable
+            through vY r in turns (default ``kinematic``). The ax bias is not estimated then.
+        speed_noise_std_m_s: std of the measured speed in the ``kinematic`` model, m/s (default
+            0.02, an RTK-aided INS).
         min_speed_m_s: below this speed the stiffness statistics are frozen, m/s (default 5.0).
         activation_window_s: length of the sliding (box) window of the excitation measures, s
             (default 1.0). Learning stops at most one window after the excitation ends.
@@ -118,6 +136,11 @@ class StiffnessEstimatorConfig:
     rolling_resistance_n: float = 0.0
     drag_n_s2_m2: float = 0.0
     roll_gain: float = 0.0
+    friction_coefficient: float = 0.0
+    cornering_stiffness_front_n_rad: float = 0.0
+    cornering_stiffness_rear_n_rad: float = 0.0
+    measured_speed_model: str = "kinematic"
+    speed_noise_std_m_s: float = 0.02
     min_speed_m_s: float = 5.0
     activation_window_s: float = 1.0
     activation_steer_rad: float = 0.003
@@ -132,6 +155,12 @@ class StiffnessEstimatorConfig:
         require_range("resample_threshold", self.resample_threshold, 0.0, 1.0)
         if self.resampler not in RESAMPLERS:
             raise ConfigError("resampler", self.resampler, f"must be one of {RESAMPLERS}")
+        if self.measured_speed_model not in SPEED_MODELS:
+            raise ConfigError(
+                "measured_speed_model",
+                self.measured_speed_model,
+                f"must be one of {SPEED_MODELS}",
+            )
         if self.drive not in DRIVE_CHOICES:
             raise ConfigError("drive", self.drive, f"must be one of {DRIVE_CHOICES}")
         require_range("initial_stiffness_factor", self.initial_stiffness_factor, 0.05, 5.0)
@@ -147,6 +176,7 @@ class StiffnessEstimatorConfig:
             "gyro_noise_std_rad_s",
             "bias_gate_sigma",
             "bias_gate_window_s",
+            "speed_noise_std_m_s",
             "min_speed_m_s",
             "activation_window_s",
             "activation_accel_x_window_s",
@@ -176,3 +206,7 @@ class StiffnessEstimatorConfig:
         if 0.0 < self.wheel_radius_m < 0.1:
             raise ConfigError("wheel_radius_m", self.wheel_radius_m, "must be 0 or >= 0.1")
         require_range("roll_gain", self.roll_gain, -0.5, 5.0)
+        if self.friction_coefficient != 0.0:
+            require_range("friction_coefficient", self.friction_coefficient, 0.1, 5.0)
+        for name in ("cornering_stiffness_front_n_rad", "cornering_stiffness_rear_n_rad"):
+            require_range(name, getattr(self, name), 0.0, 1e7)

@@ -146,6 +146,9 @@ class StiffnessEstimator:
             rolling_resistance_n=config.rolling_resistance_n,
             drag_n_s2_m2=config.drag_n_s2_m2,
             roll_gain=config.roll_gain,
+            friction_coefficient=config.friction_coefficient,
+            cornering_stiffness_front_n_rad=config.cornering_stiffness_front_n_rad or None,
+            cornering_stiffness_rear_n_rad=config.cornering_stiffness_rear_n_rad or None,
         )
         self.mpf = StiffnessMpf(config, self.params, rng)
         self.stats: dict[str, int] = {}
@@ -297,11 +300,15 @@ class StiffnessEstimator:
             self._active, self._reason = False, "no lateral excitation"
         else:
             self._active, self._reason = True, "excited"
+        # without wheel speeds the slip (eq. 3) is unknown: Cx is not observable, keep it frozen
         self._cx_active = (
-            self._active and self._accel_x_window.std >= c.activation_accel_x_std_m_s2
+            self._active
+            and vx_in is None
+            and self._accel_x_window.std >= c.activation_accel_x_std_m_s2
         )
         if self._active and not self._cx_active:
-            self._reason = "excited (Cx frozen: no longitudinal excitation)"
+            why = "no wheel speeds" if vx_in is not None else "no longitudinal excitation"
+            self._reason = f"excited (Cx frozen: {why})"
         if dt is not None:
             self.mpf.predict(dt, self._active, self._cx_active)
         self.mpf.update(y, steer, (wf, wr), self._active, vx_in, self._cx_active)

@@ -14,6 +14,11 @@ Sign conventions (documented deviations):
   both axles (the simulator scales both axles together).
 * The IMU sits at ``p`` from the CG; the measured specific force is the rigid-body acceleration
   at ``p`` (``a_p = a_cg + dr z x p - r^2 p``), which stays affine in ``C``.
+* Optional lateral saturation (not in the paper, off by default): ``Fy = C * phi(alpha)`` with
+  ``phi(alpha) = alpha_s tanh(alpha / alpha_s)`` per axle (:func:`lateral_slip_function`), still
+  affine in ``C``. ``C`` stays the small-slip cornering stiffness and the axle's force levels off
+  at ``C alpha_s``; with ``alpha_s = mu Fz / C_n`` (static axle load ``Fz``, friction coefficient
+  ``mu``) that peak is ``mu Fz`` at the nominal stiffness and scales with the learned ``C / C_n``.
 """
 
 from __future__ import annotations
@@ -52,6 +57,9 @@ class SingleTrackParams:
         rolling_resistance_n: constant longitudinal resistance, N (0 = paper's Assumption 4).
         drag_n_s2_m2: aerodynamic drag coefficient k in F = k vx^2, N s^2/m^2.
         roll_gain: c_phi g of Sec. II-A (measured ay is divided by 1 + c_phi g), 1.
+        saturation_slip_front_rad: saturation slip angle alpha_s of the front axle of
+            :func:`lateral_slip_function`, rad (0 = linear tyre, eq. 2 as printed).
+        saturation_slip_rear_rad: the same for the rear axle, rad (0 = linear).
     """
 
     mass_kg: float
@@ -66,6 +74,8 @@ class SingleTrackParams:
     rolling_resistance_n: float = 0.0
     drag_n_s2_m2: float = 0.0
     roll_gain: float = 0.0
+    saturation_slip_front_rad: float = 0.0
+    saturation_slip_rear_rad: float = 0.0
 
     @staticmethod
     def from_vehicle(
@@ -75,14 +85,41 @@ class SingleTrackParams:
         rolling_resistance_n: float = 0.0,
         drag_n_s2_m2: float = 0.0,
         roll_gain: float = 0.0,
+        friction_coefficient: float = 0.0,
+        cornering_stiffness_front_n_rad: float | None = None,
+        cornering_stiffness_rear_n_rad: float | None = None,
     ) -> SingleTrackParams:
-        """Build from :class:`VehicleParams` (``base_link`` at the rear axle: CG at x = lr)."""
+        """Build from :class:`VehicleParams` (``base_link`` at the rear axle: CG at x = lr).
+
+        ``friction_coefficient`` mu > 0 switches on the lateral saturation with ``alpha_s =
+        mu Fz / C_n`` per axle (static loads ``Fz_f = m g lr / L``, ``Fz_r = m g lf / L``);
+        the cornering stiffnesses override the vehicle's nominal values when given.
+        """
         drv = vehicle.drive if drive is None else drive
         cx = (
             vehicle.longitudinal_stiffness_rear_n
             if drv == "rear"
             else vehicle.longitudinal_stiffness_front_n
         )
+        cyf = float(
+            vehicle.cornering_stiffness_front_n_rad
+            if cornering_stiffness_front_n_rad is None
+            else cornering_stiffness_front_n_rad
+        )
+        cyr = float(
+            vehicle.cornering_stiffness_rear_n_rad
+            if cornering_stiffness_rear_n_rad is None
+            else cornering_stiffness_rear_n_rad
+        )
+        sat_f = sat_r = 0.0
+        if friction_coefficient > 0.0:
+            wheelbase = vehicle.lf_m + vehicle.lr_m
+            # static axle loads Fz_f = m g lr / L, Fz_r = m g lf / L
+            fz_f = vehicle.mass_kg * GRAVITY_M_S2 * vehicle.lr_m / wheelbase
+            fz_r = vehicle.mass_kg * GRAVITY_M_S2 * vehicle.lf_m / wheelbase
+            # alpha_s = mu Fz / C_n: the peak C_n alpha_s of the tanh tyre is mu Fz
+            sat_f = friction_coefficient * fz_f / cyf
+            sat_r = friction_coefficient * fz_r / cyr
         return SingleTrackParams(
             mass_kg=vehicle.mass_kg,
             yaw_inertia_kg_m2=vehicle.yaw_inertia_kg_m2,
@@ -94,14 +131,12 @@ class SingleTrackParams:
                 vehicle.nominal_tire_radius_m if wheel_radius_m is None else wheel_radius_m
             ),
             drive=drv,
-            nominal=(
-                float(cx),
-                float(vehicle.cornering_stiffness_front_n_rad),
-                float(vehicle.cornering_stiffness_rear_n_rad),
-            ),
+            nominal=(float(cx), cyf, cyr),
             rolling_resistance_n=rolling_resistance_n,
             drag_n_s2_m2=drag_n_s2_m2,
             roll_gain=roll_gain,
+            saturation_slip_front_rad=sat_f,
+            saturation_slip_rear_rad=sat_r,
         )
 
 
@@ -114,6 +149,20 @@ def wheel_slip(vx_m_s: F64, wheel_speed_m_s: F64 | float) -> F64:
     rw = np.asarray(wheel_speed_m_s, dtype=float)
     # eq. (3): lambda = (R w - vX) / max(vX, R w)
     return (rw - vx) / np.maximum(np.maximum(vx, rw), MIN_SPEED_M_S)
+
+
+def lateral_slip_function(alpha_rad: F64, saturation_slip_rad: float) -> F64:
+    """Effective slip ``phi(alpha)`` of the lateral force ``Fy = C phi(alpha)``, rad.
+
+    ``saturation_slip_rad`` = 0 gives the linear tyre of eq. (2) (``phi = alpha``); > 0 the
+    tanh tyre ``phi = alpha_s tanh(alpha / alpha_s)``: slope 1 at small slip (``C`` is the
+    cornering stiffness), 76 % of the peak ``C alpha_s`` at ``alpha = alpha_s``.
+    """
+    if saturation_slip_rad <= 0.0:
+        # eq. (2) Fy = C alpha
+        return alpha_rad
+    # Fy = C alpha_s tanh(alpha / alpha_s)  (affine in C; -> C alpha for |alpha| << alpha_s)
+    return saturation_slip_rad * np.tanh(alpha_rad / saturation_slip_rad)
 
 
 def slip_angles(x: F64, delta_rad: float, p: SingleTrackParams) -> tuple[F64, F64]:
@@ -130,18 +179,22 @@ def slip_angles(x: F64, delta_rad: float, p: SingleTrackParams) -> tuple[F64, F6
 def force_regressor(
     x: F64,
     delta_rad: float,
-    wheel_speed_m_s: tuple[float, float],
+    wheel_speed_m_s: tuple[float | F64, float | F64],
     p: SingleTrackParams,
 ) -> F64:
     """Matrix ``A`` (N, 3, 3) with ``[ax, ay, dr] = A @ C + a0`` (eq. 1 with eq. 2, 4).
 
     ``ax = dvx - vy r`` and ``ay = dvy + vx r`` are the body accelerations at the CG, ``dr`` the
-    yaw acceleration; ``wheel_speed_m_s`` = (front, rear) axle mean ``R_w omega``, m/s.
+    yaw acceleration; ``wheel_speed_m_s`` = (front, rear) axle mean ``R_w omega``, m/s (scalars
+    or per-particle (N,) arrays).
     """
     n = x.shape[0]
     m, iz, lf, lr = p.mass_kg, p.yaw_inertia_kg_m2, p.lf_m, p.lr_m
     cd, sd = np.cos(delta_rad), np.sin(delta_rad)
     alpha_f, alpha_r = slip_angles(x, delta_rad, p)
+    # eq. (2) Fy = C alpha, or the saturating C phi(alpha) (lateral_slip_function)
+    alpha_f = lateral_slip_function(alpha_f, p.saturation_slip_front_rad)
+    alpha_r = lateral_slip_function(alpha_r, p.saturation_slip_rear_rad)
     a = np.zeros((n, 3, 3))
     # eq. (2) F = C * slip; eq. (1) columns = force directions / (m, m, I)
     lam_f = wheel_slip(x[:, 0], wheel_speed_m_s[0]) if p.drive in ("front", "all") else 0.0
@@ -198,7 +251,7 @@ class Linearized:
 def linearize(
     x: F64,
     delta_rad: float,
-    wheel_speed_m_s: tuple[float, float],
+    wheel_speed_m_s: tuple[float | F64, float | F64],
     p: SingleTrackParams,
 ) -> Linearized:
     """Euler-discretized model (eq. 5, 9, 10) and measurement model (eq. 12), see Linearized.
@@ -225,6 +278,34 @@ def linearize(
     h[:, 2] = r
     # eq. (12) d = [g1; g2; 0] / Ts mapped to the IMU position
     d = np.einsum("ij,njk->nik", lever, a)
+    return Linearized(rate=rate, a=a, h=h, d=d)
+
+
+def kinematic_speed_row(
+    lin: Linearized, x: F64, accel_x_m_s2: float, p: SingleTrackParams
+) -> Linearized:
+    """Row 0 of :func:`linearize` for a measured speed with an unknown longitudinal force.
+
+    Without wheel speeds the slip of eq. (3) is unknown, so ``Fx`` (traction, braking) is not
+    modelled; the measured specific force then drives ``vX`` (eq. 1a as kinematics):
+    ``dvX/dt = ax_cg + vY r`` with ``ax_cg = ax_imu + dr p_y + r^2 p_x`` (the inverse of the IMU
+    lever arm of :func:`linearize`), and the measurement row 0 becomes the measured speed
+    ``y_0 = vX + e`` (``d`` row 0 = 0). The ``vY r`` coupling makes ``vY`` observable through
+    the speed in turns. Returns a new :class:`Linearized` (rows 1-2 unchanged).
+    """
+    vx, vy, r = x[:, 0], x[:, 1], x[:, 2]
+    px, py = p.imu_x_m, p.imu_y_m
+    rate = lin.rate.copy()
+    a = lin.a.copy()
+    # eq. (1a) kinematics: dvX/dt = ax_cg + vY r, ax_cg = ax_imu + p_y dr + p_x r^2
+    rate[:, 0] = accel_x_m_s2 + px * r * r + py * lin.rate[:, 2] + vy * r
+    # dr = rate_2 + a_2 w enters through the lever arm p_y (affine in w)
+    a[:, 0, :] = py * lin.a[:, 2, :]
+    h = lin.h.copy()
+    d = lin.d.copy()
+    # measurement row 0: y_0 = vX + e
+    h[:, 0] = vx
+    d[:, 0, :] = 0.0
     return Linearized(rate=rate, a=a, h=h, d=d)
 
 

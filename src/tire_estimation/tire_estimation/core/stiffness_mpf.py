@@ -28,7 +28,12 @@ is learned, runs only while the particles' yaw rate plus bias agrees with the gy
 zero, so otherwise the per-particle bias filters absorb every yaw-rate model error, after which
 the gyro no longer constrains the yaw rate and the filter diverges);
 (vi) without longitudinal excitation the Cx part of the statistics is frozen
-(:func:`freeze_component`).
+(:func:`freeze_component`); (vii) with a measured speed and no wheel speeds the slip (eq. 3),
+hence the longitudinal tyre force, is unknown: by default (``measured_speed_model`` =
+``kinematic``) the measured ax drives vX (eq. 1a as kinematics, ``dvX/dt = ax + vY r``) and the
+speed replaces ax as measurement row 0 (``stiffness_model.kinematic_speed_row``); the ax bias
+is then not estimated; (viii) optional saturating lateral tyre ``Fy = C alpha_s tanh(alpha /
+alpha_s)`` (``friction_coefficient``, still affine in ``C``).
 """
 
 from __future__ import annotations
@@ -43,6 +48,7 @@ from tire_estimation.core.stiffness_config import StiffnessEstimatorConfig
 from tire_estimation.core.stiffness_model import (
     Linearized,
     SingleTrackParams,
+    kinematic_speed_row,
     linearize,
     wheel_speed_gain,
 )
@@ -268,15 +274,22 @@ class StiffnessMpf:
         self.nominal = np.asarray(params.nominal, dtype=float)
         self.lower = c.min_stiffness_fraction * self.nominal - self.nominal
         self.upper = c.max_stiffness_fraction * self.nominal - self.nominal
+        # float arrays: integer config values (0 from YAML / ROS) must not make them int
         self.r_cov = np.diag(
-            [c.accel_noise_std_m_s2**2, c.accel_noise_std_m_s2**2, c.gyro_noise_std_rad_s**2]
+            np.array(
+                [c.accel_noise_std_m_s2**2, c.accel_noise_std_m_s2**2, c.gyro_noise_std_rad_s**2],
+                dtype=float,
+            )
         )
         self.q_rate = np.diag(
-            [
-                c.accel_bias_walk_m_s2_sqrt_s**2,
-                c.accel_bias_walk_m_s2_sqrt_s**2,
-                c.gyro_bias_walk_rad_s_sqrt_s**2,
-            ]
+            np.array(
+                [
+                    c.accel_bias_walk_m_s2_sqrt_s**2,
+                    c.accel_bias_walk_m_s2_sqrt_s**2,
+                    c.gyro_bias_walk_rad_s_sqrt_s**2,
+                ],
+                dtype=float,
+            )
         )
         self.jitter = np.array(
             [
@@ -318,7 +331,10 @@ class StiffnessMpf:
         self.rate = np.zeros((self.n, 3))
         self.b = np.tile(np.zeros(3) if bias0 is None else bias0, (self.n, 1))
         p0 = np.diag(
-            [c.accel_bias_std_m_s2**2, c.accel_bias_std_m_s2**2, c.gyro_bias_std_rad_s**2]
+            np.array(
+                [c.accel_bias_std_m_s2**2, c.accel_bias_std_m_s2**2, c.gyro_bias_std_rad_s**2],
+                dtype=float,
+            )
         )
         self.p_bias = np.tile(p0, (self.n, 1, 1))
         self.log_w = np.full(self.n, -np.log(self.n))
@@ -362,19 +378,37 @@ class StiffnessMpf:
         ``learn`` enables the NiW update (19) (activation, Sec. V); ``learn_cx`` (default
         ``learn``) False keeps the Cx part of the statistics as it was before this step's (20)
         and (19) (no longitudinal excitation, see :func:`freeze_component`). ``vx_m_s``
-        (optional) replaces the particles' vX by a measured speed (no wheel speeds).
+        (optional) is a measured speed (no wheel speeds): with ``measured_speed_model`` =
+        ``input`` it replaces the particles' vX; with ``kinematic`` the measured ax drives vX and
+        the speed is the measurement row 0 (:func:`kinematic_speed_row`).
         """
-        if vx_m_s is not None:
+        kinematic = vx_m_s is not None and self.config.measured_speed_model == "kinematic"
+        if vx_m_s is not None and not kinematic:
             self.x[:, 0] = vx_m_s
         freeze_cx = learn and learn_cx is False
         before = self._before_learning
         if freeze_cx and before is None:
             before = self.stats.copy()
         self._before_learning = None
-        lin = linearize(self.x, delta_rad, wheel_speed_m_s, self.params)
+        if kinematic:
+            assert vx_m_s is not None
+            # slip 0 (wheel speed = each particle's vX): the longitudinal force is unknown
+            vx_p = self.x[:, 0]
+            lin = kinematic_speed_row(
+                linearize(self.x, delta_rad, (vx_p, vx_p), self.params), self.x, y[0], self.params
+            )
+            y = np.array([vx_m_s, y[1], y[2]])
+            # the ax bias is not a measurement offset of the speed row: not estimated
+            self.b[:, 0] = 0.0
+            self.p_bias[:, 0, :] = 0.0
+            self.p_bias[:, :, 0] = 0.0
+            r_cov = np.tile(self.r_cov, (self.n, 1, 1))
+            r_cov[:, 0, 0] = self.config.speed_noise_std_m_s**2
+        else:
+            lin = linearize(self.x, delta_rad, wheel_speed_m_s, self.params)
+            r_cov = self.measurement_cov(delta_rad, wheel_speed_m_s)
         # e_bar = y - h - b_{k|k-1} (eq. 12)
         e_bar = y[None, :] - lin.h - self.b
-        r_cov = self.measurement_cov(delta_rad, wheel_speed_m_s)
         lp = likelihood_params(self.stats, lin.d, r_cov, self.p_bias)
         self.yaw_rate_nis = yaw_rate_nis(e_bar, lp, self.weights)
         a = min(1.0, self._dt_s / self.config.bias_gate_window_s)
