@@ -196,7 +196,18 @@ def student_t_logpdf(x: F64, loc: F64, shape: F64, dof: F64 | float) -> F64:
     sol = np.linalg.solve(chol, diff[..., None])[..., 0] if d > 1 else diff / chol[..., 0]
     maha = np.sum(sol * sol, axis=-1)
     logdet = 2.0 * np.sum(np.log(np.diagonal(chol, axis1=-2, axis2=-1)), axis=-1)
+    return student_t_log_density(maha, logdet, dof, d)
+
+
+def student_t_log_density(maha: F64, logdet: F64, dof: F64 | float, d: int) -> F64:
+    """Log density of a ``d``-dimensional Student-t from its squared Mahalanobis distance.
+
+    ``maha`` = ``(x - loc)^T shape^-1 (x - loc)`` and ``logdet`` = ``log det(shape)``, (N,);
+    ``dof`` scalar or (N,). Returns (N,).
+    """
     nu = np.asarray(dof, dtype=float)
+    # log St = lgamma((nu+d)/2) - lgamma(nu/2) - d/2 log(nu pi) - 1/2 log|shape|
+    #          - (nu+d)/2 log(1 + maha/nu)
     return (
         gammaln(0.5 * (nu + d))
         - gammaln(0.5 * nu)

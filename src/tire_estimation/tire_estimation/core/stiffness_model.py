@@ -261,23 +261,29 @@ def linearize(
     """
     c_n = np.asarray(p.nominal, dtype=float)
     a = force_regressor(x, delta_rad, wheel_speed_m_s, p)
-    a0 = resistance_accel(x, p)
-    # eq. (7) accelerations with C = C_n + w -> acc = (A C_n + a0) + A w
-    acc_n = a @ c_n + a0
     vx, vy, r = x[:, 0], x[:, 1], x[:, 2]
-    kin = np.column_stack([vy * r, -vx * r, np.zeros_like(r)])
-    # eq. (9)-(10) Euler: x_{k+1} = x_k + Ts (acc + kinematic coupling) = f + g w
-    rate = acc_n + kin
+    # eq. (7) accelerations with C = C_n + w -> acc = (A C_n + a0) + A w
+    acc_n = np.einsum("nij,j->ni", a, c_n)
+    if p.rolling_resistance_n or p.drag_n_s2_m2:
+        acc_n += resistance_accel(x, p)
+    # eq. (9)-(10) Euler: x_{k+1} = x_k + Ts (acc + kinematic coupling) = f + g w, with the
+    # coupling [vY r, -vX r, 0]
+    rate = acc_n.copy()
+    rate[:, 0] += vy * r
+    rate[:, 1] -= vx * r
     # rigid body: a_p = a_cg + dr z x p - r^2 p (IMU at p from the CG)
     px, py = p.imu_x_m, p.imu_y_m
-    lever = np.array([[1.0, 0.0, -py], [0.0, 1.0, px], [0.0, 0.0, 0.0]])
-    h = acc_n @ lever.T
-    h[:, 0] -= r * r * px
-    h[:, 1] -= r * r * py
+    r2 = r * r
+    h = np.empty_like(acc_n)
+    h[:, 0] = acc_n[:, 0] - py * acc_n[:, 2] - px * r2
+    h[:, 1] = acc_n[:, 1] + px * acc_n[:, 2] - py * r2
     # eq. (12) yaw-rate row: y_r = r + b_r + e_r
     h[:, 2] = r
-    # eq. (12) d = [g1; g2; 0] / Ts mapped to the IMU position
-    d = np.einsum("ij,njk->nik", lever, a)
+    # eq. (12) d = [g1; g2; 0] / Ts mapped to the IMU position (d = lever @ a, row by row)
+    d = np.empty_like(a)
+    d[:, 0, :] = a[:, 0, :] - py * a[:, 2, :]
+    d[:, 1, :] = a[:, 1, :] + px * a[:, 2, :]
+    d[:, 2, :] = 0.0
     return Linearized(rate=rate, a=a, h=h, d=d)
 
 

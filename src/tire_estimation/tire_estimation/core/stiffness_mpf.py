@@ -43,7 +43,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from tire_estimation.core import niw, resampling
+from tire_estimation.core import mat3, niw, resampling
 from tire_estimation.core.stiffness_config import StiffnessEstimatorConfig
 from tire_estimation.core.stiffness_model import (
     Linearized,
@@ -80,7 +80,7 @@ def bias_update(
         p_bias: its covariance P_{k|k-1}, (N, 3, 3).
         resid: y - h - d mu_{k|k} - b_{k|k-1}, (N, 3).
         extra_cov: d Sigma_{k|k} d^T, (N, 3, 3).
-        r_cov: measurement-noise covariance R, (3, 3).
+        r_cov: measurement-noise covariance R, (3, 3) or (N, 3, 3).
         dof: degrees of freedom nu~ of the Student-t total noise (Approximation 1), scalar or
             (N,); ``None`` is the Gaussian update as printed. With ``dof`` the noise covariance
             ``R + d Sigma d^T`` of a particle is scaled by ``(nu~ + m) / (nu~ + n_e)``, ``m`` its
@@ -88,24 +88,29 @@ def bias_update(
             residual (one expectation step of the scale-mixture form), so that a residual far
             outside ``S`` (state or model error) does not move the bias.
     """
-    noise = r_cov + extra_cov
+    p_s = mat3.soa(p_bias)
+    noise_aos = r_cov + extra_cov
+    if noise_aos.shape != p_bias.shape:
+        noise_aos = np.broadcast_to(noise_aos, p_bias.shape)
+    noise = mat3.soa(noise_aos)
+    resid_s = mat3.soa(resid)
     # eq. (30) S = P + R + d Sigma d^T
-    s = p_bias + noise
+    s = p_s + noise
     if dof is not None:
-        sol = np.linalg.solve(s, resid[..., None])[..., 0]
-        maha = np.sum(resid * sol, axis=-1)
+        s_inv, _ = mat3.inv_sym(s)
+        maha = np.sum(resid_s * mat3.mv(s_inv, resid_s), axis=0)
         nu = np.asarray(dof, dtype=float)
         # Student-t noise (eq. 35) as a scale mixture: E[precision scale | resid] =
         # (nu + n_e) / (nu + m); the noise covariance is divided by it
         scale = (nu + NE) / (nu + maha)
-        s = p_bias + noise / scale[:, None, None]
-    # eq. (30) K = P S^-1  (S symmetric: K = (S^-1 P)^T)
-    k = np.swapaxes(np.linalg.solve(s, p_bias), -1, -2)
+        s = p_s + noise / scale
+    s_inv, _ = mat3.inv_sym(s)
+    # eq. (30) K = P S^-1
+    k = mat3.mm(p_s, s_inv)
     # eq. (30) b_{k|k} = b_{k|k-1} + K (y - h - d mu - b_{k|k-1})
-    b += np.einsum("nij,nj->ni", k, resid)
-    # eq. (30) P_{k|k} = P - K S K^T  (= P - P S^-1 P)
-    p_bias -= np.einsum("nij,nkj->nik", k, p_bias)
-    p_bias[...] = 0.5 * (p_bias + np.swapaxes(p_bias, -1, -2))
+    b += mat3.aos(mat3.mv(k, resid_s))
+    # eq. (30) P_{k|k} = P - K S K^T  (= P - K P)
+    p_bias[...] = mat3.aos(mat3.sym(p_s - mat3.mm(k, p_s)))
 
 
 @dataclass(frozen=True)
@@ -117,32 +122,65 @@ class LikelihoodParams:
         shape: Lambda~_e = (1+gamma)/nu~ d Lambda d^T + (nu~-2)/nu~ (R + P), (N, 3, 3).
         w_shape: Lambda_11 = (1+gamma)/nu~ Lambda, the shape of the predictive of w, (N, 3, 3).
         dof: nu~ = nu_{k|k-1} - d + 1, scalar or (N,).
+        shape_inv: Lambda~_e^-1, (N, 3, 3).
+        logdet: log det Lambda~_e, (N,).
     """
 
     loc: F64
     shape: F64
     w_shape: F64
     dof: F64
+    shape_inv: F64
+    logdet: F64
+
+    def take(self, idx: NDArray[np.intp]) -> LikelihoodParams:
+        """The parameters of the particles ``idx`` (resampling)."""
+        return LikelihoodParams(
+            loc=self.loc[idx],
+            shape=self.shape[idx],
+            w_shape=self.w_shape[idx],
+            dof=self.dof[idx] if np.ndim(self.dof) else self.dof,
+            shape_inv=self.shape_inv[idx],
+            logdet=self.logdet[idx],
+        )
 
 
 def likelihood_params(stats: niw.NiwStats, d: F64, r_cov: F64, p_bias: F64) -> LikelihoodParams:
-    """Parameters of eq. (35) for every particle (see :class:`LikelihoodParams`)."""
+    """Parameters of eq. (35) for every particle (see :class:`LikelihoodParams`).
+
+    ``d`` (N, 3, 3), ``r_cov`` (3, 3) or (N, 3, 3), ``p_bias`` (N, 3, 3).
+    """
     # eq. (21) nu~ = nu - d + 1 and Lambda_11 = (1 + gamma) Lambda / nu~
     dof = niw.predictive_dof(stats.dof, stats.d)
     w_shape = niw.predictive_shape(stats)
     # eq. (35) mu_e = d mu_{k|k-1}
     loc = np.einsum("nij,nj->ni", d, stats.mean)
+    d_s = mat3.soa(d)
     # eq. (35) Lambda_e = (1+gamma)/nu~ d Lambda d^T + (nu~ - 2)/nu~ (R + P)
-    f = (dof - 2.0) / dof
-    fb = f[..., None, None] if np.ndim(f) else f
-    shape = np.einsum("nij,njk,nlk->nil", d, w_shape, d) + fb * (r_cov + p_bias)
-    return LikelihoodParams(loc=loc, shape=shape, w_shape=w_shape, dof=dof)
+    rp = r_cov + p_bias
+    if rp.shape != d.shape:
+        rp = np.broadcast_to(rp, d.shape)
+    shape = mat3.mm_bt(mat3.mm(d_s, mat3.soa(w_shape)), d_s) + (dof - 2.0) / dof * mat3.soa(rp)
+    shape_inv, det = mat3.inv_sym(shape)
+    return LikelihoodParams(
+        loc=loc,
+        shape=mat3.aos(shape),
+        w_shape=w_shape,
+        dof=dof,
+        shape_inv=mat3.aos(shape_inv),
+        logdet=np.log(det),
+    )
+
+
+def _maha(z: F64, inv: F64) -> F64:
+    """``z_n^T inv_n z_n`` for (N, 3) and (N, 3, 3) -> (N,)."""
+    return np.sum(z * np.einsum("nij,nj->ni", inv, z), axis=-1)
 
 
 def log_likelihood(e_bar: F64, lp: LikelihoodParams) -> F64:
     """Log of St(e_bar; mu_e, Lambda_e, nu~) (eq. 35-36), (N, 3) -> (N,)."""
     # eq. (36) q_k ∝ q_{k-1} St(y; h + b + d mu, Lambda*, nu~)
-    return niw.student_t_logpdf(e_bar, lp.loc, lp.shape, lp.dof)
+    return niw.student_t_log_density(_maha(e_bar - lp.loc, lp.shape_inv), lp.logdet, lp.dof, NE)
 
 
 def yaw_rate_nis(e_bar: F64, lp: LikelihoodParams, weights: F64) -> float:
@@ -180,32 +218,39 @@ def conditional_predictive(
     """Conditional Student-t of ``w`` given the measurement (Theorem 1 via eq. 41)."""
     # eq. (40) z = e_bar - mu_e
     z = e_bar - lp.loc
-    l11 = lp.w_shape
-    # eq. (41) Lambda_12 = Lambda_11 d^T (joint of w and e_bar = d w + e)
-    l12 = np.einsum("nij,nkj->nik", l11, d)
-    # gain Lambda_12 Lambda_22^-1 (Lambda_22 symmetric)
-    gain = np.swapaxes(np.linalg.solve(lp.shape, np.swapaxes(l12, -1, -2)), -1, -2)
-    sol = np.linalg.solve(lp.shape, z[..., None])[..., 0]
-    maha = np.sum(z * sol, axis=-1)
+    l11 = mat3.soa(lp.w_shape)
+    # eq. (41) Lambda_21 = d Lambda_11 (joint of w and e_bar = d w + e); Lambda_12 = Lambda_21^T
+    l21 = mat3.mm(mat3.soa(d), l11)
+    # gain Lambda_12 Lambda_22^-1 = Lambda_21^T Lambda_22^-1
+    gain = np.einsum("kin,kln->iln", l21, mat3.soa(lp.shape_inv))
+    maha = _maha(z, lp.shape_inv)
     nu = np.asarray(lp.dof, dtype=float)
     # eq. (41) nu_{1|2} = nu + d_2
     dof = nu + NE
     # eq. (41) mu_{1|2} = mu_1 + Lambda_12 Lambda_22^-1 (x_2 - mu_2)
-    loc = stats.mean + np.einsum("nij,nj->ni", gain, z)
+    loc = stats.mean + mat3.aos(mat3.mv(gain, mat3.soa(z)))
     # eq. (41) Lambda_{1|2} = (nu + z^T L22^-1 z)/(nu + d_2) (L11 - L12 L22^-1 L12^T)
-    shape = ((nu + maha) / dof)[:, None, None] * (l11 - np.einsum("nij,nkj->nik", gain, l12))
-    shape = 0.5 * (shape + np.swapaxes(shape, -1, -2))
-    return ConditionalPredictive(loc=loc, shape=shape, dof=np.asarray(dof))
+    shape = (nu + maha) / dof * mat3.sym(l11 - mat3.mm(gain, l21))
+    return ConditionalPredictive(loc=loc, shape=mat3.aos(shape), dof=np.asarray(dof))
 
 
 def sample_student_t(cp: ConditionalPredictive, rng: np.random.Generator) -> F64:
     """One draw per particle from St(loc, shape, dof) (eq. 39), (N, 3)."""
     n, dim = cp.loc.shape
     z = rng.standard_normal((n, dim))
-    chi2 = 2.0 * rng.standard_gamma(np.broadcast_to(0.5 * cp.dof, (n,)))
-    chol = np.linalg.cholesky(
-        cp.shape + 1e-9 * np.eye(dim) * np.trace(cp.shape, axis1=1, axis2=2)[:, None, None]
+    dof = np.asarray(cp.dof, dtype=float)
+    # chi2(nu) = 2 Gamma(nu / 2); one shared nu takes NumPy's faster scalar-shape path (the
+    # same stream as an array of equal shapes)
+    half = 0.5 * dof
+    chi2 = 2.0 * (
+        rng.standard_gamma(float(half), size=n)
+        if half.ndim == 0 or np.all(half == half.flat[0])
+        else rng.standard_gamma(half)
     )
+    shape = mat3.soa(cp.shape)
+    # a relative 1e-9 ridge keeps the factorization of a (numerically) singular shape finite
+    shape += (1e-9 * (shape[0, 0] + shape[1, 1] + shape[2, 2])) * np.eye(dim)[:, :, None]
+    chol = mat3.aos(mat3.cholesky(shape))
     return niw.student_t_from_draws(cp.loc, chol, cp.dof, z, chi2)
 
 
@@ -428,12 +473,7 @@ class StiffnessMpf:
             lin = Linearized(rate=lin.rate[idx], a=lin.a[idx], h=lin.h[idx], d=lin.d[idx])
             e_bar = e_bar[idx]
             r_cov = r_cov[idx]
-            lp = LikelihoodParams(
-                loc=lp.loc[idx],
-                shape=lp.shape[idx],
-                w_shape=lp.w_shape[idx],
-                dof=lp.dof[idx] if np.ndim(lp.dof) else lp.dof,
-            )
+            lp = lp.take(idx)
             self.weights = np.full(self.n, 1.0 / self.n)
             self.resample_count += 1
         self.log_w = np.log(self.weights)
@@ -452,7 +492,8 @@ class StiffnessMpf:
         sigma = self.stats.scale / np.reshape(
             np.asarray(self.stats.dof) - NW - 1.0, (-1, 1, 1) if np.ndim(self.stats.dof) else ()
         )
-        extra = np.einsum("nij,njk,nlk->nil", lin.d, sigma, lin.d)
+        d_s = mat3.soa(lin.d)
+        extra = mat3.aos(mat3.mm_bt(mat3.mm(d_s, mat3.soa(sigma)), d_s))
         resid = e_bar - np.einsum("nij,nj->ni", lin.d, self.stats.mean)
         # eq. (30) on straight driving; while learning only when the particles' yaw rate plus
         # bias agrees with the gyro (else the bias filters absorb the yaw-rate model error)
@@ -472,13 +513,15 @@ class StiffnessMpf:
         mean Cx (nominal + mu, eq. 7) and ``s`` = ``wheel_speed_noise_std_m_s``.
         """
         s = self.config.wheel_speed_noise_std_m_s
-        r_cov = np.broadcast_to(self.r_cov, (self.n, NE, NE))
         if s <= 0.0 or self.params.drive not in ("front", "rear", "all"):
-            return r_cov.copy()
+            return np.tile(self.r_cov, (self.n, 1, 1))
         cx = self.nominal[0] + self.stats.mean[:, 0]
         g = wheel_speed_gain(self.x, delta_rad, wheel_speed_m_s, self.params, cx)
         # input noise through eq. (2)-(3): Cov = s^2 sum_axles g g^T
-        return r_cov + (s * s) * np.einsum("nai,naj->nij", g, g)
+        outer = g[:, 0, :, None] * g[:, 0, None, :]
+        for j in range(1, g.shape[1]):
+            outer += g[:, j, :, None] * g[:, j, None, :]
+        return self.r_cov + (s * s) * outer
 
     def _take(self, idx: NDArray[np.intp]) -> None:
         self.x = self.x[idx]
