@@ -47,6 +47,8 @@ def test_replay_reports_every_lateral_estimator(lane_change_bag: Path, tmp_path:
     # lane changes excite the cornering stiffness: learned within 30 % of the truth
     assert stiff["rel_rmse_vs_truth"]["cy_front"] < 0.3
     assert 0.0 < stiff["learning_active_fraction"] <= 1.0
+    # truth-free model fit, nats per IMU sample (finite: the predictive density was computed)
+    assert np.isfinite(stiff["mean_log_predictive"])
     assert {"lateral_state.png", "stiffness.png"} <= set(m["plots"])
 
 

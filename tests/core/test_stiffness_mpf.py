@@ -349,3 +349,51 @@ def test_kinematic_speed_model_propagates_vx_with_measured_ax_and_weighs_the_spe
     px = mpf.params.imu_x_m
     expected = x0[:, 0] + 0.01 * (0.7 + px * x0[:, 2] ** 2 + x0[:, 1] * x0[:, 2])
     assert np.allclose(mpf.x[:, 0], expected, atol=1e-4)
+
+
+def test_log_evidence_accumulates_the_predictive_density() -> None:
+    # log p(y_k | y_1:k-1) = log sum_i q_i St(e_bar_i; ...) with the weights before the update
+    from scipy.special import logsumexp
+
+    from tire_estimation.core.stiffness_model import linearize
+
+    mpf = _mpf(40)
+    y, u, delta = np.array([0.2, 1.5, 0.07]), (20.0, 20.0), 0.03
+    for k in range(3):
+        mpf.predict(0.01, True)
+        lin = linearize(mpf.x, delta, u, mpf.params)
+        lp = likelihood_params(mpf.stats, lin.d, mpf.measurement_cov(delta, u), mpf.p_bias)
+        ll = log_likelihood(y[None, :] - lin.h - mpf.b, lp)
+        expected = mpf.log_evidence + logsumexp(np.log(mpf.weights) + ll)
+        mpf.update(y, delta, u, True)
+        assert mpf.evidence_steps == k + 1
+        assert np.isclose(mpf.log_evidence, expected, rtol=1e-12, atol=1e-9)
+
+
+def _mean_log_predictive(accel_noise_std_m_s2: float) -> float:
+    sim = simulate("asphalt_sine", seed=4, minutes=0.5)
+    cfg = StiffnessEstimatorConfig(n_particles=50, accel_noise_std_m_s2=accel_noise_std_m_s2)
+    est = StiffnessEstimator(cfg, sim.vehicle, np.random.default_rng(4))
+    ws, st, imu = sim.wheel_speeds, sim.steering, sim.imu
+    iw = np.searchsorted(ws.t_ns, imu.t_ns, side="right") - 1
+    ist = np.searchsorted(st.t_ns, imu.t_ns, side="right") - 1
+    for k in range(imu.t_ns.size):
+        if iw[k] >= 0:
+            est.on_wheel_speeds(int(ws.t_ns[iw[k]]), ws.wheel_speed_rad_s[iw[k]])
+        if ist[k] >= 0:
+            est.on_steering(int(st.t_ns[ist[k]]), float(st.angle_rad[ist[k]]))
+        est.on_imu(
+            int(imu.t_ns[k]), imu.angular_velocity_rad_s[k], imu.linear_acceleration_m_s2[k]
+        )
+    value = est.estimate().mean_log_predictive
+    assert value is not None
+    return value
+
+
+def test_mean_log_predictive_prefers_the_simulators_noise_level() -> None:
+    # model selection without ground truth: the simulator's accelerometer noise (the default)
+    # explains the data better than a 4x too large or a 4x too small one
+    true_std = SensorConfig().accel_noise_std_m_s2
+    right = _mean_log_predictive(true_std)
+    assert right > _mean_log_predictive(4.0 * true_std) + 0.5
+    assert right > _mean_log_predictive(0.25 * true_std) + 0.5

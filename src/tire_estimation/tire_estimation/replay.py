@@ -629,6 +629,8 @@ def _stiffness_metrics(bag: BagData, trace: ImuLateralTrace) -> dict[str, Any]:
         out["nominal"] = dict(zip(names, trace.nominal.tolist(), strict=True))
     out["learning_active_fraction"] = float(np.mean(arr["active"]))
     out["final_gyro_bias_rad_s"] = float(arr["gyro_bias_rad_s"][-1])
+    # truth-free fit of the configuration to the measured IMU data (model selection)
+    out["mean_log_predictive"] = trace.mean_log_predictive
     truth = bag.truth_stiffness
     if truth is not None and truth.t_ns.size:
         t = arr["t_ns"]

@@ -49,6 +49,10 @@ class StiffnessEstimate:
         yaw_rate_rad_s: yaw rate, rad/s.
         sideslip_rad: atan(vy / vx) at the CG, rad.
         covariance: covariance of [vx, vy, r], (3, 3).
+        mean_log_predictive: mean over the IMU updates so far of log p(y_k | y_1:k-1), the
+            filter's predictive density of each measurement, nats (0 before the first); higher
+            = the configuration explains the measured data better (compare configurations on
+            the same data, not across data sets).
     """
 
     t_ns: int
@@ -67,6 +71,7 @@ class StiffnessEstimate:
     yaw_rate_rad_s: float
     sideslip_rad: float
     covariance: F64
+    mean_log_predictive: float | None = None
 
 
 def _is_int(x: Any) -> bool:
@@ -335,6 +340,7 @@ class StiffnessEstimator:
             yaw_rate_rad_s=r,
             sideslip_rad=math.atan2(vy, max(vx, 1e-3)),
             covariance=e.state_cov,
+            mean_log_predictive=self.mpf.log_evidence / max(self.mpf.evidence_steps, 1),
         )
 
     def state_dict(self) -> dict[str, Any]:

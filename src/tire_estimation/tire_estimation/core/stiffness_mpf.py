@@ -354,6 +354,11 @@ class StiffnessMpf:
         self.stats = self.prior_stats()
         self.n_eff = float(self.n)
         self.resample_count = 0
+        #: sum over updates of log p(y_k | y_1:k-1) (nats) and the number of terms: the log
+        #: marginal likelihood of the measurements under this configuration (model selection
+        #: without ground truth)
+        self.log_evidence = 0.0
+        self.evidence_steps = 0
         self.yaw_rate_nis = 0.0
         self.yaw_rate_nis_mean = 0.0
         self.bias_updated = False
@@ -461,8 +466,12 @@ class StiffnessMpf:
         self._dt_s = 0.0
         # Algorithm 1 line 3: eq. (36)
         self.log_w += log_likelihood(e_bar, lp)
-        # line 6-7: normalize, N_eff
-        self.weights, _ = resampling.normalize_log_weights(self.log_w)
+        # line 6-7: normalize, N_eff; the normalizer of the normalized previous weights times
+        # the likelihoods is the predictive density p(y_k | y_1:k-1) (model evidence increment)
+        self.weights, log_pred = resampling.normalize_log_weights(self.log_w)
+        if np.isfinite(log_pred):
+            self.log_evidence += log_pred
+            self.evidence_steps += 1
         self.n_eff = resampling.ess(self.weights)
         if not np.all(np.isfinite(self.weights)):
             self.weights = np.full(self.n, 1.0 / self.n)

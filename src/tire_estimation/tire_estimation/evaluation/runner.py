@@ -291,6 +291,7 @@ class ImuLateralTrace:
     stiffness_std: list[NDArray[np.float64]] = field(default_factory=list)
     active: list[bool] = field(default_factory=list)
     gyro_bias_rad_s: list[float] = field(default_factory=list)
+    mean_log_predictive: float | None = None
     dropped: dict[str, int] = field(default_factory=dict)
     wall_s: float = 0.0
     steps: int = 0
@@ -389,3 +390,5 @@ def _record_lateral(trace: ImuLateralTrace, est: Any, t_ns: int) -> None:
         trace.stiffness_std.append(np.asarray(est.stiffness_std, dtype=float).copy())
         trace.active.append(bool(est.active))
         trace.gyro_bias_rad_s.append(float(est.gyro_bias_rad_s[2]))
+    if getattr(est, "mean_log_predictive", None) is not None:
+        trace.mean_log_predictive = float(est.mean_log_predictive)
