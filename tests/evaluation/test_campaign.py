@@ -285,3 +285,70 @@ def test_executors_keep_case_order(executor: str) -> None:
     rows = execute_cases(specs, executor=executor, n_workers=2)
     assert [r["case_id"] for r in rows] == ["bad-0", "bad-1", "bad-2"]
     assert all("ScenarioError" in r["error"] for r in rows)
+
+
+def _step_row(case_id: str, seed: int, mpf_det: bool, kf_det: bool) -> dict[str, Any]:
+    return {
+        "case_id": case_id,
+        "kind": "step",
+        "seed": seed,
+        "minutes": 25.0,
+        "error": "",
+        "mpf_ok": True,
+        "mpf_observed": True,
+        "mpf_detected": mpf_det,
+        "mpf_detected_in_time": mpf_det,
+        "mpf_detection_time_s": 100.0 + seed % 100 if mpf_det else None,
+        "mpf_false_alarms": 0 if mpf_det else 1,
+        "mpf_calibrated_before_event": True,
+        "aug_kf_ok": True,
+        "aug_kf_observed": True,
+        "aug_kf_detected": kf_det,
+        "aug_kf_detected_in_time": kf_det,
+        "aug_kf_detection_time_s": 90.0 if kf_det else None,
+        "aug_kf_false_alarms": 0,
+        "aug_kf_calibrated_before_event": True,
+    }
+
+
+def _write_shard(d: Path, rows: list[dict[str, Any]]) -> None:
+    from tire_estimation.evaluation.campaign import write_csv
+
+    d.mkdir()
+    write_csv(d / "cases.csv", rows)
+    (d / "summary.json").write_text(json.dumps(summarize_detection(rows)))
+
+
+def test_merge_pools_shards_with_types_restored(tmp_path: Path) -> None:
+    from tire_estimation.evaluation.campaign import merge_ece_r64_campaigns, read_csv_rows
+
+    _write_shard(tmp_path / "a", [_step_row("step-0000", 1000, True, True)])
+    _write_shard(
+        tmp_path / "b",
+        [_step_row("step-0000", 1036, False, True), _step_row("step-0001", 1037, True, False)],
+    )
+    # the CSV round trip keeps booleans, None and numbers
+    back = read_csv_rows(tmp_path / "b" / "cases.csv")
+    assert back[0]["mpf_detected"] is False and back[0]["mpf_detection_time_s"] is None
+    assert back[1]["mpf_detection_time_s"] == 137.0 and back[0]["error"] == ""
+    s = merge_ece_r64_campaigns(tmp_path / "all", [tmp_path / "a", tmp_path / "b"])
+    assert s["n_cases"] == 3
+    assert s["mpf"]["step"]["detected"] == 2 and s["mpf"]["step"]["missed"] == ["step-0000"]
+    assert s["aug_kf"]["step"]["detected"] == 2
+    assert s["mpf"]["false_alarms_total"] == 1
+    assert s["mpf"]["step"]["detection_time_s"]["median_abs"] == pytest.approx(118.5)
+    with (tmp_path / "all" / "cases.csv").open() as fh:
+        assert [r["shard"] for r in csv.DictReader(fh)] == ["a", "b", "b"]
+    # the same drive twice, a directory that is not a finished campaign, an existing summary
+    _write_shard(tmp_path / "c", [_step_row("step-0000", 1000, True, True)])
+    with pytest.raises(CampaignError, match="seed 1000"):
+        merge_ece_r64_campaigns(tmp_path / "x", [tmp_path / "a", tmp_path / "c"])
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(CampaignError, match="not a finished campaign"):
+        merge_ece_r64_campaigns(tmp_path / "y", [tmp_path / "empty"])
+    with pytest.raises(CampaignError, match=r"summary\.json"):
+        merge_ece_r64_campaigns(tmp_path / "all", [tmp_path / "a"])
+    args = _parser().parse_args(
+        ["campaign", "merge", str(tmp_path / "a"), str(tmp_path / "b"), "--out", "o"]
+    )
+    assert args.shards == [tmp_path / "a", tmp_path / "b"]

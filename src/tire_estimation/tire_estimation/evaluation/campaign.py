@@ -892,6 +892,33 @@ def write_csv(path: Path, rows: Sequence[dict[str, Any]]) -> None:
             writer.writerow(r)
 
 
+def _csv_value(text: str) -> Any:
+    """A ``cases.csv`` cell back to the row's value: '' -> None, True/False, int, float, str."""
+    if text == "":
+        return None
+    if text in ("True", "False"):
+        return text == "True"
+    for conv in (int, float):
+        try:
+            return conv(text)
+        except ValueError:
+            pass
+    return text
+
+
+def read_csv_rows(path: Path) -> list[dict[str, Any]]:
+    """Rows of a ``cases.csv`` written by :func:`write_csv`, with their types restored.
+
+    An empty ``error`` cell stays ``""`` (a case without error), as :func:`run_case` writes it.
+    """
+    with path.open(newline="") as fh:
+        rows = [{k: _csv_value(v) for k, v in r.items()} for r in csv.DictReader(fh)]
+    for r in rows:
+        if r.get("error") is None:
+            r["error"] = ""
+    return rows
+
+
 def _plot_calibration(path: Path, rows: Sequence[dict[str, Any]], at_s: float) -> None:
     import matplotlib
 
@@ -974,7 +1001,8 @@ def _plot_detection(out_dir: Path, rows: Sequence[dict[str, Any]]) -> list[str]:
     ax.set_xlabel("radius change after the 20 % step, mm")
     ax.set_ylabel("cases")
     ax.set_title("Estimated radius change (cf. paper Fig. 8)")
-    ax.legend()
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend()
     ax.grid(alpha=0.3)
     fig.tight_layout()
     p = out_dir / "radius_change.png"
@@ -1090,6 +1118,46 @@ def run_ece_r64_campaign(
     summary["versions"] = _versions()
     write_csv(out_dir / "cases.csv", rows)
     summary["files"] = ["summary.json", "cases.csv", "cases.json", *_plot_detection(out_dir, rows)]
+    (out_dir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    return summary
+
+
+def merge_ece_r64_campaigns(
+    out: Path | str, shards: Sequence[Path | str], overwrite: bool = False
+) -> dict[str, Any]:
+    """One ``summary.json`` (and ``cases.csv``, PNGs) over several campaign directories.
+
+    A long campaign can run as shards (different ``--first-seed``, on different machines or one
+    after the other, each complete on its own); this pools their per-case rows. Two shards that
+    contain the same simulator seed are refused (the same drive counted twice). Each row gets a
+    ``shard`` column with its directory name.
+    """
+    rows: list[dict[str, Any]] = []
+    seen: dict[int, str] = {}
+    configs = []
+    for shard in shards:
+        d = Path(shard)
+        csv_path, summary_path = d / "cases.csv", d / "summary.json"
+        if not csv_path.is_file() or not summary_path.is_file():
+            raise CampaignError(f"{d}: not a finished campaign (no cases.csv / summary.json)")
+        summary = json.loads(summary_path.read_text())
+        if summary.get("study") != "ece_r64":
+            raise CampaignError(f"{d}: not an ece-r64 campaign ({summary.get('study')!r})")
+        configs.append({"shard": d.name, **summary.get("config", {})})
+        for r in read_csv_rows(csv_path):
+            seed = int(r["seed"])
+            if seed in seen:
+                raise CampaignError(f"seed {seed} is in both {seen[seed]} and {d}")
+            seen[seed] = str(d)
+            rows.append({"shard": d.name, **r})
+    if not rows:
+        raise CampaignError("the shards have no cases")
+    out_dir = _prepare_out(out, overwrite)
+    summary = summarize_detection(rows)
+    summary["config"] = {"merged_from": [str(Path(x)) for x in shards], "shards": configs}
+    summary["versions"] = _versions()
+    write_csv(out_dir / "cases.csv", rows)
+    summary["files"] = ["summary.json", "cases.csv", *_plot_detection(out_dir, rows)]
     (out_dir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     return summary
 
@@ -1240,6 +1308,12 @@ def _cmd_ece_r64(args: argparse.Namespace) -> int:
         overwrite=args.overwrite,
         progress=_print_progress,
     )
+    _print_detection_summary(summary)
+    print(f"wrote {args.out}/summary.json")
+    return 0
+
+
+def _print_detection_summary(summary: dict[str, Any]) -> None:
     for m in ("mpf", "aug_kf"):
         s = summary[m]
         st, rb = s["step"], s["robustness"]
@@ -1249,7 +1323,12 @@ def _cmd_ece_r64(args: argparse.Namespace) -> int:
             f"robustness {rb['false_alarms']} false alarms in {rb['monitored_hours']:.2f} h, "
             f"false alarms total {s['false_alarms_total']}"
         )
-    print(f"wrote {args.out}/summary.json")
+
+
+def _cmd_merge(args: argparse.Namespace) -> int:
+    summary = merge_ece_r64_campaigns(args.out, args.shards, overwrite=args.overwrite)
+    _print_detection_summary(summary)
+    print(f"wrote {args.out}/summary.json ({summary['n_cases']} cases)")
     return 0
 
 
@@ -1322,6 +1401,14 @@ def add_campaign_parser(subparsers: Any) -> argparse.ArgumentParser:
     ece.add_argument("--first-seed", type=int, default=1000)
     _add_exec_args(ece)
     ece.set_defaults(func=_cmd_ece_r64)
+
+    mrg = sub.add_parser(
+        "merge", help="pool finished ece-r64 campaign directories (shards) into one summary"
+    )
+    mrg.add_argument("shards", nargs="+", type=Path, help="campaign directories")
+    mrg.add_argument("--out", type=Path, required=True, help="result directory")
+    mrg.add_argument("--overwrite", action="store_true", help="replace an existing summary.json")
+    mrg.set_defaults(func=_cmd_merge)
     return camp
 
 
