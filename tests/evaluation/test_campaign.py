@@ -221,7 +221,7 @@ def test_small_ece_campaign_on_dask(tmp_path: Path) -> None:
         first_seed=1,
     )
     summary = run_ece_r64_campaign(
-        tmp_path / "ece", plan, executor="dask", n_workers=1, threads=True
+        tmp_path / "ece", plan, executor="dask", n_workers=1, threads=True, save_traces=True
     )
     out = tmp_path / "ece"
     for name in ("summary.json", "cases.csv", "cases.json", "detection_times.png"):
@@ -254,6 +254,25 @@ def test_small_ece_campaign_on_dask(tmp_path: Path) -> None:
     assert summary["mpf"]["step"]["detection_rate"] == 1.0
     assert summary["mpf"]["robustness"]["false_alarms"] == 0
     assert summary["mpf"]["robustness"]["monitored_hours"] > 0.0
+    # detection re-run from the saved traces: the same result with the same detector, none
+    # with a 100x threshold
+    from tire_estimation.evaluation.campaign import redetect_campaigns
+
+    assert sorted(x.name for x in (out / "traces").iterdir()) == [
+        "rob-0000.npz",
+        "step-0000.npz",
+    ]
+    again = redetect_campaigns(tmp_path / "re", [out])
+    for m in ("mpf", "aug_kf"):
+        assert again[m]["step"] == summary[m]["step"]
+        assert again[m]["robustness"]["false_alarms"] == 0
+    high = redetect_campaigns(tmp_path / "hi", [out], {"threshold_m": 0.9})
+    assert high["mpf"]["step"]["detected"] == 0 and high["aug_kf"]["step"]["detected"] == 0
+    args = _parser().parse_args(
+        ["campaign", "redetect", str(out), "--out", "x", "--detector", "nope=1"]
+    )
+    with pytest.raises(CampaignError, match="not a DeflationDetectorConfig field"):
+        args.func(args)
 
 
 def test_calibration_case_reports_errors_against_truth() -> None:

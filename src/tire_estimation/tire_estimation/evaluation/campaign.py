@@ -99,6 +99,10 @@ class CaseSpec:
         detector_calibration_s: CUSUM calibration driving time, s (ECE R-64: 1200).
         estimator: RadiusEstimatorConfig overrides (``run_aug_kf`` is always on).
         braking_source: ``estimate`` (deceleration of the estimator's speed) or ``truth``.
+        trace_dir: when set, the estimator traces of the case are saved there as
+            ``<case_id>.npz`` (:func:`save_run`), so that detection can be re-run on them
+            without simulating again (:func:`redetect_case`).
+        detector: DeflationDetectorConfig overrides for this case.
     """
 
     case_id: str
@@ -115,12 +119,23 @@ class CaseSpec:
     detector_calibration_s: float = 1200.0
     estimator: dict[str, Any] = field(default_factory=dict)
     braking_source: str = "estimate"
+    trace_dir: str = ""
+    detector: dict[str, Any] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain mapping (lists for tuples)."""
         d = dataclasses.asdict(self)
         d["deflated_wheels"] = list(self.deflated_wheels)
         return d
+
+    @staticmethod
+    def from_dict(d: dict[str, Any]) -> CaseSpec:
+        """Inverse of :meth:`to_dict` (``cases.json``); unknown keys are refused."""
+        names = {f.name for f in dataclasses.fields(CaseSpec)}
+        unknown = sorted(set(d) - names)
+        if unknown:
+            raise CampaignError(f"case {d.get('case_id')!r}: unknown keys {unknown}")
+        return CaseSpec(**{**d, "deflated_wheels": tuple(d.get("deflated_wheels", ()))})
 
 
 # ---------------------------------------------------------------------------------------------
@@ -197,6 +212,35 @@ def _simulate_and_estimate(spec: CaseSpec) -> _Run:
     )
 
 
+_RUN_NAMES = ("wheel_names", "kf_wheels")
+
+
+def save_run(run: _Run, path: Path) -> None:
+    """Write the estimator traces and truth of one case to ``path`` (``.npz``)."""
+    arrays = {
+        f.name: np.asarray(getattr(run, f.name))
+        for f in dataclasses.fields(run)
+        if f.name not in _RUN_NAMES
+    }
+    names = {n: np.asarray(getattr(run, n), dtype=str) for n in _RUN_NAMES}
+    np.savez_compressed(path, **arrays, **names)
+
+
+def load_run(path: Path) -> _Run:
+    """Read a trace written by :func:`save_run`."""
+    with np.load(path) as z:
+        values: dict[str, Any] = {}
+        for f in dataclasses.fields(_Run):
+            v = z[f.name]
+            if f.name in _RUN_NAMES:
+                values[f.name] = tuple(str(x) for x in v)
+            elif v.ndim == 0:
+                values[f.name] = float(v)
+            else:
+                values[f.name] = v
+    return _Run(**values)
+
+
 def _true_error(run: _Run, wheels: Sequence[str]) -> F64:
     """True radius error (effective minus nominal) at the trace times, (K, len(wheels))."""
     from tire_estimation.core.wheels import WHEEL_INDEX
@@ -233,9 +277,12 @@ def _detector_config(spec: CaseSpec) -> Any:
     from tire_estimation.core.deflation import DeflationDetectorConfig
 
     cal = float(spec.detector_calibration_s)
-    return DeflationDetectorConfig(
-        calibration_time_s=cal, calibration_average_s=min(300.0, 0.25 * cal)
-    )
+    kwargs: dict[str, Any] = {
+        "calibration_time_s": cal,
+        "calibration_average_s": min(300.0, 0.25 * cal),
+    }
+    kwargs.update(spec.detector)
+    return DeflationDetectorConfig(**kwargs)
 
 
 def _at(t_s: F64, values: F64, at_s: float) -> F64 | None:
@@ -398,12 +445,7 @@ def _evaluate_accuracy(spec: CaseSpec, run: _Run, at_s: float) -> dict[str, Any]
     return out
 
 
-def run_case(spec: CaseSpec, accuracy_at_s: float = 600.0) -> dict[str, Any]:
-    """Simulate, estimate (MPF + AUG-KF) and evaluate one case; a flat JSON-ready row.
-
-    Never raises for a failing case: the row then has ``error`` set (so one bad case does not
-    lose a campaign).
-    """
+def _case_row(spec: CaseSpec) -> dict[str, Any]:
     row: dict[str, Any] = {
         "case_id": spec.case_id,
         "kind": spec.kind,
@@ -416,16 +458,44 @@ def run_case(spec: CaseSpec, accuracy_at_s: float = 600.0) -> dict[str, Any]:
         **{f"label_{k}": v for k, v in spec.labels.items()},
         "error": "",
     }
+    return row
+
+
+def run_case(spec: CaseSpec, accuracy_at_s: float = 600.0) -> dict[str, Any]:
+    """Simulate, estimate (MPF + AUG-KF) and evaluate one case; a flat JSON-ready row.
+
+    Never raises for a failing case: the row then has ``error`` set (so one bad case does not
+    lose a campaign).
+    """
+    row = _case_row(spec)
     try:
         run = _simulate_and_estimate(spec)
+        if spec.trace_dir:
+            save_run(run, Path(spec.trace_dir) / f"{spec.case_id}.npz")
         row["sim_s"] = round(run.sim_s, 2)
         row["estimate_s"] = round(run.est_s, 2)
         row["trace_samples"] = int(run.t_ns.size)
-        if spec.kind == "calibration":
-            row.update(_evaluate_accuracy(spec, run, accuracy_at_s))
-        else:
-            row.update(_evaluate_detection(spec, run, "mpf"))
-            row.update(_evaluate_detection(spec, run, "aug_kf"))
+        _evaluate(spec, run, row, accuracy_at_s)
+    except Exception as exc:
+        row["error"] = f"{type(exc).__name__}: {exc}"
+    return row
+
+
+def _evaluate(spec: CaseSpec, run: _Run, row: dict[str, Any], accuracy_at_s: float) -> None:
+    if spec.kind == "calibration":
+        row.update(_evaluate_accuracy(spec, run, accuracy_at_s))
+    else:
+        row.update(_evaluate_detection(spec, run, "mpf"))
+        row.update(_evaluate_detection(spec, run, "aug_kf"))
+
+
+def redetect_case(spec: CaseSpec, run: _Run) -> dict[str, Any]:
+    """The row of :func:`run_case` from a saved trace (no simulation), e.g. with other
+    detector settings in ``spec.detector``."""
+    row = _case_row(spec)
+    row["trace_samples"] = int(run.t_ns.size)
+    try:
+        _evaluate(spec, run, row, 600.0)
     except Exception as exc:
         row["error"] = f"{type(exc).__name__}: {exc}"
     return row
@@ -1088,12 +1158,21 @@ def run_ece_r64_campaign(
     threads: bool = False,
     overwrite: bool = False,
     progress: Callable[[dict[str, Any], int, int], None] | None = None,
+    save_traces: bool = False,
 ) -> dict[str, Any]:
-    """Issue-4 campaign: ``summary.json``, ``cases.csv``, ``cases.json`` and PNGs in ``out``."""
+    """Issue-4 campaign: ``summary.json``, ``cases.csv``, ``cases.json`` and PNGs in ``out``.
+
+    ``save_traces`` keeps every case's estimator traces in ``out/traces`` (about 1 MB per
+    case-hour) for :func:`redetect_campaigns`.
+    """
     out_dir = _prepare_out(out, overwrite)
     cases = ece_r64_cases(plan)
     if not cases:
         raise CampaignError("the campaign has no cases")
+    if save_traces:
+        trace_dir = out_dir / "traces"
+        trace_dir.mkdir(exist_ok=True)
+        cases = [dataclasses.replace(c, trace_dir=str(trace_dir.resolve())) for c in cases]
     (out_dir / "cases.json").write_text(json.dumps([c.to_dict() for c in cases], indent=1))
     t0 = time.perf_counter()
     rows = execute_cases(cases, executor, n_workers, scheduler, threads, progress)
@@ -1155,6 +1234,53 @@ def merge_ece_r64_campaigns(
     out_dir = _prepare_out(out, overwrite)
     summary = summarize_detection(rows)
     summary["config"] = {"merged_from": [str(Path(x)) for x in shards], "shards": configs}
+    summary["versions"] = _versions()
+    write_csv(out_dir / "cases.csv", rows)
+    summary["files"] = ["summary.json", "cases.csv", *_plot_detection(out_dir, rows)]
+    (out_dir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    return summary
+
+
+def redetect_campaigns(
+    out: Path | str,
+    campaigns: Sequence[Path | str],
+    detector: dict[str, Any] | None = None,
+    overwrite: bool = False,
+) -> dict[str, Any]:
+    """Detection re-run on the saved traces of finished campaigns (``--save-traces``).
+
+    No simulation and no estimator: every case of each campaign's ``cases.json`` is evaluated
+    again from ``traces/<case_id>.npz`` with the detector settings of the campaign overridden by
+    ``detector`` (DeflationDetectorConfig fields). Writes ``summary.json``, ``cases.csv`` and
+    the plots to ``out``. Several campaign directories are pooled as by
+    :func:`merge_ece_r64_campaigns` (duplicate seeds refused).
+    """
+    detector = dict(detector or {})
+    rows: list[dict[str, Any]] = []
+    seen: dict[int, str] = {}
+    for camp in campaigns:
+        d = Path(camp)
+        specs_path = d / "cases.json"
+        if not specs_path.is_file():
+            raise CampaignError(f"{d}: no cases.json")
+        for item in json.loads(specs_path.read_text()):
+            spec = CaseSpec.from_dict(item)
+            trace = d / "traces" / f"{spec.case_id}.npz"
+            if not trace.is_file():
+                raise CampaignError(f"{trace}: missing (run the campaign with --save-traces)")
+            if spec.seed in seen:
+                raise CampaignError(f"seed {spec.seed} is in both {seen[spec.seed]} and {d}")
+            seen[spec.seed] = str(d)
+            spec = dataclasses.replace(spec, detector={**spec.detector, **detector})
+            rows.append({"shard": d.name, **redetect_case(spec, load_run(trace))})
+    if not rows:
+        raise CampaignError("the campaigns have no cases")
+    out_dir = _prepare_out(out, overwrite)
+    summary = summarize_detection(rows)
+    summary["config"] = {
+        "redetected_from": [str(Path(x)) for x in campaigns],
+        "detector": detector,
+    }
     summary["versions"] = _versions()
     write_csv(out_dir / "cases.csv", rows)
     summary["files"] = ["summary.json", "cases.csv", *_plot_detection(out_dir, rows)]
@@ -1307,6 +1433,7 @@ def _cmd_ece_r64(args: argparse.Namespace) -> int:
         threads=args.threads,
         overwrite=args.overwrite,
         progress=_print_progress,
+        save_traces=args.save_traces,
     )
     _print_detection_summary(summary)
     print(f"wrote {args.out}/summary.json")
@@ -1323,6 +1450,26 @@ def _print_detection_summary(summary: dict[str, Any]) -> None:
             f"robustness {rb['false_alarms']} false alarms in {rb['monitored_hours']:.2f} h, "
             f"false alarms total {s['false_alarms_total']}"
         )
+
+
+def _cmd_redetect(args: argparse.Namespace) -> int:
+    summary = redetect_campaigns(
+        args.out, args.campaigns, _detector_options(args.detector), overwrite=args.overwrite
+    )
+    _print_detection_summary(summary)
+    print(f"wrote {args.out}/summary.json ({summary['n_cases']} cases)")
+    return 0
+
+
+def _detector_options(items: Sequence[tuple[str, Any]] | None) -> dict[str, Any]:
+    from tire_estimation.core.deflation import DeflationDetectorConfig
+
+    names = {f.name for f in dataclasses.fields(DeflationDetectorConfig)}
+    out = dict(items or [])
+    for k in out:
+        if k not in names:
+            raise CampaignError(f"--detector {k}: not a DeflationDetectorConfig field")
+    return out
 
 
 def _cmd_merge(args: argparse.Namespace) -> int:
@@ -1399,6 +1546,11 @@ def add_campaign_parser(subparsers: Any) -> argparse.ArgumentParser:
         help=f"road levels, comma separated, of {','.join(ROAD_LEVELS)}",
     )
     ece.add_argument("--first-seed", type=int, default=1000)
+    ece.add_argument(
+        "--save-traces",
+        action="store_true",
+        help="keep each case's estimator traces in OUT/traces (for campaign redetect)",
+    )
     _add_exec_args(ece)
     ece.set_defaults(func=_cmd_ece_r64)
 
@@ -1409,6 +1561,22 @@ def add_campaign_parser(subparsers: Any) -> argparse.ArgumentParser:
     mrg.add_argument("--out", type=Path, required=True, help="result directory")
     mrg.add_argument("--overwrite", action="store_true", help="replace an existing summary.json")
     mrg.set_defaults(func=_cmd_merge)
+
+    red = sub.add_parser(
+        "redetect",
+        help="re-run only the detection on the saved traces of campaigns (--save-traces)",
+    )
+    red.add_argument("campaigns", nargs="+", type=Path, help="campaign directories")
+    red.add_argument("--out", type=Path, required=True, help="result directory")
+    red.add_argument(
+        "--detector",
+        type=_key_value,
+        action="append",
+        metavar="KEY=VALUE",
+        help="DeflationDetectorConfig override (repeatable)",
+    )
+    red.add_argument("--overwrite", action="store_true", help="replace an existing summary.json")
+    red.set_defaults(func=_cmd_redetect)
     return camp
 
 
