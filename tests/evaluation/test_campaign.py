@@ -371,3 +371,29 @@ def test_merge_pools_shards_with_types_restored(tmp_path: Path) -> None:
         ["campaign", "merge", str(tmp_path / "a"), str(tmp_path / "b"), "--out", "o"]
     )
     assert args.shards == [tmp_path / "a", tmp_path / "b"]
+
+
+def test_split_alarms_into_false_warnings_and_wrong_wheel() -> None:
+    from tire_estimation.evaluation.campaign import split_alarms
+
+    step = {"event_s": 840.0, "deflated_wheels": "wheel_rr"}
+    # both wheels before the step: two false warnings (the driver is warned with no tyre low)
+    assert split_alarms({**step, "mpf_alarms": "wheel_rl@784;wheel_rr@784"}, "mpf") == (2, 0)
+    # right wheel, then the other one 3 min later: one wrong-wheel alarm
+    assert split_alarms({**step, "mpf_alarms": "wheel_rr@926;wheel_rl@1108"}, "mpf") == (0, 1)
+    assert split_alarms({**step, "aug_kf_alarms": ""}, "aug_kf") == (0, 0)
+    # a drive without deflation: every alarm is a false warning
+    rob = {"event_s": None, "deflated_wheels": "", "mpf_alarms": "wheel_rl@2000"}
+    assert split_alarms(rob, "mpf") == (1, 0)
+    rows = [
+        {**step, "case_id": "a", "kind": "step", "minutes": 25.0, "error": "", "mpf_ok": True,
+         "mpf_observed": True, "mpf_detected": True, "mpf_detection_time_s": 86.0,
+         "mpf_false_alarms": 1,
+         "mpf_alarms": "wheel_rr@926;wheel_rl@1108", "aug_kf_ok": False},
+        {**rob, "case_id": "b", "kind": "robustness", "minutes": 60.0, "error": "",
+         "mpf_ok": True, "mpf_false_alarms": 1, "mpf_monitored_h": 0.5, "aug_kf_ok": False},
+    ]  # fmt: skip
+    s = summarize_detection(rows)
+    assert s["mpf"]["step"]["wrong_wheel_alarms"] == 1 and s["mpf"]["step"]["false_warnings"] == 0
+    assert s["mpf"]["false_warnings_total"] == 1 and s["mpf"]["wrong_wheel_alarms_total"] == 1
+    assert s["mpf"]["false_alarms_total"] == 2

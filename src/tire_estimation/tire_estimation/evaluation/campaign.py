@@ -888,8 +888,36 @@ def summarize_calibration(rows: Sequence[dict[str, Any]], at_s: float) -> dict[s
     return out
 
 
+def split_alarms(row: dict[str, Any], method: str) -> tuple[int, int]:
+    """``(false_warnings, wrong_wheel_alarms)`` of one method in one case row.
+
+    ECE R-64 asks for a warning when a tyre is under-inflated; the tell-tale need not name the
+    tyre. A *false warning* is an alarm raised while no tyre is deflated (before the event, or
+    on a drive without one); a *wrong-wheel alarm* comes after a real deflation but names a
+    tyre that was not deflated (the driver is warned rightly, the tyre is misnamed). Both are
+    counted in ``false_alarms`` (wheel level).
+    """
+    text = row.get(method + "_alarms") or ""
+    event = row.get("event_s")
+    deflated = set(str(row.get("deflated_wheels") or "").split(",")) - {""}
+    false_warnings = wrong_wheel = 0
+    for item in str(text).split(";"):
+        if not item:
+            continue
+        wheel, _, t = item.partition("@")
+        if event is None or float(t) < float(event):
+            false_warnings += 1
+        elif wheel not in deflated:
+            wrong_wheel += 1
+    return false_warnings, wrong_wheel
+
+
 def summarize_detection(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
-    """Aggregate of an ECE R-64 campaign per method and case kind."""
+    """Aggregate of an ECE R-64 campaign per method and case kind.
+
+    False alarms are counted per wheel (``false_alarms``) and split into vehicle-level false
+    warnings and wrong-wheel alarms (:func:`split_alarms`).
+    """
     ok = [r for r in rows if not r.get("error")]
     out: dict[str, Any] = {
         "study": "ece_r64",
@@ -921,6 +949,8 @@ def summarize_detection(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
                     1 for r in kr if not r.get(p + "calibrated_before_event")
                 ),
                 "false_alarms": sum(int(r.get(p + "false_alarms", 0)) for r in kr),
+                "false_warnings": sum(split_alarms(r, m)[0] for r in kr),
+                "wrong_wheel_alarms": sum(split_alarms(r, m)[1] for r in kr),
                 "missed": [r["case_id"] for r in kr if not r.get(p + "detected")],
             }
             if kind == "step":
@@ -943,6 +973,8 @@ def summarize_detection(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
             ).get("max_abs"),
         }
         res["false_alarms_total"] = sum(int(r.get(p + "false_alarms", 0)) for r in ok)
+        res["false_warnings_total"] = sum(split_alarms(r, m)[0] for r in ok if r.get(p + "ok"))
+        res["wrong_wheel_alarms_total"] = sum(split_alarms(r, m)[1] for r in ok if r.get(p + "ok"))
         out[m] = res
     return out
 
@@ -1448,7 +1480,8 @@ def _print_detection_summary(summary: dict[str, Any]) -> None:
             f"{m}: step {st['detected']}/{st['n']} detected ({st['detected_in_time']} within "
             f"10 min), diffusion {s['diffusion']['detected']}/{s['diffusion']['n']}, "
             f"robustness {rb['false_alarms']} false alarms in {rb['monitored_hours']:.2f} h, "
-            f"false alarms total {s['false_alarms_total']}"
+            f"false alarms total {s['false_alarms_total']} (false warnings "
+            f"{s['false_warnings_total']}, wrong wheel {s['wrong_wheel_alarms_total']})"
         )
 
 
