@@ -508,3 +508,32 @@ def test_every_config_field_is_a_documented_ros_parameter() -> None:
     assert cfg.threshold_m == 0.02
     with pytest.raises(ConfigError, match="warn_fraction"):
         build_config(DeflationDetectorConfig, "detector", {"detector.warn_fraction": 2.0})
+
+
+def test_common_mode_fraction_cancels_a_common_wander_and_keeps_one_wheel_steps() -> None:
+    # both estimates drift 1.5 mm down together (GNSS-driven wander) for 10 min after the
+    # calibration; then wheel_rl loses 1.5 mm on its own while wheel_rr follows by 0.6 mm
+    # (the cross-coupling that made the MPF name the wrong wheel in the ECE campaign)
+    k = 2 * 3600
+    t_s = np.arange(1, k + 1) / 2.0
+    calib_s, wander_end, step_s = 1200.0, 1800.0, 2400.0
+    common = -1.5e-3 * np.clip((t_s - calib_s) / 120.0, 0.0, 1.0) * (t_s < wander_end)
+    own = -1.5e-3 * np.clip((t_s - step_s) / 60.0, 0.0, 1.0)
+    mu = np.column_stack([common + own, common + 0.4 * own])
+    trace = {
+        "t_ns": T0 + np.round(t_s * S).astype(np.int64),
+        "mu": mu,
+        "std": np.full((k, 2), 3e-4),
+        "speed": np.full(k, V_OK),
+        "braking": np.zeros(k, dtype=bool),
+    }
+    paper = run(trace, DeflationDetectorConfig(calibration_time_s=calib_s))
+    # each wheel alone: both alarm during the common wander, long before the real step
+    assert sorted(w for w, _ in paper.alarms) == ["wheel_rl", "wheel_rr"]
+    assert all((t - T0) / S < wander_end for _, t in paper.alarms)
+    relative = run(
+        trace, DeflationDetectorConfig(calibration_time_s=calib_s, common_mode_fraction=1.0)
+    )
+    assert [w for w, _ in relative.alarms] == ["wheel_rl"]
+    delay_s = (relative.alarms[0][1] - T0) / S - step_s
+    assert 0.0 < delay_s < 600.0

@@ -109,6 +109,13 @@ class DeflationDetectorConfig:
         max_sample_gap_s: the driving time credited to one sample is capped at this, s, so a
             gap in the estimates does not count as driving. Default 1.
         warn_fraction: WARN when g exceeds this fraction of the threshold, 1. Default 0.5.
+        common_mode_fraction: lambda, the fraction of the mean radius decrease of the *other*
+            calibrated wheels subtracted from each wheel's decrease before the CUSUM, 1
+            (x_j <- x_j - lambda mean_{k != j} x_k; not in the paper). 0 = the paper (each wheel
+            on its own); 1 = relative to the other wheels: a common wander of all estimates
+            (GNSS errors move every radius together) cancels, and a deflation of one wheel no
+            longer drags the others into an alarm, but an equal loss on every wheel is not
+            seen. Default 0.
     """
 
     drift_m: float = field(default=0.4e-3, metadata={"unit": "m"})
@@ -127,6 +134,7 @@ class DeflationDetectorConfig:
     stale_timeout_s: float = field(default=5.0, metadata={"unit": "s"})
     max_sample_gap_s: float = field(default=1.0, metadata={"unit": "s"})
     warn_fraction: float = field(default=0.5, metadata={"unit": "1"})
+    common_mode_fraction: float = field(default=0.0, metadata={"unit": "1"})
 
     def __post_init__(self) -> None:
         require_range("drift_m", self.drift_m, 0.0, 0.05)
@@ -158,6 +166,7 @@ class DeflationDetectorConfig:
         require_positive("stale_timeout_s", self.stale_timeout_s)
         require_positive("max_sample_gap_s", self.max_sample_gap_s)
         require_range("warn_fraction", self.warn_fraction, 0.0, 1.0)
+        require_range("common_mode_fraction", self.common_mode_fraction, 0.0, 1.0)
 
 
 @dataclass(frozen=True)
@@ -313,6 +322,7 @@ class DeflationDetector:
             self.stats["no_speed"] += 1
         if valid:
             self._driving_time_s += dt
+        detect: list[tuple[_Wheel, float, float]] = []
         for name, m, s, a in zip(names, mu, std, act, strict=True):
             w = self._wheels.setdefault(name, _Wheel(threshold_m=self.config.threshold_m))
             w.last_seen_ns = t
@@ -322,7 +332,15 @@ class DeflationDetector:
             if w.calibrated_m is None:
                 self._calibrate(w, t, m, dt)
             else:
-                self._detect(w, t, m, s, dt)
+                # x_k = mu_cal - mu_k: radius decrease since calibration (positive = smaller)
+                detect.append((w, w.calibrated_m - m, s))
+        lam = self.config.common_mode_fraction
+        total = sum(x for _, x, _ in detect)
+        for w, x, s in detect:
+            if lam > 0.0 and len(detect) > 1:
+                # x_j - lambda mean_{k != j} x_k (common_mode_fraction)
+                x -= lam * (total - x) / (len(detect) - 1)
+            self._detect(w, t, x, s, dt)
         return self._status(t, accepted=True)
 
     def check_stale(self, now_ns: int) -> DeflationStatusData:
@@ -454,12 +472,9 @@ class DeflationDetector:
             w.lp_m = w.xbar_m = w.raw_m = w.g_m = 0.0
             w.threshold_m = cfg.threshold_m
 
-    def _detect(self, w: _Wheel, t_ns: int, mu_m: float, std_m: float, dt: float) -> None:
+    def _detect(self, w: _Wheel, t_ns: int, x: float, std_m: float, dt: float) -> None:
+        """CUSUM of Table II on ``x``, the radius decrease since calibration, m."""
         cfg = self.config
-        if w.calibrated_m is None:
-            return
-        # x_k = mu_cal - mu_k: radius decrease since calibration (positive = smaller tyre)
-        x = w.calibrated_m - mu_m
         w.raw_m = x
         # Table II line 3, LP: y_k = y_{k-1} + (1 - exp(-dt / tau)) (x_k - y_{k-1})
         if cfg.lowpass_time_constant_s > 0.0:
