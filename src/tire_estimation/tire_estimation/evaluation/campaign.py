@@ -1194,8 +1194,8 @@ def run_ece_r64_campaign(
 ) -> dict[str, Any]:
     """Issue-4 campaign: ``summary.json``, ``cases.csv``, ``cases.json`` and PNGs in ``out``.
 
-    ``save_traces`` keeps every case's estimator traces in ``out/traces`` (about 1 MB per
-    case-hour) for :func:`redetect_campaigns`.
+    ``save_traces`` keeps every case's estimator traces in ``out/traces`` (about 2 MB per
+    25-min case) for :func:`redetect_campaigns`.
     """
     out_dir = _prepare_out(out, overwrite)
     cases = ece_r64_cases(plan)
