@@ -495,6 +495,8 @@ def test_config_defaults_follow_the_paper_and_ece_r64() -> None:
     assert cfg.min_speed_m_s * 3.6 == pytest.approx(40.0)
     assert cfg.max_speed_m_s * 3.6 == pytest.approx(120.0)
     assert cfg.calibration_time_s == 1200.0
+    # not in the paper: half the other wheels' mean change is removed (campaign, section 7)
+    assert cfg.common_mode_fraction == 0.5
 
 
 def test_every_config_field_is_a_documented_ros_parameter() -> None:
@@ -527,7 +529,9 @@ def test_common_mode_fraction_cancels_a_common_wander_and_keeps_one_wheel_steps(
         "speed": np.full(k, V_OK),
         "braking": np.zeros(k, dtype=bool),
     }
-    paper = run(trace, DeflationDetectorConfig(calibration_time_s=calib_s))
+    paper = run(
+        trace, DeflationDetectorConfig(calibration_time_s=calib_s, common_mode_fraction=0.0)
+    )
     # each wheel alone: both alarm during the common wander, long before the real step
     assert sorted(w for w, _ in paper.alarms) == ["wheel_rl", "wheel_rr"]
     assert all((t - T0) / S < wander_end for _, t in paper.alarms)

@@ -115,7 +115,9 @@ class DeflationDetectorConfig:
             on its own); 1 = relative to the other wheels: a common wander of all estimates
             (GNSS errors move every radius together) cancels, and a deflation of one wheel no
             longer drags the others into an alarm, but an equal loss on every wheel is not
-            seen. Default 0.
+            seen. Default 0.5: in the ECE R-64 campaign (docs/results.md section 7) it removed
+            every wrong-wheel alarm and false warning of both estimators on the step cases
+            while an equal loss on all estimated wheels still reaches the CUSUM at half size.
     """
 
     drift_m: float = field(default=0.4e-3, metadata={"unit": "m"})
@@ -134,7 +136,7 @@ class DeflationDetectorConfig:
     stale_timeout_s: float = field(default=5.0, metadata={"unit": "s"})
     max_sample_gap_s: float = field(default=1.0, metadata={"unit": "s"})
     warn_fraction: float = field(default=0.5, metadata={"unit": "1"})
-    common_mode_fraction: float = field(default=0.0, metadata={"unit": "1"})
+    common_mode_fraction: float = field(default=0.5, metadata={"unit": "1"})
 
     def __post_init__(self) -> None:
         require_range("drift_m", self.drift_m, 0.0, 0.05)
