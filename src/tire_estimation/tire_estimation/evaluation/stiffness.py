@@ -92,7 +92,8 @@ def run(sim: SimResult, cfg: StiffnessEstimatorConfig, seed: int) -> dict[str, n
     rate) estimates, ``gyro_bias`` (yaw-rate bias estimate, rad/s), ``active`` (learning on),
     ``cx_active`` (Cx learning on), ``ready`` (filter initialized), the truth ``truth_c``
     (stiffness at the next truth sample), ``truth_vy`` (CG) and ``truth_r`` (both linearly
-    interpolated at the IMU stamps), ``t_s`` from the first IMU sample and ``step_ms``.
+    interpolated at the IMU stamps), ``t_s`` from the first IMU sample, ``step_ms`` and
+    ``mean_log_predictive`` (the estimator's value at the end, nats per IMU sample).
     """
     est = StiffnessEstimator(cfg, sim.vehicle, np.random.default_rng(seed))
     ws, st, imu = sim.wheel_speeds, sim.steering, sim.imu
@@ -151,6 +152,8 @@ def run(sim: SimResult, cfg: StiffnessEstimatorConfig, seed: int) -> dict[str, n
     )
     res["t_s"] = (res["t"] - res["t"][0]) * 1e-9
     res["step_ms"] = np.array(1e3 * dt_total / max(len(out["t"]), 1))
+    final = est.estimate().mean_log_predictive
+    res["mean_log_predictive"] = np.array(np.nan if final is None else final)
     return res
 
 
