@@ -1233,6 +1233,20 @@ def run_ece_r64_campaign(
     return summary
 
 
+def _write_pooled(
+    out: Path | str, rows: list[dict[str, Any]], config: dict[str, Any], overwrite: bool
+) -> dict[str, Any]:
+    """``summary.json``, ``cases.csv`` and the plots of pooled detection rows in ``out``."""
+    out_dir = _prepare_out(out, overwrite)
+    summary = summarize_detection(rows)
+    summary["config"] = config
+    summary["versions"] = _versions()
+    write_csv(out_dir / "cases.csv", rows)
+    summary["files"] = ["summary.json", "cases.csv", *_plot_detection(out_dir, rows)]
+    (out_dir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    return summary
+
+
 def merge_ece_r64_campaigns(
     out: Path | str, shards: Sequence[Path | str], overwrite: bool = False
 ) -> dict[str, Any]:
@@ -1263,14 +1277,8 @@ def merge_ece_r64_campaigns(
             rows.append({"shard": d.name, **r})
     if not rows:
         raise CampaignError("the shards have no cases")
-    out_dir = _prepare_out(out, overwrite)
-    summary = summarize_detection(rows)
-    summary["config"] = {"merged_from": [str(Path(x)) for x in shards], "shards": configs}
-    summary["versions"] = _versions()
-    write_csv(out_dir / "cases.csv", rows)
-    summary["files"] = ["summary.json", "cases.csv", *_plot_detection(out_dir, rows)]
-    (out_dir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
-    return summary
+    config = {"merged_from": [str(Path(x)) for x in shards], "shards": configs}
+    return _write_pooled(out, rows, config, overwrite)
 
 
 def redetect_campaigns(
@@ -1307,17 +1315,11 @@ def redetect_campaigns(
             rows.append({"shard": d.name, **redetect_case(spec, load_run(trace))})
     if not rows:
         raise CampaignError("the campaigns have no cases")
-    out_dir = _prepare_out(out, overwrite)
-    summary = summarize_detection(rows)
-    summary["config"] = {
+    config = {
         "redetected_from": [str(Path(x)) for x in campaigns],
         "detector": detector,
     }
-    summary["versions"] = _versions()
-    write_csv(out_dir / "cases.csv", rows)
-    summary["files"] = ["summary.json", "cases.csv", *_plot_detection(out_dir, rows)]
-    (out_dir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
-    return summary
+    return _write_pooled(out, rows, config, overwrite)
 
 
 # ---------------------------------------------------------------------------------------------
