@@ -213,9 +213,13 @@ class ConditionalPredictive:
 
 
 def conditional_predictive(
-    stats: niw.NiwStats, d: F64, e_bar: F64, lp: LikelihoodParams
+    stats: niw.NiwStats, d: F64, e_bar: F64, lp: LikelihoodParams, maha: F64 | None = None
 ) -> ConditionalPredictive:
-    """Conditional Student-t of ``w`` given the measurement (Theorem 1 via eq. 41)."""
+    """Conditional Student-t of ``w`` given the measurement (Theorem 1 via eq. 41).
+
+    ``maha`` (N,): ``z^T Lambda~_e^-1 z`` with ``z = e_bar - mu_e`` when the caller has it
+    already (the likelihood of eq. 36 needs the same); computed here otherwise.
+    """
     # eq. (40) z = e_bar - mu_e
     z = e_bar - lp.loc
     l11 = mat3.soa(lp.w_shape)
@@ -223,7 +227,8 @@ def conditional_predictive(
     l21 = mat3.mm(mat3.soa(d), l11)
     # gain Lambda_12 Lambda_22^-1 = Lambda_21^T Lambda_22^-1
     gain = np.einsum("kin,kln->iln", l21, mat3.soa(lp.shape_inv))
-    maha = _maha(z, lp.shape_inv)
+    if maha is None:
+        maha = _maha(z, lp.shape_inv)
     nu = np.asarray(lp.dof, dtype=float)
     # eq. (41) nu_{1|2} = nu + d_2
     dof = nu + NE
@@ -465,7 +470,9 @@ class StiffnessMpf:
         self.yaw_rate_nis_mean += a * (self.yaw_rate_nis - self.yaw_rate_nis_mean)
         self._dt_s = 0.0
         # Algorithm 1 line 3: eq. (36)
-        self.log_w += log_likelihood(e_bar, lp)
+        # (log_likelihood(e_bar, lp); the Mahalanobis term is kept for eq. 41 below)
+        maha = _maha(e_bar - lp.loc, lp.shape_inv)
+        self.log_w += niw.student_t_log_density(maha, lp.logdet, lp.dof, NE)
         # line 6-7: normalize, N_eff; the normalizer of the normalized previous weights times
         # the likelihoods is the predictive density p(y_k | y_1:k-1) (model evidence increment)
         self.weights, log_pred = resampling.normalize_log_weights(self.log_w)
@@ -483,11 +490,12 @@ class StiffnessMpf:
             e_bar = e_bar[idx]
             r_cov = r_cov[idx]
             lp = lp.take(idx)
+            maha = maha[idx]
             self.weights = np.full(self.n, 1.0 / self.n)
             self.resample_count += 1
         self.log_w = np.log(self.weights)
         # line 17: sample w_k from the conditional predictive (39)-(41)
-        cp = conditional_predictive(self.stats, lin.d, e_bar, lp)
+        cp = conditional_predictive(self.stats, lin.d, e_bar, lp, maha)
         w = sample_student_t(cp, self.rng)
         # Sec. V parameter projection to physical bounds
         w = np.clip(w, self.lower, self.upper)
