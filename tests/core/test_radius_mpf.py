@@ -278,7 +278,7 @@ def test_queued_predictions_equal_immediate_ones_when_paused():
         fa.predict(0.01, drive["ws"][k], learn=False, steer_angle_rad=steer)
         fb.predict(0.01, drive["ws"][k], learn=False, steer_angle_rad=steer)
         fb.estimate()  # forces the queue to be processed after every sample
-    np.testing.assert_allclose(fa.east, fb.east, rtol=0, atol=1e-6)  # float32 in-block cos/sin
-    np.testing.assert_allclose(fa.north, fb.north, rtol=0, atol=1e-6)  # float32 in-block cos/sin
+    np.testing.assert_allclose(fa.east, fb.east, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(fa.north, fb.north, rtol=0, atol=1e-9)
     np.testing.assert_allclose(fa.yaw, fb.yaw, rtol=0, atol=1e-12)
     assert np.all(fa.east > 0.5)

@@ -7,6 +7,7 @@ vectorized over NumPy arrays).
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -38,18 +39,30 @@ class LocalTangentPlane:
         require_range("origin_lon_deg", self.origin_lon_deg, -180.0, 360.0, ConfigError)
         require_range("origin_alt_m", self.origin_alt_m, -1.0e4, 1.0e5, ConfigError)
 
+    @functools.cached_property
+    def _origin_ecef_m(self) -> tuple[float, float, float]:
+        x, y, z = pymap3d.geodetic2ecef(
+            self.origin_lat_deg, self.origin_lon_deg, self.origin_alt_m, deg=True
+        )
+        return float(x), float(y), float(z)
+
     def to_enu(
         self, lat_deg: ArrayLike, lon_deg: ArrayLike, alt_m: ArrayLike
     ) -> tuple[F64, F64, F64]:
-        """WGS-84 (deg, deg, m) -> (east, north, up) in metres; broadcasts like NumPy."""
-        e, n, u = pymap3d.geodetic2enu(
+        """WGS-84 (deg, deg, m) -> (east, north, up) in metres; broadcasts like NumPy.
+
+        Same steps as ``pymap3d.geodetic2enu`` (ECEF difference to the origin, rotated into
+        ENU), with the origin's ECEF position computed once.
+        """
+        x, y, z = pymap3d.geodetic2ecef(
             np.asarray(lat_deg, dtype=np.float64),
             np.asarray(lon_deg, dtype=np.float64),
             np.asarray(alt_m, dtype=np.float64),
-            self.origin_lat_deg,
-            self.origin_lon_deg,
-            self.origin_alt_m,
             deg=True,
+        )
+        x0, y0, z0 = self._origin_ecef_m
+        e, n, u = pymap3d.uvw2enu(
+            x - x0, y - y0, z - z0, self.origin_lat_deg, self.origin_lon_deg, deg=True
         )
         return np.asarray(e, np.float64), np.asarray(n, np.float64), np.asarray(u, np.float64)
 

@@ -8,10 +8,10 @@ update, Student-t draw, pose propagation, NiW update); :meth:`RadiusMPF.update` 
 12 and 15-16 (GNSS likelihood weights, normalization, resampling).
 
 Performance: predictions are queued and processed in blocks (at the next GNSS fix, estimate or
-state access, or after ``block_size`` samples), vectorized over samples and particles: one
-draw of ``(mu, Sigma)`` per particle and block from the NiW statistics, Gaussian radius errors
-for every sample of the block, the exact unrolled NiW recursion (eq. 23-24) and the pose
-propagation (eq. 3) as cumulative sums. See :meth:`RadiusMPF._draw_block` for why this samples
+state access, or after ``block_size`` samples) by the compiled kernel of :mod:`.radius_kernels`:
+one draw of ``(mu, Sigma)`` per particle and block from the NiW statistics, Gaussian radius
+errors for every sample of the block, the NiW recursion (eq. 23-24) and the pose propagation
+(eq. 3), in one pass over the particles. See :meth:`RadiusMPF._draw_block` for why this samples
 the same law as Table I (exactly without forgetting, and for blocks of one sample).
 """
 
@@ -26,16 +26,13 @@ from typing import Any, TypeVar
 import numpy as np
 from numpy.typing import NDArray
 
-from tire_estimation.core import niw
+from tire_estimation.core import niw, radius_kernels
 from tire_estimation.core.radius_model import RL, RR, RadiusMotionModel
-from tire_estimation.core.resampling import RESAMPLERS, ess, normalize_log_weights
-from tire_estimation.core.sampling import standard_normal
+from tire_estimation.core.resampling import RESAMPLERS, ess
 
 _R = TypeVar("_R")
 
 F64 = NDArray[np.float64]
-
-LOG_2PI = math.log(2.0 * math.pi)
 
 
 @dataclass(frozen=True)
@@ -300,186 +297,50 @@ class RadiusMPF:
         this changes the weight of the history by a factor ``lambda^k`` (0.998 for 10 samples and
         the default lambda). A block of one sample is exactly eq. (27).
 
-        Sigma ~ iW(nu, Lambda) is drawn as the inverse of a Wishart(nu, Lambda^-1) matrix with
-        the Bartlett decomposition, ``W = M M^T``, ``M = chol(Lambda^-1) A``, ``A`` lower
-        triangular with ``A_11^2 ~ chi2(nu)``, ``A_22^2 ~ chi2(nu - 1)``, ``A_21 ~ N(0, 1)``;
-        then ``Sigma = M^-T M^-1`` and ``S = M^-T`` is a square root of Sigma.
+        Sigma ~ iW(nu, Lambda) is drawn with the Bartlett decomposition
+        (:func:`radius_kernels.draw_block`). :meth:`_propagate` draws the same way, fused with
+        the NiW update and the pose propagation; this method leaves the statistics unchanged.
         """
-        lam, n = self.lam, self.n
         st = self._stats
-        rng = self.rng
-        # eq. (24a), (24c), (24d): statistics predicted to the first step of the block
-        g = float(st.gamma) / lam
-        nu = lam * float(st.dof)
-        a = self._lam[0, 0]
-        b = self._lam[0, 1]
-        c = self._lam[1, 1]
-        det = a * c - b * b
-        det *= lam * lam
-        # chol(Lambda^-1) for Lambda = lam [[a, b], [b, c]] (closed form, 2x2):
-        # l11 = sqrt(c' / det'), l21 = -b' / sqrt(c' det'), l22 = 1 / sqrt(c')
-        sc = np.sqrt(lam * c)
-        sdet = np.sqrt(det)
-        a11 = np.sqrt(2.0 * rng.standard_gamma(0.5 * nu, n))
-        a22 = np.sqrt(2.0 * rng.standard_gamma(0.5 * (nu - 1.0), n))
-        z = standard_normal(rng, (2 * k + 3, n))
-        # M = chol(Lambda^-1) A; inverse diagonal of M and its off-diagonal term
-        inv_m11 = sdet / (sc * a11)
-        inv_m22 = sc / a22
-        m21 = (lam * b) * a11
-        m21 /= -sc * sdet
-        m21 += z[0] / sc
-        # mu ~ N(mean, gamma Sigma), w_j ~ N(mu, Sigma): w_j = mean + M^-T (sqrt(gamma) z0 + z_j)
-        u0 = z[3 : 3 + k]
-        u0 += math.sqrt(g) * z[1]
-        u1 = z[3 + k :]
-        u1 += math.sqrt(g) * z[2]
-        d4 = u1 * inv_m22
-        d3 = u0 - m21 * d4
-        d3 *= inv_m11
-        d3 += self._mu[0]
-        d4 += self._mu[1]
-        return d3, d4
+        return radius_kernels.draw_block(
+            self._mu, self._lam, self.lam, float(st.gamma), float(st.dof), k, self.rng
+        )
 
     def _niw_block_update(self, d3: F64, d4: F64) -> None:
-        """Eq. (24) + (23) applied to the samples ``(d3, d4)`` ``(k, N)`` in order, exactly.
-
-        gamma and nu are shared scalars, so the gains are scalars: with ``g_j = gamma_{j|j}``
-        and ``F_j = prod_{i<j} (1 - g_i)``, the running mean before step ``j`` is
-        ``mu_j = F_j mean + sum_{i<j} F_j g_i / F_{i+1} w_i`` (eq. 23b unrolled, a (k+1, k)
-        matrix ``B`` applied to the samples), and eq. (24d) + (23d) unroll to
-        ``Lambda_k = lambda^k Lambda + sum_j lambda^(k-1-j) c_j e_j e_j^T`` with
-        ``e_j = w_j - mu_j`` and ``c_j = 1 / (1 + gamma_{j|j-1})``.
-        """
-        lam = self.lam
-        k = d3.shape[0]
+        """Eq. (24) + (23) applied to the samples ``(d3, d4)`` ``(k, N)`` in order, exactly
+        (:func:`radius_kernels.niw_block_update`; :meth:`_propagate` fuses the same steps)."""
         st = self._stats
-        g = float(st.gamma)
-        nu = float(st.dof)
-        lm = self._lam
-        mu = self._mu
-        if k == 1:
-            # one sample: eq. (24) + (23) directly
-            gp = g / lam
-            c1 = 1.0 / (1.0 + gp)
-            e3 = d3[0] - mu[0]
-            e4 = d4[0] - mu[1]
-            # eq. (24d) + (23d) Lambda = lambda Lambda + e e^T / (1 + gamma_{k|k-1})
-            lm *= lam
-            ce3 = c1 * e3
-            lm[0, 0] += ce3 * e3
-            lm[1, 1] += c1 * e4 * e4
-            lm[0, 1] += ce3 * e4
-            lm[1, 0] = lm[0, 1]
-            # eq. (23a), (23b) mean += gamma_{k|k} e
-            g = gp * c1
-            mu[0] += g * e3
-            mu[1] += g * e4
-            st.gamma[...] = g
-            # eq. (24c) + (23c)
-            st.dof[...] = lam * nu + 1.0
-            return
-        gain = [0.0] * k
-        cj = [0.0] * k
-        for j in range(k):
-            # eq. (24a) gamma_{j|j-1} = gamma / lambda; eq. (23a) gamma_{j|j} = gp / (1 + gp)
-            gp = g / lam
-            cj[j] = 1.0 / (1.0 + gp)
-            g = gp * cj[j]
-            gain[j] = g
-            # eq. (24c) + (23c) nu = lambda nu + 1
-            nu = lam * nu + 1.0
-        gv = np.array(gain)
-        f = np.cumprod(np.concatenate(([1.0], 1.0 - gv)))
-        # B[j, i] = F_j g_i / F_{i+1} for i < j (rows 0..k: running means before each step and
-        # the final mean)
-        bmat = np.tril(np.outer(f, gv / f[1:]), -1)
-        q = np.array(cj) * lam ** np.arange(k - 1, -1, -1)
-        lam_k = lam**k
-        run3 = bmat @ d3
-        run3 += np.outer(f, mu[0])
-        run4 = bmat @ d4
-        run4 += np.outer(f, mu[1])
-        e3 = d3 - run3[:k]
-        e4 = d4 - run4[:k]
-        # eq. (24d) + (23d) unrolled
-        lm[0, 0] *= lam_k
-        lm[0, 0] += q @ (e3 * e3)
-        lm[1, 1] *= lam_k
-        lm[1, 1] += q @ (e4 * e4)
-        lm[0, 1] *= lam_k
-        lm[0, 1] += q @ (e3 * e4)
-        lm[1, 0] = lm[0, 1]
-        mu[0] = run3[k]
-        mu[1] = run4[k]
+        g, nu = radius_kernels.niw_block_update(
+            self._mu, self._lam, np.ascontiguousarray(d3), np.ascontiguousarray(d4), self.lam,
+            float(st.gamma), float(st.dof),
+        )  # fmt: skip
         st.gamma[...] = g
         st.dof[...] = nu
 
     def _propagate(self, seg: F64, learn: bool) -> None:
         """Propagate the pose over the samples ``seg`` ``(k, 5)`` = dt, w_rl, w_rr, learn,
-        steer (NaN = none) with the radius errors drawn for them (or the NiW means)."""
-        k = seg.shape[0]
-        dt, w3, w4, steer = seg[:, 0], seg[:, 1], seg[:, 2], seg[:, 4]
-        r = self.model.nominal_radius_m
-        lt = self.model.track_width_m
-        if learn:
-            # Table I lines 9-11, 13: sample the radius errors and update the NiW statistics
-            d3, d4 = self._draw_block(k)
-            self._niw_block_update(d3, d4)
-        else:
-            d3, d4 = self._mu[0][None, :], self._mu[1][None, :]
-        a3 = w3[:, None] * d3
-        a4 = w4[:, None] * d4
-        # eq. (6a)/(7a) v = r (w3 + w4) / 2 + (w3 d3 + w4 d4) / 2; here ds = v dt
-        ds = a3 + a4
-        ds += (r * (w3 + w4))[:, None]
-        ds *= (0.5 * dt)[:, None]
-        # eq. (6b)/(7c) yaw_rate = r (w4 - w3) / l_T + (w4 d4 - w3 d3) / l_T; here dt yaw_rate
-        dyaw = a4
-        dyaw -= a3
-        dyaw += (r * (w4 - w3))[:, None]
-        dyaw *= (dt / lt)[:, None]
-        steer_rows = np.flatnonzero(~np.isnan(steer))
-        if steer_rows.size:
-            # eq. (31a) low-speed heading from the steer angle: yaw_rate = v tan(delta) / l_b
-            dyaw[steer_rows] = (
-                ds[steer_rows] * (np.tan(steer[steer_rows]) / self.model.wheelbase_m)[:, None]
-            )
-        # eq. (3c): heading at the start of each step (zero-order hold), relative to the block
-        # start; the block start heading enters through the angle-sum identity below
-        rel = np.empty((k, self.n))
-        rel[0] = 0.0
-        for j in range(1, k):
-            np.add(rel[j - 1], dyaw[j - 1], out=rel[j])
-        # eq. (3a), (3b) summed over the block: cos/sin of the (small) in-block heading change
-        # in float32 (relative error ~1e-7 of a step of a few cm), block start in float64
-        c_rel = np.cos(rel, dtype=np.float32)
-        s_rel = np.sin(rel, dtype=np.float32)
-        fx = np.einsum("kn,kn->n", ds, c_rel)
-        fy = np.einsum("kn,kn->n", ds, s_rel)
-        c0 = np.cos(self._yaw)
-        s0 = np.sin(self._yaw)
-        self._east += fx * c0 - fy * s0
-        self._north += fx * s0 + fy * c0
-        self._yaw += rel[k - 1] + dyaw[k - 1]
-        np.multiply(ds[k - 1], 1.0 / dt[k - 1] if dt[k - 1] > 0 else 0.0, out=self._speed)
+        steer (NaN = none) with the radius errors drawn for them (Table I lines 9-11, 13, with
+        the NiW update) or, paused, the NiW means (:func:`radius_kernels.propagate_block`)."""
+        st = self._stats
+        m = self.model
+        seg = np.ascontiguousarray(seg.T)
+        g, nu = radius_kernels.propagate_block(
+            self._east, self._north, self._yaw, self._speed, self._mu, self._lam,
+            seg[0], seg[1], seg[2], seg[4], learn, self.lam, float(st.gamma), float(st.dof),
+            m.nominal_radius_m, m.track_width_m, m.wheelbase_m, self.rng,
+        )  # fmt: skip
+        st.gamma[...] = g
+        st.dof[...] = nu
 
     # ------------------------------------------------------------------ measurement update
-    def _apply_jitter(self) -> None:
-        """Additive pose random walk accumulated since the last fix (roughening)."""
+    def _jitter_std(self) -> tuple[float, float, float]:
+        """Std of the additive pose / NiW-mean random walk accumulated since the last fix
+        (roughening; the mean walk is beyond the paper), and restart the accumulation."""
         dt = self.jitter_dt_s
         self.jitter_dt_s = 0.0
-        if dt <= 0.0 or (self.pos_q == 0.0 and self.yaw_q == 0.0 and self.mean_q == 0.0):
-            return
-        z = self.rng.standard_normal((3 + self.D, self.n))
-        sp = math.sqrt(self.pos_q * dt)
-        self._east += sp * z[0]
-        self._north += sp * z[1]
-        self._yaw += math.sqrt(self.yaw_q * dt) * z[2]
-        if self.mean_q > 0.0:
-            # artificial dynamics of the NiW mean (beyond the paper): random walk of the
-            # per-particle radius-error mean, keeps the radius hypotheses diverse
-            self._mu += math.sqrt(self.mean_q * dt) * z[3:]
+        if dt <= 0.0:
+            return 0.0, 0.0, 0.0
+        return math.sqrt(self.pos_q * dt), math.sqrt(self.yaw_q * dt), math.sqrt(self.mean_q * dt)
 
     @_mutates
     def predict_fix(
@@ -489,33 +350,22 @@ class RadiusMPF:
 
         ``y_m`` (2,) measured east/north; ``r_m2`` (2, 2) its covariance; ``lever_arm_m`` (2,)
         antenna (x, y) in ``base_link``; ``extrapolate_s`` from the pose time to the fix time.
-        Applies the accumulated pose noise first.
+        Applies the accumulated pose noise first (:func:`radius_kernels.fix_predict`).
         """
         self._flush()
-        self._apply_jitter()
-        c = np.cos(self._yaw)
-        s = np.sin(self._yaw)
-        ax, ay = float(lever_arm_m[0]), float(lever_arm_m[1])
-        h = np.empty((2, self.n))
-        # eq. (13) h(x) = [x, y] of the antenna: base_link + R(psi) lever arm (+ extrapolation)
-        if extrapolate_s:
-            lx = ax + extrapolate_s * self._speed
-            h[0] = self._east + lx * c - ay * s
-            h[1] = self._north + lx * s + ay * c
-        else:
-            h[0] = self._east + ax * c - ay * s
-            h[1] = self._north + ax * s + ay * c
-        w = self.weights
-        mean = h @ w
-        dev = h - mean[:, None]
-        cov = (dev * w) @ dev.T
+        h, mean, cov = radius_kernels.fix_predict(
+            self._east, self._north, self._yaw, self._speed, self._mu, self.weights,
+            *self._jitter_std(), float(lever_arm_m[0]), float(lever_arm_m[1]),
+            float(extrapolate_s), self.rng,
+        )  # fmt: skip
         s_mat = cov + r_m2
-        innov = np.array([float(y_m[0]) - mean[0], float(y_m[1]) - mean[1]])
+        i0 = float(y_m[0]) - float(mean[0])
+        i1 = float(y_m[1]) - float(mean[1])
         # NIS with the closed-form 2x2 inverse
         s00, s01, s11 = float(s_mat[0, 0]), float(s_mat[0, 1]), float(s_mat[1, 1])
         det = s00 * s11 - s01 * s01
-        i0, i1 = float(innov[0]), float(innov[1])
         nis = (s11 * i0 * i0 - 2.0 * s01 * i0 * i1 + s00 * i1 * i1) / det if det > 0 else math.inf
+        innov = np.array([i0, i1])
         return FixPrediction(h=h, innovation_m=innov, innovation_cov_m2=s_mat, nis=nis)
 
     @_mutates
@@ -523,22 +373,15 @@ class RadiusMPF:
         """Weight update with the GNSS likelihood (eq. 18, Table I line 12), normalize (line 15)
         and resample when ``N_eff < threshold N`` (line 16). Returns the log marginal likelihood.
 
-        ``pred.h`` holds the predicted antenna positions ``(2, N)`` of :meth:`predict_fix`.
+        ``pred.h`` holds the predicted antenna positions ``(2, N)`` of :meth:`predict_fix`
+        (:func:`radius_kernels.fix_reweight`).
         """
         self._flush()
-        r00, r01, r11 = float(r_m2[0, 0]), float(r_m2[0, 1]), float(r_m2[1, 1])
-        det = r00 * r11 - r01 * r01
-        d0 = float(y_m[0]) - pred.h[0]
-        d1 = float(y_m[1]) - pred.h[1]
-        # Mahalanobis distance with the closed-form inverse of R (2x2)
-        maha = (r11 * d0 * d0 - 2.0 * r01 * d0 * d1 + r00 * d1 * d1) / det
-        # eq. (13c) Gaussian GNSS likelihood p(y_k | x_k^(i))
-        loglik = -0.5 * maha - 0.5 * (2 * LOG_2PI + math.log(det))
-        with np.errstate(divide="ignore"):
-            log_w = np.log(self.weights) + loglik
-        # eq. (18) w_k = w_{k-1} p(y_k | x_k), Table I line 15: normalize
-        self.weights, log_norm = normalize_log_weights(log_w)
-        if ess(self.weights) < self.resample_threshold * self.n:
+        log_norm, n_eff = radius_kernels.fix_reweight(
+            self.weights, pred.h, float(y_m[0]), float(y_m[1]),
+            float(r_m2[0, 0]), float(r_m2[0, 1]), float(r_m2[1, 1]),
+        )  # fmt: skip
+        if n_eff < self.resample_threshold * self.n:
             self.resample()
         return log_norm
 
@@ -590,43 +433,27 @@ class RadiusMPF:
     def estimate(self) -> MpfEstimate:
         """Weighted pose mean/covariance and the NiW MMSE (eq. 30, Table I lines 17-18)."""
         self._flush()
-        w = self.weights
-        yaw = self._yaw
-        yaw_mean = math.atan2(float(np.sin(yaw) @ w), float(np.cos(yaw) @ w))
-        x = np.empty((3, self.n))
-        x[0] = self._east
-        x[1] = self._north
-        # headings unwrapped around their circular mean
-        np.subtract(yaw, yaw_mean, out=x[2])
-        x[2] += math.pi
-        np.mod(x[2], 2.0 * math.pi, out=x[2])
-        x[2] += yaw_mean - math.pi
-        mean = x @ w
-        dev = x - mean[:, None]
-        cov = (dev * w) @ dev.T
-        mean[2] = math.atan2(math.sin(mean[2]), math.cos(mean[2]))
+        pose, pose_cov, mean, spread, lam_w = radius_kernels.moments(
+            self._east, self._north, self._yaw, self._mu, self._lam, self.weights
+        )
         return MpfEstimate(
-            pose=mean,
-            pose_cov=0.5 * (cov + cov.T),
-            radius=self._radius_mmse(),
-            n_eff=ess(w),
+            pose=pose,
+            pose_cov=pose_cov,
+            radius=self._radius_mmse(mean, spread, lam_w),
+            n_eff=ess(self.weights),
             resample_count=self.resample_count,
         )
 
-    def _radius_mmse(self) -> niw.NiwEstimate:
-        """:func:`niw.mmse` for the shared-gamma/nu, particle-last 2x2 layout (same values)."""
-        w = self.weights
+    def _radius_mmse(self, mean: F64, spread: F64, lam_w: F64) -> niw.NiwEstimate:
+        """:func:`niw.mmse` for the shared-gamma/nu, particle-last 2x2 layout (same values).
+
+        ``mean`` (2,) = eq. (30a) ``sum_i w_i mu_i``; ``spread`` (2, 2) the weighted covariance
+        of the ``mu_i``; ``lam_w`` (2, 2) = ``sum_i w_i Lambda_i``.
+        """
         st = self._stats
         d = self.D
         nu = float(st.dof)
         gam = float(st.gamma)
-        mu = self._mu
-        # eq. (30a) mu_hat = sum_i w_i mu_i
-        mean = mu @ w
-        dev = mu - mean[:, None]
-        spread = (dev * w) @ dev.T
-        lam_w = self._lam.reshape(d * d, self.n) @ w
-        lam_w = lam_w.reshape(d, d)
         # E[Sigma | stats_i] = Lambda_i / (nu - d - 1)  (Ozkan et al. eq. 32)
         noise_cov = lam_w / (nu - d - 1.0)
         mean_cov = gam * noise_cov + spread
@@ -634,8 +461,8 @@ class RadiusMPF:
         cov30 = lam_w * ((nu - d + 1.0) / (nu - d - 1.0)) + spread
         return niw.NiwEstimate(
             mean=mean,
-            mean_cov=0.5 * (mean_cov + mean_cov.T),
-            noise_cov=0.5 * (noise_cov + noise_cov.T),
-            noise_cov_eq30b=0.5 * (cov30 + cov30.T),
+            mean_cov=mean_cov,
+            noise_cov=noise_cov,
+            noise_cov_eq30b=cov30,
             dof=nu,
         )

@@ -1,0 +1,414 @@
+"""Compiled per-particle kernels of the radius MPF's prediction (Numba, ``cache=True``).
+
+The queued wheel-speed samples of :class:`~tire_estimation.core.radius_mpf.RadiusMPF` are
+processed here as one block: per particle, one draw of ``(mu, Sigma)`` from its NiW statistics
+(Bartlett decomposition), the radius errors of every sample of the block, the NiW recursion
+(eq. 23-24 of Lundquist et al., T-ITS 2014) and the pose propagation (eq. 3, 6, 7, 31a), in one
+pass over the particles. Why one draw of ``(mu, Sigma)`` per block samples the law of Table I is
+explained in :meth:`RadiusMPF._draw_block`.
+
+Shapes: ``N`` particles, ``k`` samples in the block. The NiW statistics are particle-last:
+``mu`` (2, N), ``scale`` (2, 2, N); ``gamma`` and ``nu`` are shared scalars. Random numbers come
+from the caller's ``np.random.Generator`` (Numba draws from the same bit generator, so a seeded
+generator gives reproducible results and advances as NumPy's would).
+
+These loops are compiled, not Python loops: the guide's rule "vectorize over particles" is about
+the cost per particle, which here is a few tens of nanoseconds per sample.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+F64 = NDArray[np.float64]
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _bartlett(
+    a: float, b: float, c: float, lam: float, nu: float, rng: np.random.Generator
+) -> tuple[float, float, float]:
+    """Square root ``S = M^-T`` of one ``Sigma ~ iW(nu, lam [[a, b], [b, c]])``.
+
+    Bartlett: ``W = M M^T ~ Wishart(nu, Lambda^-1)``, ``M = chol(Lambda^-1) A``, ``A`` lower
+    triangular with ``A_11^2 ~ chi2(nu)``, ``A_22^2 ~ chi2(nu - 1)``, ``A_21 ~ N(0, 1)``;
+    ``Sigma = W^-1 = M^-T M^-1``. Returns ``(1 / M_11, 1 / M_22, M_21)``, from which
+    ``S z = [(z_0 - M_21 z_1 / M_22) / M_11, z_1 / M_22]``.
+    """
+    det = (a * c - b * b) * lam * lam
+    # chol(Lambda^-1) for Lambda = lam [[a, b], [b, c]]:
+    # l11 = sqrt(c' / det'), l21 = -b' / sqrt(c' det'), l22 = 1 / sqrt(c')
+    sc = math.sqrt(lam * c)
+    sdet = math.sqrt(det)
+    a11 = math.sqrt(2.0 * rng.standard_gamma(0.5 * nu))
+    a22 = math.sqrt(2.0 * rng.standard_gamma(0.5 * (nu - 1.0)))
+    inv_m11 = sdet / (sc * a11)
+    inv_m22 = sc / a22
+    m21 = -(lam * b) * a11 / (sc * sdet) + rng.standard_normal() / sc
+    return inv_m11, inv_m22, m21
+
+
+@numba.njit(cache=True, error_model="numpy")
+def block_gains(k: int, lam: float, gamma: float, nu: float) -> tuple[F64, F64, float, float]:
+    """Shared scalar gains of ``k`` NiW steps: ``c_j = 1 / (1 + gamma_{j|j-1})`` (k,),
+    ``g_j = gamma_{j|j}`` (k,), and the final ``gamma`` and ``nu``."""
+    c = np.empty(k)
+    g = np.empty(k)
+    for j in range(k):
+        # eq. (24a) gamma_{j|j-1} = gamma / lambda; eq. (23a) gamma_{j|j} = gp / (1 + gp)
+        gp = gamma / lam
+        c[j] = 1.0 / (1.0 + gp)
+        gamma = gp * c[j]
+        g[j] = gamma
+        # eq. (24c) + (23c) nu = lambda nu + 1
+        nu = lam * nu + 1.0
+    return c, g, gamma, nu
+
+
+@numba.njit(cache=True, error_model="numpy")
+def draw_block(
+    mu: F64, scale: F64, lam: float, gamma: float, nu: float, k: int, rng: np.random.Generator
+) -> tuple[F64, F64]:
+    """Radius errors ``(d_rl, d_rr)``, each ``(k, N)``, of the next ``k`` learning steps.
+
+    The draws of :func:`propagate_block` in the same order (for tests and diagnostics).
+    """
+    n = mu.shape[1]
+    d3 = np.empty((k, n))
+    d4 = np.empty((k, n))
+    # eq. (24a), (24c): statistics predicted to the first step of the block
+    sg = math.sqrt(gamma / lam)
+    nu_p = lam * nu
+    for i in range(n):
+        inv_m11, inv_m22, m21 = _bartlett(scale[0, 0, i], scale[0, 1, i], scale[1, 1, i], lam,
+                                          nu_p, rng)  # fmt: skip
+        # mu ~ N(mean, gamma Sigma), w_j ~ N(mu, Sigma): w_j = mean + S (sqrt(gamma) z + z_j)
+        z1 = sg * rng.standard_normal()
+        z2 = sg * rng.standard_normal()
+        for j in range(k):
+            u0 = z1 + rng.standard_normal()
+            u1 = z2 + rng.standard_normal()
+            e4 = u1 * inv_m22
+            d3[j, i] = mu[0, i] + (u0 - m21 * e4) * inv_m11
+            d4[j, i] = mu[1, i] + e4
+    return d3, d4
+
+
+@numba.njit(cache=True, error_model="numpy")
+def niw_block_update(
+    mu: F64, scale: F64, d3: F64, d4: F64, lam: float, gamma: float, nu: float
+) -> tuple[float, float]:
+    """Eq. (24) + (23) applied to the samples ``(d3, d4)`` ``(k, N)`` in order, in place.
+
+    Returns the new shared ``(gamma, nu)``.
+    """
+    k, n = d3.shape
+    c, g, gamma_k, nu_k = block_gains(k, lam, gamma, nu)
+    m0 = mu[0]
+    m1 = mu[1]
+    s00 = scale[0, 0]
+    s01 = scale[0, 1]
+    s11 = scale[1, 1]
+    for j in range(k):
+        cj = c[j]
+        gj = g[j]
+        for i in range(n):
+            e3 = d3[j, i] - m0[i]
+            e4 = d4[j, i] - m1[i]
+            # eq. (24d) + (23d) Lambda = lambda Lambda + e e^T / (1 + gamma_{j|j-1})
+            ce3 = cj * e3
+            s00[i] = lam * s00[i] + ce3 * e3
+            s01[i] = lam * s01[i] + ce3 * e4
+            s11[i] = lam * s11[i] + cj * e4 * e4
+            # eq. (23b) mean += gamma_{j|j} e
+            m0[i] += gj * e3
+            m1[i] += gj * e4
+    scale[1, 0, :] = s01
+    return gamma_k, nu_k
+
+
+@numba.njit(cache=True, error_model="numpy")
+def propagate_pose(
+    east: F64,
+    north: F64,
+    yaw: F64,
+    speed: F64,
+    d3: F64,
+    d4: F64,
+    dt_s: F64,
+    w_rl_rad_s: F64,
+    w_rr_rad_s: F64,
+    steer_rad: F64,
+    radius_m: float,
+    track_m: float,
+    wheelbase_m: float,
+) -> None:
+    """Pose propagation (eq. 3) over ``k`` samples with the radius errors ``d3``, ``d4``
+    ((k, N), or (1, N) for the same errors in every sample), in place.
+
+    ``dt_s``, ``w_rl_rad_s``, ``w_rr_rad_s``, ``steer_rad`` (k,): interval length, rear wheel
+    speeds at its start, steer angle (NaN = use the wheel-speed yaw rate). ``speed`` gets the
+    speed of the last sample.
+    """
+    n = east.shape[0]
+    k = dt_s.shape[0]
+    per_sample = d3.shape[0] > 1
+    cp = np.cos(yaw)
+    sp = np.sin(yaw)
+    ds = np.zeros(n)
+    dpsi = np.empty(n)
+    for j in range(k):
+        jj = j if per_sample else 0
+        w3 = w_rl_rad_s[j]
+        w4 = w_rr_rad_s[j]
+        h = 0.5 * dt_s[j]
+        # eq. (6a)/(7a) v = r (w3 + w4) / 2 + (w3 d3 + w4 d4) / 2; ds = v dt = a + b3 d3 + b4 d4
+        a = h * radius_m * (w3 + w4)
+        b3 = h * w3
+        b4 = h * w4
+        st = steer_rad[j]
+        if math.isnan(st):
+            # eq. (6b)/(7c) yaw rate = r (w4 - w3) / l_T + (w4 d4 - w3 d3) / l_T
+            q = dt_s[j] / track_m
+            ya = q * radius_m * (w4 - w3)
+            y3 = -q * w3
+            y4 = q * w4
+            t = 0.0
+        else:
+            # eq. (31a) low-speed heading from the steer angle: yaw rate = v tan(delta) / l_b
+            ya = y3 = y4 = 0.0
+            t = math.tan(st) / wheelbase_m
+        big = 0.0
+        for i in range(n):
+            x3 = d3[jj, i]
+            x4 = d4[jj, i]
+            dsi = a + b3 * x3 + b4 * x4
+            dp = ya + y3 * x3 + y4 * x4 + t * dsi
+            ds[i] = dsi
+            dpsi[i] = dp
+            # eq. (3a)-(3c), zero-order hold over the interval
+            east[i] += dsi * cp[i]
+            north[i] += dsi * sp[i]
+            yaw[i] += dp
+            # (cos, sin) of the new heading by rotating with the Taylor series of cos dp and
+            # sin dp to dp^4 and dp^5: exact to 3e-11 for |dp| < 0.05 (checked below)
+            d2 = dp * dp
+            cd = 1.0 - d2 * (0.5 - d2 * (1.0 / 24.0))
+            sd = dp * (1.0 - d2 * ((1.0 / 6.0) - d2 * (1.0 / 120.0)))
+            c0 = cp[i]
+            cp[i] = c0 * cd - sp[i] * sd
+            sp[i] = sp[i] * cd + c0 * sd
+        for i in range(n):
+            big = max(big, abs(dpsi[i]))
+        if big >= 0.05:
+            # a large heading step (low speed with steering, or a long interval): exact values
+            for i in range(n):
+                cp[i] = math.cos(yaw[i])
+                sp[i] = math.sin(yaw[i])
+    dt_last = dt_s[k - 1]
+    inv = 1.0 / dt_last if dt_last > 0.0 else 0.0
+    for i in range(n):
+        speed[i] = ds[i] * inv
+
+
+@numba.njit(cache=True, error_model="numpy")
+def propagate_block(
+    east: F64,
+    north: F64,
+    yaw: F64,
+    speed: F64,
+    mu: F64,
+    scale: F64,
+    dt_s: F64,
+    w_rl_rad_s: F64,
+    w_rr_rad_s: F64,
+    steer_rad: F64,
+    learn: bool,
+    lam: float,
+    gamma: float,
+    nu: float,
+    radius_m: float,
+    track_m: float,
+    wheelbase_m: float,
+    rng: np.random.Generator,
+) -> tuple[float, float]:
+    """Propagate every particle over the ``k`` samples of a block, in place.
+
+    ``learn=True``: Table I lines 9-11 and 13: radius errors drawn with :func:`draw_block`, NiW
+    update with :func:`niw_block_update`, pose with :func:`propagate_pose`; ``learn=False``: the
+    pose with each particle's mean radius error, statistics untouched. Returns the new shared
+    ``(gamma, nu)``. Array arguments as in :func:`propagate_pose`.
+    """
+    k = dt_s.shape[0]
+    if learn:
+        d3, d4 = draw_block(mu, scale, lam, gamma, nu, k, rng)
+        gamma, nu = niw_block_update(mu, scale, d3, d4, lam, gamma, nu)
+    else:
+        d3 = mu[0:1].copy()
+        d4 = mu[1:2].copy()
+    propagate_pose(east, north, yaw, speed, d3, d4, dt_s, w_rl_rad_s, w_rr_rad_s, steer_rad,
+                   radius_m, track_m, wheelbase_m)  # fmt: skip
+    return gamma, nu
+
+
+@numba.njit(cache=True, error_model="numpy")
+def fix_predict(
+    east: F64,
+    north: F64,
+    yaw: F64,
+    speed: F64,
+    mu: F64,
+    weights: F64,
+    pos_std_m: float,
+    yaw_std_rad: float,
+    mean_std_m: float,
+    lever_x_m: float,
+    lever_y_m: float,
+    extrapolate_s: float,
+    rng: np.random.Generator,
+) -> tuple[F64, F64, F64]:
+    """Pose noise since the last fix, then the predicted antenna positions and their moments.
+
+    ``*_std_*``: std of the additive random walk accumulated since the last fix (east/north,
+    yaw, NiW means; all zero: none is drawn), applied in place. Returns ``h`` (2, N) (eq. 13
+    with the lever arm and the extrapolation to the fix time), the weighted mean (2,) and the
+    weighted covariance (2, 2) of ``h``.
+    """
+    n = east.shape[0]
+    h = np.empty((2, n))
+    jitter = pos_std_m > 0.0 or yaw_std_rad > 0.0 or mean_std_m > 0.0
+    m0 = 0.0
+    m1 = 0.0
+    for i in range(n):
+        if jitter:
+            # additive pose random walk (roughening); the NiW mean walk is beyond the paper
+            east[i] += pos_std_m * rng.standard_normal()
+            north[i] += pos_std_m * rng.standard_normal()
+            yaw[i] += yaw_std_rad * rng.standard_normal()
+            if mean_std_m > 0.0:
+                mu[0, i] += mean_std_m * rng.standard_normal()
+                mu[1, i] += mean_std_m * rng.standard_normal()
+        c = math.cos(yaw[i])
+        s = math.sin(yaw[i])
+        lx = lever_x_m + extrapolate_s * speed[i]
+        # eq. (13) h(x) = [x, y] of the antenna: base_link + R(psi) lever arm
+        h[0, i] = east[i] + lx * c - lever_y_m * s
+        h[1, i] = north[i] + lx * s + lever_y_m * c
+        m0 += weights[i] * h[0, i]
+        m1 += weights[i] * h[1, i]
+    c00 = 0.0
+    c01 = 0.0
+    c11 = 0.0
+    for i in range(n):
+        d0 = h[0, i] - m0
+        d1 = h[1, i] - m1
+        c00 += weights[i] * d0 * d0
+        c01 += weights[i] * d0 * d1
+        c11 += weights[i] * d1 * d1
+    mean = np.array([m0, m1])
+    cov = np.array([[c00, c01], [c01, c11]])
+    return h, mean, cov
+
+
+@numba.njit(cache=True, error_model="numpy")
+def fix_reweight(
+    weights: F64, h: F64, y0_m: float, y1_m: float, r00: float, r01: float, r11: float
+) -> tuple[float, float]:
+    """Eq. (18) ``w_k = w_{k-1} p(y_k | x_k)`` with the Gaussian GNSS likelihood (eq. 13c),
+    then normalization (Table I line 15), in place.
+
+    ``r..``: the fix covariance ``R`` (2, 2). Returns ``log sum_i w_{k-1,i} p(y_k | x_i)`` and
+    the effective sample size ``1 / sum w_i^2``. Non-finite log weights get weight zero; if none
+    is finite the weights become uniform and the log-likelihood is ``-inf``.
+    """
+    n = weights.shape[0]
+    det = r00 * r11 - r01 * r01
+    const = -0.5 * (2.0 * math.log(2.0 * math.pi) + math.log(det))
+    logw = np.empty(n)
+    top = -np.inf
+    for i in range(n):
+        d0 = y0_m - h[0, i]
+        d1 = y1_m - h[1, i]
+        # Mahalanobis distance with the closed-form inverse of R (2x2)
+        maha = (r11 * d0 * d0 - 2.0 * r01 * d0 * d1 + r00 * d1 * d1) / det
+        lw = math.log(weights[i]) - 0.5 * maha + const
+        logw[i] = lw
+        if math.isfinite(lw) and lw > top:
+            top = lw
+    if not math.isfinite(top):
+        for i in range(n):
+            weights[i] = 1.0 / n
+        return -np.inf, float(n)
+    total = 0.0
+    for i in range(n):
+        lw = logw[i]
+        w = math.exp(lw - top) if math.isfinite(lw) else 0.0
+        weights[i] = w
+        total += w
+    sq = 0.0
+    for i in range(n):
+        weights[i] /= total
+        sq += weights[i] * weights[i]
+    return top + math.log(total), 1.0 / sq
+
+
+@numba.njit(cache=True, error_model="numpy")
+def moments(
+    east: F64, north: F64, yaw: F64, mu: F64, scale: F64, weights: F64
+) -> tuple[F64, F64, F64, F64, F64]:
+    """Weighted summaries for the MMSE estimates (eq. 30).
+
+    Returns the pose mean ``[east, north, yaw]`` (3,) with the circular mean of the yaw
+    (wrapped to (-pi, pi]) and its covariance (3, 3) (headings unwrapped around the circular
+    mean), the weighted mean of the NiW means (2,), their weighted spread (2, 2), and the weighted
+    mean of the NiW scales (2, 2).
+    """
+    n = east.shape[0]
+    sc = 0.0
+    ss = 0.0
+    for i in range(n):
+        sc += weights[i] * math.cos(yaw[i])
+        ss += weights[i] * math.sin(yaw[i])
+    yaw_c = math.atan2(ss, sc)
+    two_pi = 2.0 * math.pi
+    x = np.zeros(3)
+    m = np.zeros(2)
+    lw = np.zeros((2, 2))
+    for i in range(n):
+        w = weights[i]
+        # heading unwrapped into [yaw_c - pi, yaw_c + pi)
+        u = (yaw[i] - yaw_c + math.pi) % two_pi + yaw_c - math.pi
+        x[0] += w * east[i]
+        x[1] += w * north[i]
+        x[2] += w * u
+        m[0] += w * mu[0, i]
+        m[1] += w * mu[1, i]
+        lw[0, 0] += w * scale[0, 0, i]
+        lw[0, 1] += w * scale[0, 1, i]
+        lw[1, 1] += w * scale[1, 1, i]
+    lw[1, 0] = lw[0, 1]
+    cov = np.zeros((3, 3))
+    spread = np.zeros((2, 2))
+    d = np.empty(3)
+    for i in range(n):
+        w = weights[i]
+        d[0] = east[i] - x[0]
+        d[1] = north[i] - x[1]
+        d[2] = (yaw[i] - yaw_c + math.pi) % two_pi + yaw_c - math.pi - x[2]
+        for a in range(3):
+            for b in range(a, 3):
+                cov[a, b] += w * d[a] * d[b]
+        e0 = mu[0, i] - m[0]
+        e1 = mu[1, i] - m[1]
+        spread[0, 0] += w * e0 * e0
+        spread[0, 1] += w * e0 * e1
+        spread[1, 1] += w * e1 * e1
+    for a in range(3):
+        for b in range(a):
+            cov[a, b] = cov[b, a]
+    spread[1, 0] = spread[0, 1]
+    x[2] = math.atan2(math.sin(x[2]), math.cos(x[2]))
+    return x, cov, m, spread, lw
