@@ -80,6 +80,9 @@ def test_state_dict_roundtrip_and_reset() -> None:
     np.testing.assert_allclose(other.state_dict()["mean"], d["mean"], rtol=1e-9, atol=1e-6)
     with pytest.raises(InputError):
         other.load_state_dict({**d, "vehicle": "other"})
+    # learned relative to other nominal stiffnesses (eq. 7): not restored
+    with pytest.raises(InputError, match="nominal"):
+        other.load_state_dict({**d, "nominal": [2.0 * v for v in d["nominal"]]})
     est.reset()
     assert est.estimate().reason == "not initialized"
 

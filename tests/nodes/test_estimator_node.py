@@ -153,14 +153,29 @@ def test_radii_persist_across_restarts_and_reset_forgets(ros: Any, tmp_path: Pat
     cb = _callbacks(node)
     _drive(cb, 1_000_000_000_000, 20.0)
     learned = node.estimator.state_dict()
+    # a distinctive learned stiffness (the straight test drive does not excite it)
+    stiff = node.stiffness.state_dict()
+    stiff["mean"] = [1.0e3, -4.0e3, 2.5e3]
+    node.stiffness.load_state_dict(stiff)
     node.save_on_shutdown()
     node.destroy_node()
     assert (tmp_path / "radii.json").is_file()
 
     again = _node(ros, tmp_path)
-    assert "restored" in again._persist_note
+    assert "radius restored" in again._persist_note
+    assert "stiffness restored" in again._persist_note
     restored = again.estimator.state_dict()
     assert restored.keys() == learned.keys()
+    np.testing.assert_allclose(restored["rear"]["mean_m"], learned["rear"]["mean_m"], atol=1e-5)
+    np.testing.assert_allclose(again.stiffness.state_dict()["mean"], stiff["mean"], rtol=0.05)
+    # without the stiffness MPF the radii still load and the saved stiffness is kept
+    no_stiff = _node(ros, tmp_path, stiffness_enabled=False)
+    assert "radius restored" in no_stiff._persist_note
+    no_stiff.save_on_shutdown()
+    no_stiff.destroy_node()
+    kept = _node(ros, tmp_path)
+    np.testing.assert_allclose(kept.stiffness.state_dict()["mean"], stiff["mean"], rtol=0.05)
+    kept.destroy_node()
     other = _node(ros, tmp_path, tire_set_id="winter")
     assert "tire set" in other._persist_note
     other.destroy_node()

@@ -16,6 +16,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from tire_estimation.errors import TireEstimationError
+
 FORMAT_VERSION = 1
 
 
@@ -85,3 +87,53 @@ def load_state(path: str | Path, identity: Identity) -> tuple[dict[str, Any] | N
 def delete_state(path: str | Path) -> None:
     """Remove the saved estimates (reset)."""
     Path(path).expanduser().unlink(missing_ok=True)
+
+
+class LearnedState:
+    """Several estimators' ``state_dict`` in one persistence file, one key each.
+
+    ``parts`` maps a key (``"radius"``, ``"stiffness"``) to an object with ``state_dict()`` and
+    ``load_state_dict(d)``, or to None when that estimator is not running (its saved part is
+    then kept untouched in :attr:`pending` and written back, so a restart without it does not
+    lose it). :meth:`load_state_dict` restores each part on its own: a rejected part leaves the
+    others restored, and :attr:`notes` says what happened to each.
+
+    A file written before the parts existed holds the radius estimator's state at the top level
+    (key ``rear``); it is read as the ``legacy_key`` part.
+    """
+
+    def __init__(self, parts: dict[str, Any], legacy_key: str = "radius") -> None:
+        self.parts = parts
+        self.legacy_key = legacy_key
+        self.pending: dict[str, Any] = {}
+        self.notes: dict[str, str] = {}
+
+    def state_dict(self) -> dict[str, Any]:
+        out = dict(self.pending)
+        for key, part in self.parts.items():
+            if part is not None:
+                out[key] = part.state_dict()
+        return out
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        if self.legacy_key in self.parts and "rear" in state:
+            state = {self.legacy_key: state}
+        self.notes = {}
+        for key, saved in state.items():
+            part = self.parts.get(key)
+            if part is None:
+                self.pending[key] = saved
+                self.notes[key] = "kept (estimator not running)"
+                continue
+            try:
+                part.load_state_dict(saved)
+            except (TireEstimationError, KeyError, TypeError, ValueError, AttributeError) as exc:
+                self.notes[key] = f"rejected: {exc}"
+            else:
+                self.notes[key] = "restored"
+        for key in self.parts:
+            self.notes.setdefault(key, "not in the file")
+
+    def summary(self) -> str:
+        """``radius restored, stiffness rejected: ...`` (for /diagnostics)."""
+        return ", ".join(f"{k} {v}" for k, v in self.notes.items())

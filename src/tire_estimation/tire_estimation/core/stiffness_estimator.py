@@ -362,6 +362,15 @@ class StiffnessEstimator:
         try:
             if d.get("vehicle") != self.vehicle.name:
                 raise InputError("state", f"state of vehicle {d.get('vehicle')!r}")
+            # the learned part is relative to the nominal stiffness (eq. 7): a state learned
+            # with other nominal values would be restored as the wrong stiffness
+            nominal = np.asarray(d["nominal"], dtype=float).reshape(3)
+            if not np.allclose(nominal, self.mpf.nominal, rtol=1e-6, atol=0.0):
+                raise InputError(
+                    "state",
+                    f"state learned with nominal stiffness {nominal.tolist()}, now "
+                    f"{self.mpf.nominal.tolist()}",
+                )
             dof = float(d["dof"])
             if not math.isfinite(dof) or dof <= 4.0:
                 raise InputError("state", f"invalid dof {dof}")

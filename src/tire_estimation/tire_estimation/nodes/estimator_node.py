@@ -52,7 +52,7 @@ from tire_estimation.params import (
     estimator_sections,
     parameter_specs,
 )
-from tire_estimation.persistence import Identity, delete_state
+from tire_estimation.persistence import Identity, LearnedState, delete_state
 from tire_estimation_msgs.msg import LateralState, TireForces, TireRadii, TireStiffness
 
 SECTIONS = estimator_sections()
@@ -210,14 +210,16 @@ class EstimatorNode(Node):
         return Path(text).expanduser() if text else None
 
     def _restore(self) -> None:
-        note = restore_state(self._persist_path, self._identity, self.estimator, "estimates")
+        # one file for the learned radii and (when the stiffness MPF runs) the learned
+        # stiffness; each part is restored or rejected on its own
+        self._learned = LearnedState({"radius": self.estimator, "stiffness": self.stiffness})
+        note = restore_state(self._persist_path, self._identity, self._learned, "estimates")
         if self._persist_path is not None:
-            self._persist_note = note
+            summary = self._learned.summary()
+            self._persist_note = f"{note} ({summary})" if summary else note
 
     def _save(self) -> None:
-        if not save_state_of(
-            self, self._persist_path, self._identity, self.estimator, "estimates"
-        ):
+        if not save_state_of(self, self._persist_path, self._identity, self._learned, "estimates"):
             self.dropped["persistence_write"] += 1
 
     def _on_reset(self, _: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
@@ -232,7 +234,7 @@ class EstimatorNode(Node):
         return response
 
     def save_on_shutdown(self) -> None:
-        """Write the learned radii (called when the node stops)."""
+        """Write the learned radii and stiffness (called when the node stops)."""
         self._save()
 
     # --- inputs -----------------------------------------------------------------------------
