@@ -24,7 +24,8 @@ class EstimatorNodeOptions:
         vehicle_file: path of a vehicle.yaml; empty = use the ``vehicle.*`` parameters.
         tire_set_id: identity of the mounted tire set; saved radii are restored only for the
             same vehicle name and tire set. Default ``default``.
-        persistence_file: file the learned radii are saved to and restored from; empty = off.
+        persistence_file: file the learned radii (and the learned stiffness, when the stiffness
+            MPF runs) are saved to and restored from; empty = off.
             Default ``~/.ros/tire_estimation/learned_radii.json``.
         persistence_period_s: save period, s; <= 0 saves only on shutdown. Default 60.
         odometry_publish_period_s: minimum period between Odometry messages (header time), s;

@@ -101,6 +101,23 @@ class RadiusEstimatorConfig:
             is scaled by ``1 + k omega^2 r_nominal`` before use, so the estimated radius errors
             are those of ``r0`` (at standstill). In [-1e-4, 1e-4]; default 0 (off); about 2e-6 is
             typical of passenger-car tyres.
+        radius_load_coefficient_m_per_n: load dependence ``c`` of the rolling radius,
+            ``r = r0 + c (Fz - Fz_static)``, m per N (negative: a loaded tyre rolls on a smaller
+            radius). The load change of each wheel is the quasi-static load transfer of the
+            measured specific force (IMU when fresh, else the fallbacks of the acceleration
+            gates) with the mass, CG height, axle distances and track of ``VehicleParams``; every
+            wheel speed ``omega`` is scaled by ``1 + c dFz / r_nominal`` before use, so the
+            estimated radius errors are those at static load. In [-1e-4, 1e-4]; default 0 (off);
+            about -5e-7 follows from Pacejka's effective-rolling-radius parameters.
+        road_grade_correction_gain: switch of the road-grade correction (the wheels roll along
+            the slope, GNSS measures the horizontal displacement): the grade ``theta`` is
+            estimated online from the GNSS altitude against the wheel-travelled distance and
+            every wheel speed is reduced by ``gain (1 - cos theta)`` times its axle's mean speed
+            (the distance is corrected, the yaw rate from the left-right difference is not).
+            0 = off (default), 1 = the geometric correction; in [0, 5].
+        road_grade_window_m: travelled distance over which the grade is fitted (least-squares
+            slope of the GNSS altitude over the wheel-travelled distance), m. In [20, 5000];
+            default 100.
         seed: seed for the node's ``np.random.Generator``. Default 0.
     """
 
@@ -140,6 +157,9 @@ class RadiusEstimatorConfig:
     gnss_antenna_offset_x_m: float = 0.0
     gnss_antenna_offset_y_m: float = 0.0
     radius_speed_coefficient_m_per_m2_s2: float = 0.0
+    radius_load_coefficient_m_per_n: float = 0.0
+    road_grade_correction_gain: float = 0.0
+    road_grade_window_m: float = 100.0
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -196,6 +216,11 @@ class RadiusEstimatorConfig:
             -1e-4,
             1e-4,
         )
+        require_range(
+            "radius_load_coefficient_m_per_n", self.radius_load_coefficient_m_per_n, -1e-4, 1e-4
+        )
+        require_range("road_grade_correction_gain", self.road_grade_correction_gain, 0.0, 5.0)
+        require_range("road_grade_window_m", self.road_grade_window_m, 20.0, 5000.0)
         require_int_range("seed", self.seed, 0, 2**63 - 1)
 
     @classmethod

@@ -17,6 +17,7 @@ radius: it biases the front radii of a driven axle by about ``r F_resist / C_x``
 from __future__ import annotations
 
 import math
+from collections import deque
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -91,6 +92,8 @@ class RadiusEstimate:
         state: ``initializing``, ``running`` or ``paused``.
         state_reason: why (e.g. ``low speed``, ``braking``, ``waiting for GNSS``).
         baseline: AUG-KF estimate when ``run_aug_kf`` (else None).
+        road_grade_rad: online road-grade estimate (GNSS altitude over the wheel-travelled
+            distance, positive uphill), rad; 0 until a window of fixes is available.
     """
 
     t_ns: int
@@ -108,6 +111,11 @@ class RadiusEstimate:
     state: str
     state_reason: str
     baseline: BaselineEstimate | None = None
+    road_grade_rad: float = 0.0
+
+
+#: at most this many GNSS altitudes are kept for the grade fit (100 s at 10 Hz)
+GRADE_MAX_POINTS = 1000
 
 
 @dataclass
@@ -124,6 +132,11 @@ class _Init:
 
 
 def _finite(kind: str, *values: float) -> None:
+    # fast path: a sum is finite when every term is (a finite sum that overflows is checked
+    # term by term below)
+    total = sum(values)
+    if total - total == 0.0:
+        return
     for v in values:
         if not math.isfinite(v):
             raise InputError("nan", f"{kind}: non-finite value {v!r}")
@@ -131,6 +144,8 @@ def _finite(kind: str, *values: float) -> None:
 
 def _floats(values: Any) -> list[float]:
     """A flat list of Python floats from a sequence or array (raises TypeError/ValueError)."""
+    if isinstance(values, np.ndarray) and values.dtype == np.float64:
+        return values.ravel().tolist()  # type: ignore[no-any-return]
     if isinstance(values, np.ndarray):
         return [float(v) for v in values.reshape(-1).tolist()]
     return [float(v) for v in np.asarray(values, dtype=float).reshape(-1).tolist()]
@@ -161,6 +176,16 @@ class RadiusEstimator:
         self._speed_gain = (
             config.radius_speed_coefficient_m_per_m2_s2 * vehicle.nominal_tire_radius_m
         )
+        #: ``c / r_nominal`` of the load-dependent radius (0: not modelled)
+        self._load_gain = config.radius_load_coefficient_m_per_n / vehicle.nominal_tire_radius_m
+        # quasi-static load transfer per unit specific force, N per m/s^2 (the simulator's
+        # geometry): longitudinal m h / (2 L) per wheel, lateral m h / l_T split between the
+        # axles like the static loads (front lr / L, rear lf / L)
+        wb = vehicle.cg_to_front_axle_m + vehicle.cg_to_rear_axle_m
+        lat = vehicle.mass_kg * vehicle.cg_height_m / vehicle.track_width_m
+        self._load_long = vehicle.mass_kg * vehicle.cg_height_m / (2.0 * wb)
+        self._load_lat_front = lat * vehicle.cg_to_rear_axle_m / wb
+        self._load_lat_rear = lat * vehicle.cg_to_front_axle_m / wb
         self._gate = float(chi2.ppf(config.gnss_gate_probability, 2))
         c = config
         self.mpf = RadiusMPF(
@@ -216,6 +241,10 @@ class RadiusEstimator:
         self._t_last_fix_ns: int | None = None
         self._active_time_s = 0.0
         self._upper: F64 | None = None
+        # road grade: wheel-travelled (slope) distance and (distance, GNSS altitude) pairs
+        self._distance_m = 0.0
+        self._grade_pts: deque[tuple[float, float]] = deque(maxlen=GRADE_MAX_POINTS)
+        self._grade_rad = 0.0
         self._set_cache(self.mpf.estimate())
 
     def _set_cache(self, est: MpfEstimate) -> None:
@@ -235,7 +264,9 @@ class RadiusEstimator:
         self.stats[kind] = self.stats.get(kind, 0) + 1
 
     def _check_order(self, stream: str, t_ns: int) -> None:
-        if isinstance(t_ns, bool) or not isinstance(t_ns, (int, np.integer)):
+        if type(t_ns) is not int and (
+            isinstance(t_ns, bool) or not isinstance(t_ns, (int, np.integer))
+        ):
             raise InputError("bad_stamp", f"{stream}: stamp must be an integer, got {t_ns!r}")
         last = self._streams[stream].last_t_ns
         if last is not None:
@@ -290,7 +321,7 @@ class RadiusEstimator:
             if len(vals) != 4:
                 raise InputError("wrong_length", f"need 4 wheel speeds, got {len(vals)}")
         _finite("wheel speeds", *vals)
-        if max(abs(v) for v in vals) > 1000.0:
+        if max(vals) > 1000.0 or min(vals) < -1000.0:
             raise InputError("out_of_range", f"wheel speed above 1000 rad/s: {vals}")
         return np.array(vals)
 
@@ -311,7 +342,21 @@ class RadiusEstimator:
             # omega = 100 rad/s, delta = 1 mm); with the scaled speeds every model downstream
             # (eq. 6, front wheels, gates) estimates delta
             ws = ws * (1.0 + self._speed_gain * ws * ws)
+        if self._load_gain:
+            ws = ws * self._load_scale(t_ns, ws)
         last = self._streams["wheel"].last_t_ns
+        if last is not None and (t_ns - last) * 1e-9 <= self.config.max_gap_s:
+            # slope distance rolled by the rear wheels (nominal radius) for the grade fit
+            rolled = 0.5 * self.model.nominal_radius_m * float(abs(ws[RL]) + abs(ws[RR]))
+            self._distance_m += (t_ns - last) * 1e-9 * rolled
+        if self.config.road_grade_correction_gain and self._grade_rad:
+            # the wheels roll along the slope, the pose and GNSS are horizontal:
+            # ds_horizontal = ds cos(theta); the common mode of each axle is reduced by
+            # gain (1 - cos theta), the left-right difference (the yaw rate) is kept
+            eps = self.config.road_grade_correction_gain * (1.0 - math.cos(self._grade_rad))
+            mf = 0.5 * float(ws[FL] + ws[FR])
+            mr = 0.5 * float(ws[RL] + ws[RR])
+            ws = ws - eps * np.array([mf, mf, mr, mr])
         self._streams["wheel"].last_t_ns = t_ns
         prev = self._prev_ws
         self._prev_ws = ws
@@ -326,6 +371,48 @@ class RadiusEstimator:
             self._prev_v = None
             return
         self._step(dt, t_ns, prev, ws)
+
+    def _load_scale(self, t_ns: int, ws: F64) -> F64:
+        """Per-wheel speed factor ``1 + c dFz_i / r_nominal`` of the load-dependent radius."""
+        c = self.config
+        if self._imu is not None and (t_ns - self._imu[0]) * 1e-9 <= c.imu_timeout_s:
+            # specific force in base_link (the load transfer is driven by the contact forces,
+            # m f; the IMU's offset from the CG is neglected)
+            fx, fy = float(self._imu[2][0]), float(self._imu[2][1])
+        else:
+            # the fallbacks of the gates (the yaw rate of the uncorrected wheel speeds)
+            v, yr = self._speed_yaw_rate(ws)
+            fx = self._ax_lp
+            if self._steer is not None and (t_ns - self._steer[0]) * 1e-9 <= c.imu_timeout_s:
+                fy = v * float(self.model.steering_yaw_rate(v, self._steer[1]))
+            else:
+                fy = v * yr
+        # quasi-static load transfer (Gillespie, Fundamentals of Vehicle Dynamics, eq. 2-7 and
+        # ch. 9, roll stiffness split like the static loads): dFz = -+ m f_x h / (2 L) on the
+        # front / rear wheels, -+ m f_y h / l_T (lr / L front, lf / L rear) on left / right
+        d_long = self._load_long * fx
+        d_f = self._load_lat_front * fy
+        d_r = self._load_lat_rear * fy
+        dfz = np.array([-d_long - d_f, -d_long + d_f, d_long - d_r, d_long + d_r])
+        # r_i = r_n + delta_i + c dFz_i  ->  v_i = omega_i (r_n + delta_i) (1 + c dFz_i / r_n)
+        # (neglected: c dFz_i delta_i / r_n, 1e-9 m for c = -5e-7, 600 N, delta_i = 1 mm)
+        return 1.0 + self._load_gain * dfz
+
+    def _grade_fix(self, up_m: float) -> None:
+        """Update the road grade with a GNSS altitude: least-squares slope of the altitude
+        over the wheel-travelled distance in the last ``road_grade_window_m``."""
+        window = self.config.road_grade_window_m
+        pts = self._grade_pts
+        pts.append((self._distance_m, up_m))
+        while pts and pts[0][0] < self._distance_m - window:
+            pts.popleft()
+        if len(pts) < 5 or pts[-1][0] - pts[0][0] < 0.5 * window:
+            return  # keep the last estimate (standstill, start)
+        a = np.asarray(pts)
+        s = a[:, 0] - a[:, 0].mean()
+        # sin(theta) = dz / ds along the slope distance s
+        sin_grade = float(s @ (a[:, 1] - a[:, 1].mean()) / (s @ s))
+        self._grade_rad = math.asin(min(0.5, max(-0.5, sin_grade)))
 
     def _speed_yaw_rate(self, ws: F64) -> tuple[float, float]:
         """Eq. (6) with the learned mean rear radius errors, in Python floats."""
@@ -453,12 +540,13 @@ class RadiusEstimator:
                 from tire_estimation.core.geodesy import LocalTangentPlane
 
                 self._ltp = LocalTangentPlane(lat, lon, alt)
-            e, n, _u = self._ltp.to_enu(lat, lon, alt)
+            e, n, u = self._ltp.to_enu(lat, lon, alt)
             y = np.array([float(e), float(n)])
             _finite("gnss", *y)
         except Exception:
             self._drop("bad_value")
             return GnssUpdate(t_ns, zeros2, eye2, 0.0, False, "bad_value")
+        self._grade_fix(float(u))
         return self.on_gnss_enu(t_ns, y, r)
 
     def _gnss_cov(self, cov: Any) -> F64:
@@ -467,20 +555,21 @@ class RadiusEstimator:
             return np.eye(2) * sd**2
         c = np.asarray(cov, dtype=float)
         if c.size == 9:
-            c = c.reshape(3, 3)[:2, :2]
+            flat = c.ravel().tolist()
+            c00, c01, c10, c11 = flat[0], flat[1], flat[3], flat[4]
         elif c.size == 4:
-            c = c.reshape(2, 2)
+            c00, c01, c10, c11 = c.ravel().tolist()
         else:
             raise InputError("wrong_length", f"gnss covariance must be 3x3, got size {c.size}")
-        if not np.all(np.isfinite(c)):
+        if not all(math.isfinite(v) for v in (c00, c01, c10, c11)):
             raise InputError("nan", "gnss covariance not finite")
-        c = 0.5 * (c + c.T)
-        if np.all(c == 0.0):
+        c01 = 0.5 * (c01 + c10)
+        if c00 == 0.0 and c01 == 0.0 and c11 == 0.0:
             return np.eye(2) * sd**2  # "covariance unknown"
         # a symmetric 2x2 matrix is positive definite iff c00 > 0 and det > 0
-        if not (c[0, 0] > 0.0 and c[0, 0] * c[1, 1] - c[0, 1] * c[0, 1] > 0.0):
+        if not (c00 > 0.0 and c00 * c11 - c01 * c01 > 0.0):
             raise InputError("bad_covariance", "gnss covariance not positive definite")
-        return c
+        return np.array([[c00, c01], [c01, c11]])
 
     def on_gnss_enu(self, t_ns: int, y_m: F64, r_m2: F64) -> GnssUpdate:
         """GNSS update with a fix already in the local ENU frame (east, north) and its (2, 2)
@@ -610,8 +699,13 @@ class RadiusEstimator:
         rad = est.radius
         wheels: tuple[str, ...] = REAR_WHEELS
         mean = rad.mean
-        std = np.sqrt(np.maximum(np.diag(rad.mean_cov), 0.0))
-        noise = np.sqrt(np.maximum(np.diag(rad.noise_cov), 0.0))
+        mc, nc = rad.mean_cov, rad.noise_cov
+        std = np.array(
+            [math.sqrt(max(float(mc[0, 0]), 0.0)), math.sqrt(max(float(mc[1, 1]), 0.0))]
+        )
+        noise = np.array(
+            [math.sqrt(max(float(nc[0, 0]), 0.0)), math.sqrt(max(float(nc[1, 1]), 0.0))]
+        )
         active = (self._active, self._active)
         if self.config.wheels == "all":
             fe = niw.mmse(self._front, np.ones(1))
@@ -622,7 +716,8 @@ class RadiusEstimator:
             noise = np.concatenate([np.sqrt(np.maximum(np.diag(fe.noise_cov), 0.0)), noise])
             active = (self._active,) * 4
         ws = self._prev_ws if self._prev_ws is not None else np.zeros(4)
-        v, yr = self.model.speed_yaw_rate(ws, rad.mean)
+        # eq. (6) with the MMSE mean radius errors (the cache set above)
+        v, yr = self._speed_yaw_rate(ws)
         if self._pose_ok:
             state = "running" if self._active else "paused"
             pose, pose_cov = est.pose, est.pose_cov
@@ -653,6 +748,7 @@ class RadiusEstimator:
             state=state,
             state_reason=self._reason,
             baseline=baseline,
+            road_grade_rad=self._grade_rad,
         )
         return out
 
@@ -751,6 +847,9 @@ def _finite_or_zero(x: Any) -> float:
 
 def _sanitize(a: Any, fill: float = 0.0) -> F64:
     out = np.array(a, dtype=float)
+    total = float(out.sum())
+    if total - total == 0.0:  # every element finite (an overflowing sum is checked below)
+        return out
     if np.isfinite(out).all():
         return out
     return np.nan_to_num(out, nan=fill, posinf=fill, neginf=-fill)

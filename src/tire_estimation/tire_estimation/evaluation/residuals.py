@@ -31,6 +31,16 @@ filter absorbs part of a slowly varying residual into its position states):
 * ``radius_speed_dependence`` (``r = r0 + k v^2``): a speed error ``v k v^2 / r0`` integrates
   into an along-track drift -> along-track on speed^2 beyond speed; the regression gives no
   reliable size (the filter absorbs the drift), so ``estimate`` is from the profile scan only.
+* ``radius_load_dependence`` (``r_i = r0_i + c dFz_i``, lateral load transfer
+  ``dFz = -+ m a_y h lf / (l_T L)`` on the rear left / right): the left-right radius difference
+  ``2 c dFz`` gives a yaw-rate error ``omega 2 c dFz / l_T`` proportional to ``v a_y``, which
+  turns the predicted track to the inside (``c < 0``) -> cross-track innovation on ``v a_y``
+  (negative slope for ``c < 0``), fitted with intercept and time.
+* ``road_grade`` (wheels roll along the slope, GNSS measures the horizontal displacement
+  ``ds cos(theta)``): the odometry is long by ``v (1 - cos theta)`` -> along-track innovation on
+  ``v (1 - cos theta)`` with the estimator's online grade (negative slope), intercept and time as
+  nuisance regressors. Size: the profile of the correction gain (1 = the geometric correction
+  with the online grade).
 
 The regression slopes are attenuated by the filter (it pulls its pose towards the fixes with a
 time constant of tens of seconds), so they rank the effects but do not size them. The size of
@@ -41,9 +51,9 @@ log-likelihood ``sum_k 0.5 (NIS_k + log det S_k)`` (prediction-error decompositi
 is consistent when the residual tests pass and no switchable effect improves the likelihood
 significantly (likelihood-ratio score below :data:`SCORE_THRESHOLD`).
 
-Gyro bias, road grade and load-dependent radii are not in this library: the radius estimator
-does not use the gyro (the IMU only feeds its acceleration gates), and it has no switch for the
-grade or the load transfer.
+Gyro bias is not in this library: the radius estimator does not use the gyro (the IMU only
+feeds its acceleration gates and the load transfer), so a gyro bias cannot enter its model
+(``tests/evaluation/test_residuals.py::test_gyro_bias_is_not_attributed``).
 """
 
 from __future__ import annotations
@@ -103,6 +113,18 @@ EFFECTS: tuple[Effect, ...] = (
         "m/(m/s)^2",
         "speed^2",
         "along-track drift growing with speed^2 beyond speed",
+    ),
+    Effect(
+        "radius_load_dependence",
+        "m/N",
+        "speed*lateral_acceleration",
+        "cross-track drift to the inside of curves (yaw-rate error ~ v a_y)",
+    ),
+    Effect(
+        "road_grade",
+        "1",
+        "speed*(1-cos(grade))",
+        "along-track drift = -v (1 - cos grade) (slope distance vs horizontal)",
     ),
 )
 
@@ -179,13 +201,15 @@ def analyze(
     pose: F64,
     speed_m_s: F64,
     min_speed_m_s: float = 3.0,
+    road_grade_rad: F64 | None = None,
 ) -> dict[str, Any]:
     """The ``residuals`` block of metrics.json: consistency tests, regressions, ranked effects.
 
     Returns ``{"consistent", "tests", "suspected_effects"}``; the effects are ranked by the
     |t| statistic of their signature (decimated innovations), most likely first, and empty
     when the run is consistent. ``estimate`` is the (filter-attenuated) regression size; use
-    :func:`profile_scan` for a calibrated size.
+    :func:`profile_scan` for a calibrated size. ``road_grade_rad`` (per trace sample, the
+    estimator's online grade) enables the ``road_grade`` signature.
     """
     base = innovation_tests(innov_m, innov_cov_m2, nis, accepted)
     base.pop("consistent", None)
@@ -193,6 +217,13 @@ def analyze(
         return {"consistent": True, "tests": base, "suspected_effects": []}
     ok = accepted & np.isfinite(nis) & (innov_t_ns >= trace_t_ns[0]) & (nis > 0)
     reg = regressors_at(innov_t_ns[ok], trace_t_ns, pose, speed_m_s)
+    if road_grade_rad is not None and road_grade_rad.shape == trace_t_ns.shape:
+        t_in = (innov_t_ns[ok] - trace_t_ns[0]) * 1e-9
+        t_tr = (trace_t_ns - trace_t_ns[0]) * 1e-9
+        # odometry excess rate of the slope distance over the horizontal one
+        reg["speed*(1-cos(grade))"] = reg["speed"] * (
+            1.0 - np.cos(np.interp(t_in, t_tr, road_grade_rad))
+        )
     ok_idx = np.flatnonzero(ok)
     moving = reg["speed"] >= min_speed_m_s
     reg = {k: v[moving] for k, v in reg.items()}
@@ -266,6 +297,21 @@ def analyze(
     if np.std(v) > 0.2:
         b, se, _ = _ols(np.column_stack([o, tt, v, v**2]), along[keep])
         effects.append(_effect("radius_speed_dependence", abs(float(b[3] / se[3])), None))
+    # load-dependent radius: yaw-rate error ~ c v a_y -> cross-track on v a_y beyond time
+    vay = v * reg["lateral_acceleration"][keep]
+    if np.std(vay) > 1e-3:
+        b, se, _ = _ols(np.column_stack([o, tt, vay]), cross[keep])
+        t_load = float(b[2] / se[2])
+        tests["cross_track_on_time_and_v_ay"] = {"slope": float(b[2]), "t": t_load}
+        effects.append(_effect("radius_load_dependence", abs(t_load), None))
+    # road grade: along-track on v (1 - cos grade) beyond time (negative when unmodelled)
+    if "speed*(1-cos(grade))" in reg:
+        xg = reg["speed*(1-cos(grade))"][keep]
+        if np.std(xg) > 1e-6:
+            b, se, _ = _ols(np.column_stack([o, tt, xg]), along[keep])
+            t_grade = float(b[2] / se[2])
+            tests["along_track_on_time_and_grade"] = {"slope": float(b[2]), "t": t_grade}
+            effects.append(_effect("road_grade", -t_grade if t_grade < 0 else 0.0, None))
     effects.sort(key=lambda e: -e["score"])
     nis_ok = True
     if "mean_nis_bounds_95" in base:
@@ -313,12 +359,27 @@ def analyze_trace(trace: Any) -> dict[str, Any]:
         a["t_ns"],
         a["pose"],
         a["speed_m_s"],
+        road_grade_rad=a.get("road_grade_rad"),
     )
+
+
+def _runs(trace: Any) -> list[Any]:
+    """``trace`` as a list of traces (a sequence of runs, or one run)."""
+    return list(trace) if isinstance(trace, (list, tuple)) else [trace]
 
 
 def neg_log_likelihood(trace: Any, skip_s: float = 10.0) -> float:
     """Mean innovation negative log-likelihood ``0.5 (NIS + log det S)`` of the accepted fixes
-    after ``skip_s`` seconds (prediction-error decomposition of the likelihood)."""
+    after ``skip_s`` seconds (prediction-error decomposition of the likelihood).
+
+    ``trace`` may be a list/tuple of runs of the same data with independent filter seeds: the
+    NLL is then their mean, which reduces the Monte-Carlo noise of the particle filter's
+    likelihood estimate (the profile of :func:`rank_effects` is then smoother).
+    """
+    runs = _runs(trace)
+    if len(runs) > 1:
+        return float(np.mean([neg_log_likelihood(r, skip_s) for r in runs]))
+    trace = runs[0]
     a = trace.arrays()
     t = np.asarray(trace.innov_t_ns, dtype=np.int64)
     ok = a["accepted"] & (a["nis"] > 0)
@@ -361,6 +422,8 @@ CONFIG_FIELDS: dict[str, str] = {
     "gnss_lever_arm": "gnss_antenna_offset_x_m",
     "gnss_lever_arm_y": "gnss_antenna_offset_y_m",
     "radius_speed_dependence": "radius_speed_coefficient_m_per_m2_s2",
+    "radius_load_dependence": "radius_load_coefficient_m_per_n",
+    "road_grade": "road_grade_correction_gain",
 }
 
 #: Scan grids of the effects that the estimator can switch on (0 = not modelled).
@@ -370,6 +433,8 @@ DEFAULT_GRIDS: dict[str, tuple[float, ...]] = {
     "gnss_lever_arm": (-1.0, 0.0, 1.0, 2.0, 4.0),
     "gnss_lever_arm_y": (-1.0, -0.5, 0.0, 0.5, 1.0),
     "radius_speed_dependence": (0.0, 2e-6, 4e-6, 6e-6, 8e-6),
+    "radius_load_dependence": (-4e-6, -2e-6, -1e-6, 0.0, 1e-6),
+    "road_grade": (0.0, 0.5, 1.0, 1.5),
 }
 
 
@@ -411,6 +476,7 @@ def rank_effects(
         if f_est is None:
             f_est, _tr = nll(effect, est)
         any_tr = next(iter(traces.values()), None)
+        any_tr = _runs(any_tr)[0] if any_tr is not None else None
         n = 60
         if any_tr is not None and len(any_tr.innov_t_ns) > 1:
             n = max(int((any_tr.innov_t_ns[-1] - any_tr.innov_t_ns[0]) * 1e-9 / DECIMATION_S), 1)
@@ -432,13 +498,16 @@ def assess(
     """Residual analysis of ``trace`` completed by the profile likelihood of the switchable
     effects: :func:`analyze_trace` plus :func:`rank_effects` (``rerun`` as there).
 
+    ``trace`` (and what ``rerun`` returns) may be a list of runs with independent filter seeds
+    (see :func:`neg_log_likelihood`); the residual tests use the first.
+
     The likelihood-ratio score of an effect is a test of the nested model (effect off) against
     the model with the effect switched on, so the run is consistent only when the residual tests
     pass *and* every score stays below ``threshold``. Returns the :func:`analyze` dictionary
     with ``ranked_effects`` (all candidates, best first) and ``tests.likelihood_ratio_ok``;
     ``suspected_effects`` are the candidates at or above the threshold when there are any.
     """
-    res = analyze_trace(trace)
+    res = analyze_trace(_runs(trace)[0])
     ranked = rank_effects(rerun, grids, baseline_nll=neg_log_likelihood(trace))
     significant = [e for e in ranked if e["score"] >= threshold]
     res["tests"]["likelihood_ratio_ok"] = not significant

@@ -1,0 +1,80 @@
+"""The switchable model effects of the radius estimator: load-dependent radius and road grade
+(issue 7). Closed-loop injection tests are in ``tests/evaluation/test_residuals.py``."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from tire_estimation.core.config import RadiusEstimatorConfig
+from tire_estimation.core.geodesy import LocalTangentPlane
+from tire_estimation.core.radius_estimator import RadiusEstimator
+from tire_estimation.core.vehicle import VehicleParams
+from tire_estimation.errors import ConfigError
+
+VEH = VehicleParams()
+OMEGA = 20.0 / VEH.nominal_tire_radius_m  # 20 m/s on every wheel
+
+
+def _estimator(**cfg: float) -> RadiusEstimator:
+    return RadiusEstimator(
+        RadiusEstimatorConfig(n_particles=50, **cfg), VEH, np.random.default_rng(0)
+    )
+
+
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [
+        ("radius_load_coefficient_m_per_n", 2e-4),
+        ("road_grade_correction_gain", -0.1),
+        ("road_grade_window_m", 10.0),
+    ],
+)
+def test_effect_switches_are_validated(field: str, value: float) -> None:
+    with pytest.raises(ConfigError, match=field):
+        RadiusEstimatorConfig(**{field: value})
+
+
+@pytest.mark.parametrize("coef", [0.0, -2e-6])
+def test_load_transfer_turns_equal_wheel_speeds_into_a_yaw_rate(coef: float) -> None:
+    """Equal wheel speeds with 2 m/s^2 to the left: the loaded right rear tyre rolls on
+    r + c dFz, the unloaded left one on r - c dFz, so the rear axle turns at
+    omega 2 c dFz / l_T with dFz = m a_y h lf / (l_T L) (speed unchanged)."""
+    est = _estimator(radius_load_coefficient_m_per_n=coef)
+    est.on_imu(0, [0.0, 0.0, 0.0], [0.0, 2.0, 9.81])
+    est.on_wheel_speeds(1_000_000, [OMEGA] * 4)
+    out = est.estimate()
+    lt, wb = VEH.track_width_m, VEH.wheelbase_m
+    d_fz = VEH.mass_kg * 2.0 * VEH.cg_height_m / lt * VEH.cg_to_front_axle_m / wb
+    assert d_fz == pytest.approx(433.7, abs=0.1)
+    assert out.yaw_rate_rad_s == pytest.approx(OMEGA * 2.0 * coef * d_fz / lt, abs=1e-12)
+    assert out.speed_m_s == pytest.approx(20.0, rel=1e-12)
+
+
+def _climb(gain: float, grade_rad: float) -> RadiusEstimator:
+    """60 s straight east at 20 m/s along the slope on a constant grade, exact GNSS fixes."""
+    est = _estimator(road_grade_correction_gain=gain, init_min_distance_m=20.0)
+    ltp = LocalTangentPlane(48.0, 11.0, 500.0)
+    for k in range(6001):  # wheel speeds at 100 Hz, fixes at 10 Hz
+        t_ns = k * 10_000_000
+        est.on_wheel_speeds(t_ns, [OMEGA] * 4)
+        if k % 10 == 0:
+            s = 20.0 * k * 0.01
+            lat, lon, alt = ltp.to_lla(s * math.cos(grade_rad), 0.0, s * math.sin(grade_rad))
+            est.on_gnss_fix(t_ns, float(lat), float(lon), float(alt), np.eye(3))
+    return est
+
+
+def test_grade_is_estimated_from_altitude_and_corrects_the_distance() -> None:
+    grade = 0.08
+    r = VEH.nominal_tire_radius_m
+    for gain in (0.0, 1.0):
+        out = _climb(gain, grade).estimate()
+        # sin(theta) = dz / ds over the last 100 m of wheel-travelled distance
+        assert out.road_grade_rad == pytest.approx(grade, abs=1e-3)
+        # eq. (6a) on wheel speeds reduced by gain (1 - cos theta): the horizontal speed
+        scale = 1.0 - gain * (1.0 - math.cos(grade))
+        expected = OMEGA * scale * (r + float(np.mean(out.radius_error_m)))
+        assert out.speed_m_s == pytest.approx(expected, rel=1e-9)
