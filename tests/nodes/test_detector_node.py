@@ -258,3 +258,53 @@ def test_detector_node_alarm_latch_recalibrate_and_bad_input(tmp_path: Path) -> 
         node.destroy_node()
     finally:
         rclpy.shutdown(context=context)
+
+
+def test_detector_node_reports_a_common_channel_alarm(tmp_path: Path) -> None:
+    """An equal loss on both wheels: no wheel alarms (relative test), the common channel does;
+    any_alarm, the main diagnostic status and the persisted state show it."""
+    rclpy, msg_mod, nav_msgs, rclpy_parameter, node_mod = import_ros(
+        "rclpy",
+        "tire_estimation_msgs.msg",
+        "nav_msgs.msg",
+        "rclpy.parameter",
+        "tire_estimation.nodes.detector_node",
+    )
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    try:
+        params = _params(
+            rclpy_parameter.Parameter,
+            tmp_path,
+            **{
+                "detector.common_mode_fraction": 1.0,
+                "detector.common_channel": True,
+                "detector.common_drift_m": 0.4e-3,
+                "detector.common_threshold_m": 5e-3,
+                "detector.common_lowpass_time_constant_s": 0.0,
+                "detector.common_calibration_average_s": 5.0,
+            },
+        )
+        node = node_mod.DetectorNode(context=context, parameter_overrides=params)
+        feed = Feeder(msg_mod, nav_msgs.Odometry)
+        feed.drive(node, 21.0, MU_CAL)
+        assert node.detector.status().calibration_state == 2  # DONE
+        start_ns = feed.t_ns
+        # both tyres 1.5 mm smaller: G grows by (1.5 - 0.4) mm x 0.1 s / 1 s = 0.11 mm per
+        # sample, passes 5 mm on the 46th sample (4.6 s) and reaches 6.6 mm after 6 s
+        feed.drive(node, 6.0, [MU_CAL[0] - 1.5e-3, MU_CAL[1] - 1.5e-3])
+        st = node.detector.status()
+        assert st.common is not None and st.common.alarm and st.any_alarm
+        assert st.common.alarm_t_ns == start_ns + 46 * S // 10
+        assert st.common.cusum_m == pytest.approx(6.6e-3, rel=1e-9)
+        assert not any(w.alarm for w in st.wheels)
+        diag = {s.name: s for s in node.diagnostic_statuses()}
+        main = diag["tire_estimation: deflation detector"]
+        assert "deflation alarm, tyre not identified" in main.message
+        values = _diag_values(main)
+        assert values["common.alarm"] == "true"
+        assert float(values["common.threshold"]) == pytest.approx(5e-3)
+        assert (tmp_path / "deflation.json").is_file()  # saved when the common alarm latched
+        node.destroy_node()
+    finally:
+        rclpy.shutdown(context=context)

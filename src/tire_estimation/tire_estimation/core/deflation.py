@@ -23,6 +23,20 @@ varying (~1 min correlated) error in the radius estimate without false alarms ov
 0.2 mm it starts to raise them (tests/core/test_deflation.py). The ECE R-64 campaign should
 confirm nu and rho on real estimator output.
 
+Common-mode channel (not in the paper; ``common_channel``). The per-wheel input may have the
+other wheels' mean decrease removed (``common_mode_fraction`` lambda; lambda = 1 makes each
+wheel's test relative to the others, so the common wander of all estimates that GNSS errors
+cause no longer alarms, but neither does an equal loss on every tyre). The common channel
+watches that equal loss on its own: one CUSUM on the mean decrease of the covered wheels, with
+a reference averaged over a longer part of the calibration, a slower low-pass filter and its
+own drift and threshold. Its alarm is a vehicle-level warning ("all wheels", no tyre named),
+raised only while no wheel alarm is latched:
+
+    c_k    = mean_j (mu_cal2_j - mu_{j,k})             (mu_cal2: mean over the last
+                                                        common_calibration_average_s)
+    cbar_k = LP_tau2 rate limit(c_k)
+    G_k    = max(0, G_{k-1} + (cbar_k - nu2) dt / T_ref);  alarm when G_k > rho2
+
 Only driving time inside the speed window and without braking counts, for the calibration and
 for the detection alike (Section IV-B); outside it the filters and g are held. Alarms latch
 until :meth:`DeflationDetector.recalibrate`. Bad samples are dropped and counted in
@@ -53,6 +67,8 @@ from tire_estimation.errors import ConfigError, InputError
 
 KMH = 1.0 / 3.6  # m/s per km/h
 STATE_VERSION = 1
+#: wheel name of a common-channel alarm in :attr:`TraceResult.alarms` (names no tyre)
+ALL_WHEELS = "all_wheels"
 #: keys of :attr:`DeflationDetector.stats` that count events, not dropped samples
 INFO_STATS = frozenset({"accepted", "no_speed", "recalibrations"})
 
@@ -115,9 +131,28 @@ class DeflationDetectorConfig:
             on its own); 1 = relative to the other wheels: a common wander of all estimates
             (GNSS errors move every radius together) cancels, and a deflation of one wheel no
             longer drags the others into an alarm, but an equal loss on every wheel is not
-            seen. Default 0.5: in the ECE R-64 campaign (docs/results.md section 7) it removed
-            every wrong-wheel alarm and false warning of both estimators on the step cases
-            while an equal loss on all estimated wheels still reaches the CUSUM at half size.
+            seen (that is what common_channel is for). Default 1, with common_channel: in the
+            ECE R-64 campaign traces (docs/campaign.md, Detector) this pair had no false alarm
+            on 92 h of robustness driving and 108 step cases and found 20 of 20 diffusions,
+            where lambda = 0.5 alone (the previous default) gave the MPF 4 false alarms and
+            missed 3 leaks on both rear tyres.
+        common_channel: run the common-mode channel (module docstring; not in the paper): a
+            CUSUM on the mean radius decrease of all covered wheels (at least two calibrated,
+            all present and active in the sample; otherwise it holds) whose alarm is a
+            vehicle-level warning that names no tyre (``DeflationStatusData.common``, and
+            ``any_alarm``), raised only while no wheel alarm is latched. Default True. The
+            paper's detector: common_mode_fraction = 0 and common_channel = False.
+        common_drift_m: drift nu2 of the common channel, m. Default 0.35e-3.
+        common_threshold_m: alarm threshold rho2 of the common channel, m (m summed per
+            reference sample, as threshold_m). Default 9e-3.
+        common_lowpass_time_constant_s: time constant of the common channel's low-pass
+            filter, s (0 disables; the rate limit is rate_limit_m_s). Default 600: with 300 s
+            a 5-min swing of 0.7 mm of both estimates (poor GNSS) raised a false alarm.
+        common_calibration_average_s: the common channel's reference for each wheel is the
+            time-weighted mean of its estimate over the last this-many seconds of calibration
+            driving time (at most calibration_time_s), s. Default 900: the GNSS-driven wander
+            of the estimates is correlated over about a minute, so a 5-min mean can sit
+            0.36 mm off (ECE campaign, poor GNSS).
     """
 
     drift_m: float = field(default=0.4e-3, metadata={"unit": "m"})
@@ -136,7 +171,12 @@ class DeflationDetectorConfig:
     stale_timeout_s: float = field(default=5.0, metadata={"unit": "s"})
     max_sample_gap_s: float = field(default=1.0, metadata={"unit": "s"})
     warn_fraction: float = field(default=0.5, metadata={"unit": "1"})
-    common_mode_fraction: float = field(default=0.5, metadata={"unit": "1"})
+    common_mode_fraction: float = field(default=1.0, metadata={"unit": "1"})
+    common_channel: bool = True
+    common_drift_m: float = field(default=0.35e-3, metadata={"unit": "m"})
+    common_threshold_m: float = field(default=9e-3, metadata={"unit": "m"})
+    common_lowpass_time_constant_s: float = field(default=600.0, metadata={"unit": "s"})
+    common_calibration_average_s: float = field(default=900.0, metadata={"unit": "s"})
 
     def __post_init__(self) -> None:
         require_range("drift_m", self.drift_m, 0.0, 0.05)
@@ -144,7 +184,7 @@ class DeflationDetectorConfig:
         require_positive("reference_sample_period_s", self.reference_sample_period_s)
         require_non_negative("lowpass_time_constant_s", self.lowpass_time_constant_s)
         require_non_negative("rate_limit_m_s", self.rate_limit_m_s)
-        for name in ("adaptive_threshold", "exclude_braking"):
+        for name in ("adaptive_threshold", "exclude_braking", "common_channel"):
             if not isinstance(getattr(self, name), bool):
                 raise ConfigError(name, getattr(self, name), "must be a bool")
         require_range("adaptive_reference_std_m", self.adaptive_reference_std_m, 1e-9, 0.1)
@@ -169,6 +209,10 @@ class DeflationDetectorConfig:
         require_positive("max_sample_gap_s", self.max_sample_gap_s)
         require_range("warn_fraction", self.warn_fraction, 0.0, 1.0)
         require_range("common_mode_fraction", self.common_mode_fraction, 0.0, 1.0)
+        require_range("common_drift_m", self.common_drift_m, 0.0, 0.05)
+        require_range("common_threshold_m", self.common_threshold_m, 1e-9, 10.0)
+        require_non_negative("common_lowpass_time_constant_s", self.common_lowpass_time_constant_s)
+        require_non_negative("common_calibration_average_s", self.common_calibration_average_s)
 
 
 @dataclass(frozen=True)
@@ -191,6 +235,19 @@ class WheelDeflationData:
 
 
 @dataclass(frozen=True)
+class CommonChannelData:
+    """State of the common-mode channel (all covered wheels together; vehicle level)."""
+
+    wheel_names: tuple[str, ...]  # the wheels of the last update
+    radius_change_m: float  # filtered mean decrease since calibration (positive = smaller)
+    raw_radius_change_m: float  # unfiltered mean decrease of the last update
+    cusum_m: float
+    threshold_m: float
+    alarm: bool
+    alarm_t_ns: int | None
+
+
+@dataclass(frozen=True)
 class DeflationStatusData:
     """Detector output for one instant (mirrors ``DeflationStatus.msg``)."""
 
@@ -200,7 +257,8 @@ class DeflationStatusData:
     calibration_progress: float
     calibrated_driving_time_s: float
     wheels: tuple[WheelDeflationData, ...]
-    any_alarm: bool
+    any_alarm: bool  # a wheel's alarm or the common channel's
+    common: CommonChannelData | None = None  # None unless config.common_channel
 
     def wheel(self, name: str) -> WheelDeflationData:
         """Entry of wheel ``name`` (KeyError when the detector has not seen it)."""
@@ -219,6 +277,9 @@ class _Wheel:
     calib_sum_wx: float = 0.0
     calibrated_m: float | None = None
     calibration_t_ns: int | None = None
+    common_sum_w: float = 0.0
+    common_sum_wx: float = 0.0
+    common_calibrated_m: float | None = None
     lp_m: float = 0.0
     xbar_m: float = 0.0
     raw_m: float = 0.0
@@ -234,6 +295,9 @@ class _Wheel:
         "calib_sum_wx",
         "calibrated_m",
         "calibration_t_ns",
+        "common_sum_w",
+        "common_sum_wx",
+        "common_calibrated_m",
         "lp_m",
         "xbar_m",
         "raw_m",
@@ -251,13 +315,47 @@ class _Wheel:
         w = cls()
         for key in cls._PERSISTED:
             value = data.get(key)
-            if key in ("calibrated_m", "last_estimate_m"):
+            if key in ("calibrated_m", "common_calibrated_m", "last_estimate_m"):
                 setattr(w, key, None if value is None else _finite_float(key, value))
             elif key in ("calibration_t_ns", "alarm_t_ns"):
                 setattr(w, key, _optional_int(key, value))
             else:
                 setattr(w, key, 0.0 if value is None else _finite_float(key, value))
         return w
+
+
+@dataclass
+class _Common:
+    """Mutable state of the common-mode channel."""
+
+    wheel_names: tuple[str, ...] = ()
+    lp_m: float = 0.0
+    xbar_m: float = 0.0
+    raw_m: float = 0.0
+    g_m: float = 0.0
+    alarm_t_ns: int | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "wheel_names": list(self.wheel_names),
+            "lp_m": self.lp_m,
+            "xbar_m": self.xbar_m,
+            "raw_m": self.raw_m,
+            "g_m": self.g_m,
+            "alarm_t_ns": self.alarm_t_ns,
+        }
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> _Common:
+        names = data.get("wheel_names", [])
+        if not isinstance(names, (list, tuple)) or any(n not in WHEEL_INDEX for n in names):
+            raise InputError("bad_state", f"saved common channel has bad wheels {names!r}")
+        c = cls(wheel_names=tuple(str(n) for n in names))
+        for key in ("lp_m", "xbar_m", "raw_m", "g_m"):
+            value = data.get(key)
+            setattr(c, key, 0.0 if value is None else _finite_float(key, value))
+        c.alarm_t_ns = _optional_int("alarm_t_ns", data.get("alarm_t_ns"))
+        return c
 
 
 def _optional_int(key: str, value: Any) -> int | None:
@@ -284,6 +382,7 @@ class DeflationDetector:
         self.config = config if config is not None else DeflationDetectorConfig()
         self.stats: Counter[str] = Counter()
         self._wheels: dict[str, _Wheel] = {}
+        self._common = _Common()
         self._driving_time_s = 0.0
         self._t_prev_ns: int | None = None
         self._t_resume_ns: int | None = None  # last sample time before a restore
@@ -343,6 +442,8 @@ class DeflationDetector:
                 # x_j - lambda mean_{k != j} x_k (common_mode_fraction)
                 x -= lam * (total - x) / (len(detect) - 1)
             self._detect(w, t, x, s, dt)
+        if self.config.common_channel:
+            self._detect_common(t, names, act, dt if valid else 0.0)
         return self._status(t, accepted=True)
 
     def check_stale(self, now_ns: int) -> DeflationStatusData:
@@ -360,6 +461,7 @@ class DeflationDetector:
             fresh.last_seen_ns = old.last_seen_ns
             fresh.last_estimate_m = old.last_estimate_m
             self._wheels[name] = fresh
+        self._common = _Common()
         self._driving_time_s = 0.0
         self.stats["recalibrations"] += 1
 
@@ -384,6 +486,7 @@ class DeflationDetector:
             "driving_time_s": self._driving_time_s,
             "t_last_ns": self._t_prev_ns if self._t_prev_ns is not None else self._t_resume_ns,
             "wheels": {name: w.to_dict() for name, w in self._wheels.items()},
+            "common": self._common.to_dict(),
         }
 
     def load_state_dict(self, state: Mapping[str, Any]) -> None:
@@ -404,9 +507,14 @@ class DeflationDetector:
             if name not in WHEEL_INDEX or not isinstance(data, Mapping):
                 raise InputError("bad_state", f"saved detector state has a bad wheel {name!r}")
             wheels[name] = _Wheel.from_dict(data)
+        raw_common = state.get("common", {})  # absent in states saved before the channel
+        if not isinstance(raw_common, Mapping):
+            raise InputError("bad_state", "saved detector state has a bad common channel")
+        common = _Common.from_dict(raw_common)
         driving = _finite_float("driving_time_s", state.get("driving_time_s", 0.0))
         t_last = _optional_int("t_last_ns", state.get("t_last_ns"))
         self._wheels = wheels
+        self._common = common
         self._driving_time_s = driving
         self._t_prev_ns = None
         self._t_resume_ns = t_last
@@ -468,8 +576,17 @@ class DeflationDetector:
         if weight > 0.0:
             w.calib_sum_w += weight
             w.calib_sum_wx += weight * mu_m
+        # the same over the last common_calibration_average_s (reference of the common channel)
+        common_avg = min(cfg.common_calibration_average_s, cfg.calibration_time_s)
+        weight = min(dt, max(0.0, w.calib_time_s - (cfg.calibration_time_s - common_avg)))
+        if weight > 0.0:
+            w.common_sum_w += weight
+            w.common_sum_wx += weight * mu_m
         if w.calib_time_s >= cfg.calibration_time_s:
             w.calibrated_m = w.calib_sum_wx / w.calib_sum_w if w.calib_sum_w > 0 else mu_m
+            w.common_calibrated_m = (
+                w.common_sum_wx / w.common_sum_w if w.common_sum_w > 0 else w.calibrated_m
+            )
             w.calibration_t_ns = t_ns
             w.lp_m = w.xbar_m = w.raw_m = w.g_m = 0.0
             w.threshold_m = cfg.threshold_m
@@ -498,6 +615,48 @@ class DeflationDetector:
         # Table II line 6: alarm if g_k > rho_th (latched until recalibrate)
         if w.alarm_t_ns is None and w.g_m > w.threshold_m:
             w.alarm_t_ns = t_ns
+
+    def _detect_common(
+        self, t_ns: int, names: Sequence[str], active: Sequence[bool], dt: float
+    ) -> None:
+        """Common-mode channel: CUSUM on the mean decrease of all covered wheels."""
+        cfg = self.config
+        c = self._common
+        calibrated = [n for n, w in self._wheels.items() if w.calibrated_m is not None]
+        present = {n for n, a in zip(names, active, strict=True) if a}
+        # needs >= 2 calibrated wheels, every one of them in this sample; otherwise hold
+        if dt <= 0.0 or len(calibrated) < 2 or not present.issuperset(calibrated):
+            return
+        decreases = []
+        for n in calibrated:
+            w = self._wheels[n]
+            ref = w.common_calibrated_m if w.common_calibrated_m is not None else w.calibrated_m
+            if ref is None or w.last_estimate_m is None:
+                return
+            decreases.append(ref - w.last_estimate_m)
+        c.wheel_names = tuple(sorted(calibrated, key=WHEEL_INDEX.__getitem__))
+        # c_k = mean_j (mu_cal2_j - mu_{j,k})
+        x = sum(decreases) / len(decreases)
+        c.raw_m = x
+        # LP: y_k = y_{k-1} + (1 - exp(-dt / tau2)) (c_k - y_{k-1})
+        if cfg.common_lowpass_time_constant_s > 0.0:
+            c.lp_m += (1.0 - math.exp(-dt / cfg.common_lowpass_time_constant_s)) * (x - c.lp_m)
+        else:
+            c.lp_m = x
+        # rate limit: cbar_k = cbar_{k-1} + clip(y_k - cbar_{k-1}, +-r dt)
+        if cfg.rate_limit_m_s > 0.0:
+            step = cfg.rate_limit_m_s * dt
+            c.xbar_m += min(step, max(-step, c.lp_m - c.xbar_m))
+        else:
+            c.xbar_m = c.lp_m
+        # G_k = max(0, G_{k-1} + (cbar_k - nu2) dt / T_ref)
+        g = c.g_m + (c.xbar_m - cfg.common_drift_m) * dt / cfg.reference_sample_period_s
+        c.g_m = max(0.0, g)
+        # alarm when G_k > rho2 (latched until recalibrate); not once a wheel alarm is latched:
+        # the warning is on already and names the tyre
+        wheel_alarm = any(w.alarm_t_ns is not None for w in self._wheels.values())
+        if c.alarm_t_ns is None and not wheel_alarm and c.g_m > cfg.common_threshold_m:
+            c.alarm_t_ns = t_ns
 
     def _threshold(self, std_m: float) -> float:
         cfg = self.config
@@ -545,6 +704,20 @@ class DeflationDetector:
                 )
             )
         progress = min((e.calibration_progress for e in entries), default=0.0)
+        c = self._common
+        common = (
+            CommonChannelData(
+                wheel_names=c.wheel_names,
+                radius_change_m=c.xbar_m,
+                raw_radius_change_m=c.raw_m,
+                cusum_m=c.g_m,
+                threshold_m=self.config.common_threshold_m,
+                alarm=c.alarm_t_ns is not None,
+                alarm_t_ns=c.alarm_t_ns,
+            )
+            if self.config.common_channel
+            else None
+        )
         return DeflationStatusData(
             t_ns=now_ns,
             accepted=accepted,
@@ -552,7 +725,8 @@ class DeflationDetector:
             calibration_progress=progress,
             calibrated_driving_time_s=self._driving_time_s,
             wheels=tuple(entries),
-            any_alarm=any(e.alarm for e in entries),
+            any_alarm=any(e.alarm for e in entries) or (common is not None and common.alarm),
+            common=common,
         )
 
 
@@ -560,10 +734,12 @@ class DeflationDetector:
 class TraceResult:
     """Output of :func:`run_detector_over_trace`; arrays are ``(K,)`` or ``(K, W)``.
 
-    Entries of a wheel the detector has not seen yet, and of dropped rows, are NaN.
+    Entries of a wheel the detector has not seen yet, and of dropped rows, are NaN; the
+    ``common_*`` arrays are NaN throughout unless ``config.common_channel``.
     """
 
-    alarms: list[tuple[str, int]]  # (wheel, alarm t_ns), in time order
+    # (wheel, alarm t_ns), in time order; a common-channel alarm has wheel ALL_WHEELS
+    alarms: list[tuple[str, int]]
     wheel_names: tuple[str, ...]
     t_ns: np.ndarray
     cusum_m: np.ndarray
@@ -572,6 +748,9 @@ class TraceResult:
     calibration_state: np.ndarray  # (K,) int, CalibrationState values
     calibration_done_t_ns: int | None
     stats: dict[str, int]
+    common_cusum_m: np.ndarray  # (K,)
+    common_threshold_m: np.ndarray  # (K,)
+    common_radius_change_m: np.ndarray  # (K,)
 
 
 def run_detector_over_trace(
@@ -611,6 +790,9 @@ def run_detector_over_trace(
     cusum = np.full((k, n_w), np.nan)
     threshold = np.full((k, n_w), np.nan)
     change = np.full((k, n_w), np.nan)
+    common_g = np.full(k, np.nan)
+    common_th = np.full(k, np.nan)
+    common_change = np.full(k, np.nan)
     calib = np.zeros(k, dtype=int)
     alarms: list[tuple[str, int]] = []
     alarmed: set[str] = set()
@@ -640,6 +822,13 @@ def run_detector_over_trace(
             if entry.alarm and entry.wheel_name not in alarmed and entry.alarm_t_ns is not None:
                 alarmed.add(entry.wheel_name)
                 alarms.append((entry.wheel_name, entry.alarm_t_ns))
+        c = status.common
+        if c is not None:
+            common_g[i], common_th[i] = c.cusum_m, c.threshold_m
+            common_change[i] = c.radius_change_m
+            if c.alarm and ALL_WHEELS not in alarmed and c.alarm_t_ns is not None:
+                alarmed.add(ALL_WHEELS)
+                alarms.append((ALL_WHEELS, c.alarm_t_ns))
     return TraceResult(
         alarms=alarms,
         wheel_names=names,
@@ -650,4 +839,7 @@ def run_detector_over_trace(
         calibration_state=calib,
         calibration_done_t_ns=done_t,
         stats=dict(detector.stats),
+        common_cusum_m=common_g,
+        common_threshold_m=common_th,
+        common_radius_change_m=common_change,
     )

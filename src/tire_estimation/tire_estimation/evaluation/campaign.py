@@ -309,7 +309,7 @@ def _f(x: Any) -> float | None:
 
 def _evaluate_detection(spec: CaseSpec, run: _Run, method: str) -> dict[str, Any]:
     """Run a fresh CUSUM over one method's trace; flat result fields prefixed by ``method``."""
-    from tire_estimation.core.deflation import run_detector_over_trace
+    from tire_estimation.core.deflation import ALL_WHEELS, run_detector_over_trace
 
     if method == "mpf":
         wheels, mu, std, act = run.wheel_names, run.mpf_m, run.mpf_std_m, run.active
@@ -341,10 +341,15 @@ def _evaluate_detection(spec: CaseSpec, run: _Run, method: str) -> dict[str, Any
     observed = [w for w in spec.deflated_wheels if w in wheels]
     alarms_s = [(w, (t - START_TIME_NS) * 1e-9) for w, t in res.alarms]
     event = spec.event_s
-    true_alarms = [
-        (w, t) for w, t in alarms_s if w in observed and event is not None and t >= event
+    # a vehicle-level alarm of the common channel (ALL_WHEELS, names no tyre) after the event
+    # of a deflation case is a right warning; it is a detection when the method estimates a
+    # deflated wheel
+    after = [(w, t) for w, t in alarms_s if event is not None and t >= event]
+    true_alarms = [(w, t) for w, t in after if w in observed or (w == ALL_WHEELS and observed)]
+    right_warnings = [(w, t) for w, t in after if w == ALL_WHEELS and spec.deflated_wheels]
+    false_alarms = [
+        (w, t) for w, t in alarms_s if (w, t) not in true_alarms and (w, t) not in right_warnings
     ]
-    false_alarms = [(w, t) for w, t in alarms_s if (w, t) not in true_alarms]
     first = min((t for _, t in true_alarms), default=None)
     det_time = None if first is None or event is None else first - event
     detected_in_time = (
@@ -392,10 +397,20 @@ def _evaluate_detection(spec: CaseSpec, run: _Run, method: str) -> dict[str, Any
             else None
         )
     else:
-        ratio = res.cusum_m / res.threshold_m
+        # wheels and the common channel (NaN when it is off)
+        ratio = np.concatenate(
+            [
+                (res.cusum_m / res.threshold_m).ravel(),
+                res.common_cusum_m / res.common_threshold_m,
+            ]
+        )
         out[p + "max_cusum_over_threshold"] = (
             _f(np.nanmax(ratio)) if np.isfinite(ratio).any() else None
         )
+    common = res.common_cusum_m / res.common_threshold_m
+    out[p + "max_common_cusum_over_threshold"] = (
+        _f(np.nanmax(common)) if np.isfinite(common).any() else None
+    )
     return out
 
 
@@ -895,8 +910,11 @@ def split_alarms(row: dict[str, Any], method: str) -> tuple[int, int]:
     tyre. A *false warning* is an alarm raised while no tyre is deflated (before the event, or
     on a drive without one); a *wrong-wheel alarm* comes after a real deflation but names a
     tyre that was not deflated (the driver is warned rightly, the tyre is misnamed). Both are
-    counted in ``false_alarms`` (wheel level).
+    counted in ``false_alarms`` (wheel level). A common-channel alarm (wheel ``all_wheels``)
+    names no tyre: a false warning before the event or without one, neither after it.
     """
+    from tire_estimation.core.deflation import ALL_WHEELS
+
     text = row.get(method + "_alarms") or ""
     event = row.get("event_s")
     deflated = set(str(row.get("deflated_wheels") or "").split(",")) - {""}
@@ -907,7 +925,7 @@ def split_alarms(row: dict[str, Any], method: str) -> tuple[int, int]:
         wheel, _, t = item.partition("@")
         if event is None or float(t) < float(event):
             false_warnings += 1
-        elif wheel not in deflated:
+        elif wheel not in deflated and wheel != ALL_WHEELS:
             wrong_wheel += 1
     return false_warnings, wrong_wheel
 

@@ -202,6 +202,7 @@ class DetectorNode(Node):
             self.events["radii_without_odometry"] += 1
         before = self.detector.calibration_state
         alarms_before = {w.wheel_name for w in self.detector.status().wheels if w.alarm}
+        common_before = self.detector.status().common
         status = self.detector.step(
             t_ns,
             list(msg.wheel_names),
@@ -223,7 +224,17 @@ class DetectorNode(Node):
                 f"tyre deflation alarm on {w.wheel_name}: radius "
                 f"{1e3 * w.radius_change_m:.2f} mm smaller than calibrated"
             )
-        if new_alarms or status.calibration_state != before:
+        common = status.common
+        new_common = (
+            common is not None and common.alarm and not (common_before and common_before.alarm)
+        )
+        if new_common and common is not None:
+            self.get_logger().error(
+                "tyre deflation alarm, tyre not identified (common channel): mean radius of "
+                f"{', '.join(common.wheel_names)} {1e3 * common.radius_change_m:.2f} mm smaller "
+                "than calibrated"
+            )
+        if new_alarms or new_common or status.calibration_state != before:
             self._save()
 
     # --- outputs ----------------------------------------------------------------------------
@@ -279,6 +290,8 @@ class DetectorNode(Node):
         alarmed = [w.wheel_name for w in status.wheels if w.alarm]
         if alarmed:
             main.message += f"; deflation alarm on {', '.join(alarmed)}"
+        if status.common is not None and status.common.alarm:
+            main.message += "; deflation alarm, tyre not identified (common channel)"
         dropped = dict(self.dropped)
         for kind, count in self.detector.dropped.items():
             dropped[f"tire_radii:{kind}"] = dropped.get(f"tire_radii:{kind}", 0) + count
@@ -294,6 +307,11 @@ class DetectorNode(Node):
             "tire_set_id": self._identity.tire_set_id,
             "persistence": self._persist_note,
         }
+        if status.common is not None:
+            values["common.radius_change_m"] = f"{status.common.radius_change_m:.6f}"
+            values["common.cusum"] = f"{status.common.cusum_m:.6f}"
+            values["common.threshold"] = f"{status.common.threshold_m:.6f}"
+            values["common.alarm"] = str(status.common.alarm).lower()
         for stream in ("tire_radii", "odometry"):
             values[f"received.{stream}"] = str(self.received.get(stream, 0))
         for key, count in sorted(self.events.items()):
