@@ -375,6 +375,27 @@ def _finite_float(key: str, value: Any) -> float:
     return out
 
 
+def _cusum_step(
+    s: Any, x: float, dt: float, tau_s: float, rate_m_s: float, drift_m: float, t_ref_s: float
+) -> None:
+    """One CUSUM step of Table II on the input ``x`` (m) over ``dt`` (s), updating ``s.lp_m``,
+    ``s.xbar_m`` and ``s.g_m`` in place (a wheel's state or the common channel's)."""
+    # Table II line 3, LP: y_k = y_{k-1} + (1 - exp(-dt / tau)) (x_k - y_{k-1})
+    if tau_s > 0.0:
+        s.lp_m += (1.0 - math.exp(-dt / tau_s)) * (x - s.lp_m)
+    else:
+        s.lp_m = x
+    # Table II line 3, rate limit: xbar_k = xbar_{k-1} + clip(y_k - xbar_{k-1}, +-r dt)
+    if rate_m_s > 0.0:
+        step = rate_m_s * dt
+        s.xbar_m += min(step, max(-step, s.lp_m - s.xbar_m))
+    else:
+        s.xbar_m = s.lp_m
+    # Table II line 4: g_k = g_{k-1} + xbar_k - nu (weighted by dt / T_ref);
+    # line 5: g_k = 0 if g_k < 0
+    s.g_m = max(0.0, s.g_m + (s.xbar_m - drift_m) * dt / t_ref_s)
+
+
 class DeflationDetector:
     """Per-wheel calibration + CUSUM deflation detector over radius-error estimates."""
 
@@ -595,21 +616,8 @@ class DeflationDetector:
         """CUSUM of Table II on ``x``, the radius decrease since calibration, m."""
         cfg = self.config
         w.raw_m = x
-        # Table II line 3, LP: y_k = y_{k-1} + (1 - exp(-dt / tau)) (x_k - y_{k-1})
-        if cfg.lowpass_time_constant_s > 0.0:
-            w.lp_m += (1.0 - math.exp(-dt / cfg.lowpass_time_constant_s)) * (x - w.lp_m)
-        else:
-            w.lp_m = x
-        # Table II line 3, rate limit: xbar_k = xbar_{k-1} + clip(y_k - xbar_{k-1}, +-r dt)
-        if cfg.rate_limit_m_s > 0.0:
-            step = cfg.rate_limit_m_s * dt
-            w.xbar_m += min(step, max(-step, w.lp_m - w.xbar_m))
-        else:
-            w.xbar_m = w.lp_m
-        # Table II line 4: g_k = g_{k-1} + xbar_k - nu (weighted by dt / T_ref)
-        g = w.g_m + (w.xbar_m - cfg.drift_m) * dt / cfg.reference_sample_period_s
-        # Table II line 5: g_k = 0 if g_k < 0
-        w.g_m = max(0.0, g)
+        _cusum_step(w, x, dt, cfg.lowpass_time_constant_s, cfg.rate_limit_m_s, cfg.drift_m,
+                    cfg.reference_sample_period_s)  # fmt: skip
         # adaptive rho_th: scaled up while the estimator reports a large std
         w.threshold_m = self._threshold(std_m)
         # Table II line 6: alarm if g_k > rho_th (latched until recalibrate)
@@ -638,20 +646,9 @@ class DeflationDetector:
         # c_k = mean_j (mu_cal2_j - mu_{j,k})
         x = sum(decreases) / len(decreases)
         c.raw_m = x
-        # LP: y_k = y_{k-1} + (1 - exp(-dt / tau2)) (c_k - y_{k-1})
-        if cfg.common_lowpass_time_constant_s > 0.0:
-            c.lp_m += (1.0 - math.exp(-dt / cfg.common_lowpass_time_constant_s)) * (x - c.lp_m)
-        else:
-            c.lp_m = x
-        # rate limit: cbar_k = cbar_{k-1} + clip(y_k - cbar_{k-1}, +-r dt)
-        if cfg.rate_limit_m_s > 0.0:
-            step = cfg.rate_limit_m_s * dt
-            c.xbar_m += min(step, max(-step, c.lp_m - c.xbar_m))
-        else:
-            c.xbar_m = c.lp_m
-        # G_k = max(0, G_{k-1} + (cbar_k - nu2) dt / T_ref)
-        g = c.g_m + (c.xbar_m - cfg.common_drift_m) * dt / cfg.reference_sample_period_s
-        c.g_m = max(0.0, g)
+        # cbar_k = LP_tau2 rate limit(c_k); G_k = max(0, G_{k-1} + (cbar_k - nu2) dt / T_ref)
+        _cusum_step(c, x, dt, cfg.common_lowpass_time_constant_s, cfg.rate_limit_m_s,
+                    cfg.common_drift_m, cfg.reference_sample_period_s)  # fmt: skip
         # alarm when G_k > rho2 (latched until recalibrate); not once a wheel alarm is latched:
         # the warning is on already and names the tyre
         wheel_alarm = any(w.alarm_t_ns is not None for w in self._wheels.values())
