@@ -75,3 +75,36 @@ def test_paused_predict_freezes_radii_and_update_keeps_them():
     kf.update(upd, hj, learn=False)
     np.testing.assert_array_equal(kf.x[3:], [0.0, 0.0])
     assert kf.x[0] > 0.5
+
+
+def test_gnss_bias_states_are_the_kalman_filter_of_a_gauss_markov_error():
+    """Standing still at a known pose, the two appended bias states follow the scalar Kalman
+    filter of a first-order Gauss-Markov error; without the bias the state has 5 entries."""
+    assert _kf().nx == 5
+    sb, tau, dt = 1.0, 60.0, 0.1
+    kf = AugKf(
+        RadiusMotionModel(R_NOM, TRACK, WHEELBASE), np.zeros(2), 3e-3, 1e-3, 0.0, 0.0, 0.0,
+        gnss_bias_std_m=sb, gnss_bias_time_constant_s=tau,
+    )  # fmt: skip
+    assert kf.nx == 7
+    kf.init_pose(np.zeros(3), np.eye(3) * 1e-16)
+    r = np.diag([1.5**2, 2.0**2])
+    rw = np.diag(r) - sb**2
+    b_ref, p_ref = np.zeros(2), np.full(2, sb**2)
+    phi = np.exp(-dt / tau)
+    rng = np.random.default_rng(4)
+    for _ in range(30):
+        for _ in range(10):
+            kf.predict(dt, np.zeros(4), learn=False)
+        y = rng.normal(0.0, 1.5, 2) + np.array([0.7, -0.4])
+        upd, hj = kf.innovation(y, r, np.zeros(2))
+        b_ref = phi**10 * b_ref
+        p_ref = phi**20 * p_ref + sb**2 * (1 - phi**20)
+        np.testing.assert_allclose(np.diag(upd.innovation_cov_m2), p_ref + rw, rtol=1e-9)
+        kf.update(upd, hj, learn=False)
+        k = p_ref / (p_ref + rw)
+        b_ref = b_ref + k * (y - b_ref)
+        p_ref = (1 - k) * p_ref
+        np.testing.assert_allclose(kf.x[5:], b_ref, atol=1e-7)
+        np.testing.assert_allclose(np.diag(kf.p)[5:], p_ref, rtol=1e-6)
+    np.testing.assert_array_equal(kf.x[3:5], 0.0)  # learn=False: radii untouched

@@ -108,6 +108,39 @@ def test_state_dict_round_trip(converged):
     assert np.all(np.abs(other.estimate().radius_error_m) < 1e-3)
 
 
+def test_bad_arrays_take_the_checks_of_the_fast_path():
+    """float64 arrays (the bag and node inputs) take a fast path; it must drop exactly what the
+    general checks drop."""
+    drive = make_drive(duration_s=40.0, gnss_rate_hz=1.0, seed=7)
+    est = RadiusEstimator(RadiusEstimatorConfig(), VEH, np.random.default_rng(7))
+    feed(est, drive, 0, 1000)
+    t = int(drive["t_ns"][999])
+    ws = np.asarray(drive["ws"][999], dtype=float)
+    before = est.estimate().pose.copy()
+    for k, bad in enumerate(
+        ([1.0, np.nan, 2.0, 3.0], [1.0, 2.0, np.inf, 3.0], [-np.inf, 1.0, 2.0, 3.0],
+         [1e308, 1e308, 1.0, 1.0], [2000.0, 1.0, 1.0, 1.0], [1.0, -1500.0, 1.0, 1.0])
+    ):  # fmt: skip
+        est.on_wheel_speeds(t + 1 + k, np.array(bad))
+    est.on_wheel_speeds(t, ws.copy())  # duplicate
+    est.on_wheel_speeds(t - 1, ws.copy())  # out of order
+    est.on_wheel_speeds(np.int64(t + 100), ws.astype(np.float32))  # other types: general path
+    est.on_imu(t + 1, np.array([0.0, np.nan, 0.0]), np.zeros(3))
+    est.on_imu(t + 2, np.zeros(3), np.array([0.0, 0.0, np.inf]))
+    est.on_imu(t + 3, np.zeros(4), np.zeros(3))
+    est.on_steering(t + 1, 1.5)
+    est.on_steering(t + 2, float("inf"))
+    est.on_steering(t + 3, np.float64(0.1))  # numpy scalar: general path, accepted
+    s = est.stats
+    assert s["nan"] == 6 and s["out_of_range"] == 4
+    assert s["duplicate"] == 1 and s["out_of_order"] == 1 and s["wrong_length"] == 1
+    assert sum(s.values()) == 13
+    # the accepted samples were used: the float32 sample advanced the wheel stream
+    assert est._streams["wheel"].last_t_ns == t + 100
+    assert est._streams["steering"].last_t_ns == t + 3
+    assert np.all(np.isfinite(est.estimate().pose)) and np.all(np.isfinite(before))
+
+
 def test_bad_inputs_are_dropped_counted_and_estimates_stay_finite():
     drive = make_drive(duration_s=80.0, gnss_rate_hz=1.0, seed=6)
     est = RadiusEstimator(RadiusEstimatorConfig(), VEH, np.random.default_rng(6))

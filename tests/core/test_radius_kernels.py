@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from tire_estimation.core import radius_kernels as rk
+from tire_estimation.core.kernel_random import kernel_state
 from tire_estimation.core.resampling import normalize_log_weights
 
 R_NOM, TRACK, WHEELBASE = 0.31, 1.55, 2.7
@@ -74,12 +75,13 @@ def test_block_is_draw_then_niw_update_then_pose():
 
     a_pose = [p.copy() for p in pose]
     a_mu, a_scale = mu.copy(), scale.copy()
+    state = kernel_state(np.random.default_rng(9))
     ga, na = rk.propagate_block(*a_pose, a_mu, a_scale, dt, w3, w4, steer, True, lam, gamma, nu,
-                                R_NOM, TRACK, WHEELBASE, np.random.default_rng(9))  # fmt: skip
+                                R_NOM, TRACK, WHEELBASE, state.copy())  # fmt: skip
 
     b_pose = [p.copy() for p in pose]
     b_mu, b_scale = mu.copy(), scale.copy()
-    d3, d4 = rk.draw_block(b_mu, b_scale, lam, gamma, nu, k, np.random.default_rng(9))
+    d3, d4 = rk.draw_block(b_mu, b_scale, lam, gamma, nu, k, state.copy())
     gb, nb = rk.niw_block_update(b_mu, b_scale, d3, d4, lam, gamma, nu)
     rk.propagate_pose(*b_pose, d3, d4, dt, w3, w4, steer, R_NOM, TRACK, WHEELBASE)
     for x, y in zip([*a_pose, a_mu, a_scale], [*b_pose, b_mu, b_scale], strict=True):
@@ -151,7 +153,7 @@ def test_fix_prediction_without_noise_is_eq13():
     w = rng.dirichlet(np.ones(n))
     before = east.copy()
     h, mean, cov = rk.fix_predict(east, north, yaw, speed, mu, w, 0.0, 0.0, 0.0, 1.2, -0.4, 0.1,
-                                  np.random.default_rng(0))  # fmt: skip
+                                  kernel_state(np.random.default_rng(0)))  # fmt: skip
     lx = 1.2 + 0.1 * speed
     ref = np.stack([east + lx * np.cos(yaw) + 0.4 * np.sin(yaw),
                     north + lx * np.sin(yaw) - 0.4 * np.cos(yaw)])  # fmt: skip
@@ -162,5 +164,5 @@ def test_fix_prediction_without_noise_is_eq13():
     np.testing.assert_array_equal(east, before)  # no pose noise requested, none applied
     # with pose noise: positions move by about the requested std
     rk.fix_predict(east, north, yaw, speed, mu, w, 0.5, 0.0, 0.0, 0.0, 0.0, 0.0,
-                   np.random.default_rng(0))  # fmt: skip
+                   kernel_state(np.random.default_rng(0)))  # fmt: skip
     assert np.std(east - before) == pytest.approx(0.5, rel=0.3)

@@ -78,3 +78,23 @@ def test_grade_is_estimated_from_altitude_and_corrects_the_distance() -> None:
         scale = 1.0 - gain * (1.0 - math.cos(grade))
         expected = OMEGA * scale * (r + float(np.mean(out.radius_error_m)))
         assert out.speed_m_s == pytest.approx(expected, rel=1e-9)
+
+
+def test_sliding_line_slope_matches_least_squares():
+    """The O(1) grade fit equals a least-squares line over the points in the window, far from
+    the origin and across rebuilds and the point cap."""
+    from tire_estimation.core.radius_estimator import _SlidingLine
+
+    rng = np.random.default_rng(8)
+    fit = _SlidingLine(max_points=300)
+    s = 4.0e5  # 400 km into a drive
+    for k in range(3000):
+        s += rng.uniform(0.0, 3.0)
+        fit.append(s, 250.0 + 0.03 * s + rng.normal(0.0, 0.5))
+        while fit.pts and fit.pts[0][0] < s - 100.0 * (1.0 + (k // 700) % 3):
+            fit.popleft()
+        if k % 97 == 0 and len(fit.pts) >= 5:
+            a = np.asarray(fit.pts)
+            ref = np.polyfit(a[:, 0] - a[0, 0], a[:, 1], 1)[0]
+            assert fit.slope() == pytest.approx(ref, rel=1e-9, abs=1e-12)
+    assert len(fit.pts) <= 300

@@ -282,3 +282,53 @@ def test_queued_predictions_equal_immediate_ones_when_paused():
     np.testing.assert_allclose(fa.north, fb.north, rtol=0, atol=1e-9)
     np.testing.assert_allclose(fa.yaw, fb.yaw, rtol=0, atol=1e-12)
     assert np.all(fa.east > 0.5)
+
+
+def _bias_mpf(n: int, bias_std: float, tau: float) -> RadiusMPF:
+    model = RadiusMotionModel(R_NOM, TRACK, WHEELBASE)
+    f = RadiusMPF(
+        model, n, np.zeros(2), 1e-3, 1e-3, 10.0, 0.9998, "systematic", 0.5, 0.0, 0.0,
+        np.random.default_rng(0), gnss_bias_std_m=bias_std, gnss_bias_time_constant_s=tau,
+    )  # fmt: skip
+    f.init_pose(np.zeros(3), np.diag([1e-14, 1e-14, 1e-14]))
+    for a in (f._east, f._north, f._yaw):
+        a[:] = 0.0  # exactly at the origin (init_pose regularizes its covariance)
+    return f
+
+
+def test_gnss_bias_is_the_kalman_filter_of_a_gauss_markov_error():
+    """One particle at a known, standing pose: the marginalized GNSS bias is a scalar Kalman
+    filter per axis and the weight update returns its predictive log-density."""
+    sb, tau, dt = 1.0, 60.0, 0.1
+    r = np.diag([1.5**2, 2.0**2])  # fix covariance = white part + sb^2 per axis
+    f = _bias_mpf(1, sb, tau)
+    rng = np.random.default_rng(3)
+    b_ref, p_ref = np.zeros(2), np.full(2, sb**2)
+    rw = np.diag(r) - sb**2
+    phi = np.exp(-dt / tau)
+    for _ in range(40):
+        for _ in range(10):  # one second standing still between the fixes
+            f.predict(dt, np.zeros(4), learn=False)
+        y = rng.normal(0.0, 1.5, 2) + np.array([0.7, -0.4])
+        pred = f.predict_fix(y, r, np.zeros(2))
+        log_like = f.update(y, r, pred)
+        # reference: b = phi^10 b, P = phi^20 P + sb^2 (1 - phi^20); S = P + R_w
+        b_ref = phi**10 * b_ref
+        p_ref = phi**20 * p_ref + sb**2 * (1 - phi**20)
+        s = p_ref + rw
+        ref_ll = float(np.sum(-0.5 * (np.log(2 * np.pi * s) + (y - b_ref) ** 2 / s)))
+        assert log_like == pytest.approx(ref_ll, abs=1e-9)
+        np.testing.assert_allclose(np.diag(pred.innovation_cov_m2), s, rtol=1e-9)
+        k = p_ref / s
+        b_ref = b_ref + k * (y - b_ref)
+        p_ref = (1 - k) * p_ref
+        np.testing.assert_allclose(f._bias[:, 0], b_ref, atol=1e-12)
+        np.testing.assert_allclose(np.diag(f._bias_p), p_ref, rtol=1e-12)
+
+
+def test_gnss_bias_off_uses_the_fix_covariance():
+    f = _bias_mpf(50, 0.0, 120.0)
+    r = np.eye(2) * 2.25
+    pred = f.predict_fix(np.array([0.3, -0.2]), r, np.zeros(2))
+    np.testing.assert_array_equal(pred.likelihood_cov_m2, r)
+    np.testing.assert_array_equal(f._bias, 0.0)

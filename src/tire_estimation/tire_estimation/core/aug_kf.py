@@ -39,6 +39,10 @@ class AugKf:
         radius_random_walk_m_sqrt_s: random walk of the radius errors, m/sqrt(s).
         position_noise_m_sqrt_s: additive random walk on east/north, m/sqrt(s).
         yaw_noise_rad_sqrt_s: additive random walk on the yaw, rad/sqrt(s).
+        gnss_bias_std_m: stationary std per axis of a first-order Gauss-Markov GNSS error,
+            appended to the state as ``[b_east, b_north]`` (beyond the paper; the MPF
+            marginalizes the same model); 0 = not modelled (5 states), m.
+        gnss_bias_time_constant_s: its correlation time, s.
     """
 
     def __init__(
@@ -50,28 +54,36 @@ class AugKf:
         radius_random_walk_m_sqrt_s: float,
         position_noise_m_sqrt_s: float,
         yaw_noise_rad_sqrt_s: float,
+        gnss_bias_std_m: float = 0.0,
+        gnss_bias_time_constant_s: float = 120.0,
     ) -> None:
         self.model = model
-        self.x = np.zeros(5)
-        self.p = np.eye(5)
-        self.x[3:] = prior_radius_error_m
-        self.p[3:, 3:] = np.eye(2) * prior_radius_error_std_m**2
-        self._prior = (np.array(self.x[3:]), prior_radius_error_std_m)
+        self.bias_var = float(gnss_bias_std_m) ** 2
+        self.bias_tau_s = float(gnss_bias_time_constant_s)
+        #: state size: 5, or 7 with the GNSS bias
+        self.nx = 7 if self.bias_var > 0.0 else 5
+        self.x = np.zeros(self.nx)
+        self.p = np.eye(self.nx)
+        if self.nx == 7:
+            self.p[5:, 5:] = np.eye(2) * self.bias_var
+        self.x[3:5] = prior_radius_error_m
+        self.p[3:5, 3:5] = np.eye(2) * prior_radius_error_std_m**2
+        self._prior = (np.array(self.x[3:5]), prior_radius_error_std_m)
         self.w_var = radius_noise_std_m**2
         self.rw_q = radius_random_walk_m_sqrt_s**2
         self.pos_q = position_noise_m_sqrt_s**2
         self.yaw_q = yaw_noise_rad_sqrt_s**2
         self.speed_m_s = 0.0
         self.yaw_rate_rad_s = 0.0
-        self._f = np.eye(5)
-        self._g = np.zeros((5, 2))
+        self._f = np.eye(self.nx)
+        self._g = np.zeros((self.nx, 2))
 
     def reset_radii(self) -> None:
         """Back to the prior radius errors."""
-        self.x[3:] = self._prior[0]
-        self.p[3:, :] = 0.0
-        self.p[:, 3:] = 0.0
-        self.p[3:, 3:] = np.eye(2) * self._prior[1] ** 2
+        self.x[3:5] = self._prior[0]
+        self.p[3:5, :] = 0.0
+        self.p[:, 3:5] = 0.0
+        self.p[3:5, 3:5] = np.eye(2) * self._prior[1] ** 2
 
     def init_pose(self, mean: F64, cov: F64) -> None:
         """Set the pose ``[east, north, yaw]`` (3,) and its covariance (3, 3); keep the radii."""
@@ -79,6 +91,12 @@ class AugKf:
         self.p[:3, :] = 0.0
         self.p[:, :3] = 0.0
         self.p[:3, :3] = cov
+        if self.nx == 7:
+            # the fix the pose was initialized from holds the current GNSS error
+            self.x[5:] = 0.0
+            self.p[5:, :] = 0.0
+            self.p[:, 5:] = 0.0
+            self.p[5:, 5:] = np.eye(2) * self.bias_var
 
     def predict(
         self,
@@ -122,9 +140,15 @@ class AugKf:
         f[0, 2] = -dt_s * v * s
         f[1, 2] = dt_s * v * c
         if learn:
-            f[:3, 3:] = g[:3]
+            f[:3, 3:5] = g[:3]
         else:
-            f[:3, 3:] = 0.0
+            f[:3, 3:5] = 0.0
+        phi = 1.0
+        if self.nx == 7:
+            # Gauss-Markov GNSS error: b = phi b, phi = exp(-dt / tau)
+            phi = math.exp(-dt_s / self.bias_tau_s)
+            f[5, 5] = f[6, 6] = phi
+            x[5:] *= phi
         # eq. (11a) state prediction
         x[0] += dt_s * v * c
         x[1] += dt_s * v * s
@@ -138,6 +162,9 @@ class AugKf:
         p[0, 0] += self.pos_q * dt_s
         p[1, 1] += self.pos_q * dt_s
         p[2, 2] += self.yaw_q * dt_s
+        if self.nx == 7:
+            p[5, 5] += self.bias_var * (1.0 - phi * phi)
+            p[6, 6] += self.bias_var * (1.0 - phi * phi)
         self.p = p
         self.speed_m_s = v
         self.yaw_rate_rad_s = yr
@@ -152,7 +179,13 @@ class AugKf:
         ay = float(lever_arm_m[1])
         # eq. (13b) with the antenna lever arm
         h = np.array([e + ax * c - ay * s, n + ax * s + ay * c])
-        hj = np.zeros((2, 5))
+        hj = np.zeros((2, self.nx))
+        if self.nx == 7:
+            # y = h(x) + b + v: the fix covariance is the total, R_w = R - c I (as the MPF)
+            h = h + self.x[5:]
+            hj[0, 5] = hj[1, 6] = 1.0
+            c_b = min(self.bias_var, 0.9 * float(np.linalg.eigvalsh(r_m2)[0]))
+            r_m2 = r_m2 - c_b * np.eye(2)
         hj[0, 0] = 1.0
         hj[1, 1] = 1.0
         hj[0, 2] = -ax * s - ay * c
@@ -166,9 +199,9 @@ class AugKf:
         """EKF measurement update (Joseph form). ``learn=False`` corrects the pose only."""
         k = self.p @ hj.T @ np.linalg.inv(upd.innovation_cov_m2)
         if not learn:
-            k[3:] = 0.0
+            k[3:5] = 0.0
         self.x = self.x + k @ upd.innovation_m
-        ikh = np.eye(5) - k @ hj
+        ikh = np.eye(self.nx) - k @ hj
         r = upd.innovation_cov_m2 - hj @ self.p @ hj.T
         self.p = ikh @ self.p @ ikh.T + k @ r @ k.T
         self.p = 0.5 * (self.p + self.p.T)

@@ -53,6 +53,11 @@ class RadiusEstimatorConfig:
             Default 0.002.
         gnss_default_std_m: horizontal GNSS std used when a fix has no covariance, m.
             Default 1.5.
+        gnss_bias_std_m: stationary std per axis of a first-order Gauss-Markov GNSS position
+            error (beyond the paper): marginalized in the MPF (per-particle Kalman filters with
+            one shared covariance), two more states in the AUG-KF; the fix covariance is then
+            read as white part plus this; 0 = not modelled, m. Default 0.
+        gnss_bias_time_constant_s: correlation time of that error, s. Default 120.
         gnss_gate_probability: chi-square (2 dof) probability of the innovation gate; fixes
             with a larger NIS are rejected as outliers. Default 0.9999 (NIS 18.4).
         gnss_max_rejections: after this many consecutive rejected fixes the pose is
@@ -134,6 +139,8 @@ class RadiusEstimatorConfig:
     position_process_noise_m_sqrt_s: float = 0.01
     yaw_process_noise_rad_sqrt_s: float = 0.002
     gnss_default_std_m: float = 1.5
+    gnss_bias_std_m: float = 0.0
+    gnss_bias_time_constant_s: float = 120.0
     gnss_gate_probability: float = 0.9999
     gnss_max_rejections: int = 5
     gnss_max_gap_s: float = 30.0
@@ -179,6 +186,8 @@ class RadiusEstimatorConfig:
         )
         require_non_negative("yaw_process_noise_rad_sqrt_s", self.yaw_process_noise_rad_sqrt_s)
         require_positive("gnss_default_std_m", self.gnss_default_std_m)
+        require_range("gnss_bias_std_m", self.gnss_bias_std_m, 0.0, 100.0)
+        require_range("gnss_bias_time_constant_s", self.gnss_bias_time_constant_s, 0.1, 1e5)
         require_range("gnss_gate_probability", self.gnss_gate_probability, 0.5, 1.0 - 1e-15)
         require_int_range("gnss_max_rejections", self.gnss_max_rejections, 1, 1000)
         require_positive("gnss_max_gap_s", self.gnss_max_gap_s)

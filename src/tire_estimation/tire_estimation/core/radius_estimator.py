@@ -131,6 +131,58 @@ class _Init:
     body: F64 = field(default_factory=lambda: np.zeros(3))
 
 
+class _SlidingLine:
+    """Least-squares slope of ``z`` over ``s`` for points entering at the right and leaving at
+    the left, in O(1) per point: running sums about an origin (the oldest point at the last
+    rebuild), rebuilt from the points every ``REBUILD`` appends to bound the rounding drift."""
+
+    REBUILD = 512
+
+    def __init__(self, max_points: int) -> None:
+        self.pts: deque[tuple[float, float]] = deque()
+        self.max_points = max_points
+        self._rebuild()
+
+    def _rebuild(self) -> None:
+        s0, z0 = self.pts[0] if self.pts else (0.0, 0.0)
+        self._o = (s0, z0)
+        self._n_s = self._n_z = self._n_ss = self._n_sz = 0.0
+        self._updates = 0
+        for s, z in self.pts:
+            self._add(s, z, 1.0)
+
+    def _add(self, s: float, z: float, sign: float) -> None:
+        ds, dz = s - self._o[0], z - self._o[1]
+        self._n_s += sign * ds
+        self._n_z += sign * dz
+        self._n_ss += sign * ds * ds
+        self._n_sz += sign * ds * dz
+
+    def append(self, s: float, z: float) -> None:
+        if len(self.pts) >= self.max_points:
+            self.popleft()
+        if not self.pts:
+            self.pts.append((s, z))
+            self._rebuild()  # the origin is this point
+            return
+        self.pts.append((s, z))
+        self._add(s, z, 1.0)
+        self._updates += 1
+        if self._updates >= self.REBUILD:
+            self._rebuild()
+
+    def popleft(self) -> None:
+        s, z = self.pts.popleft()
+        self._add(s, z, -1.0)
+
+    def slope(self) -> float:
+        """``sum (s - s_mean)(z - z_mean) / sum (s - s_mean)^2`` (NaN if degenerate)."""
+        n = len(self.pts)
+        sxx = self._n_ss - self._n_s * self._n_s / n
+        sxz = self._n_sz - self._n_s * self._n_z / n
+        return sxz / sxx if sxx > 0.0 else math.nan
+
+
 def _finite(kind: str, *values: float) -> None:
     # fast path: a sum is finite when every term is (a finite sum that overflows is checked
     # term by term below)
@@ -203,6 +255,8 @@ class RadiusEstimator:
             rng,
             mean_random_walk_m_sqrt_s=c.radius_random_walk_m_sqrt_s,
             kernel_shrinkage=c.kernel_shrinkage,
+            gnss_bias_std_m=c.gnss_bias_std_m,
+            gnss_bias_time_constant_s=c.gnss_bias_time_constant_s,
         )
         self.kf: AugKf | None = None
         if c.run_aug_kf:
@@ -214,6 +268,8 @@ class RadiusEstimator:
                 c.aug_kf_radius_random_walk_m_sqrt_s,
                 c.position_process_noise_m_sqrt_s,
                 c.yaw_process_noise_rad_sqrt_s,
+                gnss_bias_std_m=c.gnss_bias_std_m,
+                gnss_bias_time_constant_s=c.gnss_bias_time_constant_s,
             )
         self.stats: dict[str, int] = {}
         self.reset()
@@ -243,7 +299,7 @@ class RadiusEstimator:
         self._upper: F64 | None = None
         # road grade: wheel-travelled (slope) distance and (distance, GNSS altitude) pairs
         self._distance_m = 0.0
-        self._grade_pts: deque[tuple[float, float]] = deque(maxlen=GRADE_MAX_POINTS)
+        self._grade_fit = _SlidingLine(GRADE_MAX_POINTS)
         self._grade_rad = 0.0
         self._set_cache(self.mpf.estimate())
 
@@ -278,6 +334,18 @@ class RadiusEstimator:
     # ------------------------------------------------------------------ inputs
     def on_steering(self, t_ns: int, angle_rad: float) -> None:
         """Mean road-wheel steer angle (rad, positive left); used by eq. (31a) at low speed."""
+        stream = self._streams["steering"]
+        last = stream.last_t_ns
+        if (
+            type(t_ns) is int
+            and (last is None or t_ns > last)
+            and type(angle_rad) is float
+            and -1.2 <= angle_rad <= 1.2  # False for NaN
+        ):
+            # fast path: a valid, ordered sample (the checks below, without the calls)
+            stream.last_t_ns = t_ns
+            self._steer = (t_ns, angle_rad)
+            return
         try:
             self._check_order("steering", t_ns)
             _finite("steering", float(angle_rad))
@@ -286,13 +354,33 @@ class RadiusEstimator:
         except (InputError, TypeError, ValueError) as exc:
             self._drop(exc.kind if isinstance(exc, InputError) else "bad_value")
             return
-        self._streams["steering"].last_t_ns = int(t_ns)
+        stream.last_t_ns = int(t_ns)
         self._steer = (int(t_ns), float(angle_rad))
 
     def on_imu(
         self, t_ns: int, angular_velocity_rad_s: Any, linear_acceleration_m_s2: Any
     ) -> None:
         """IMU sample in ``base_link`` axes (only used by the acceleration gates)."""
+        stream = self._streams["imu"]
+        last = stream.last_t_ns
+        if (
+            type(t_ns) is int
+            and (last is None or t_ns > last)
+            and type(angular_velocity_rad_s) is np.ndarray
+            and type(linear_acceleration_m_s2) is np.ndarray
+            and angular_velocity_rad_s.shape == (3,)
+            and linear_acceleration_m_s2.shape == (3,)
+            and angular_velocity_rad_s.dtype == np.float64
+            and linear_acceleration_m_s2.dtype == np.float64
+        ):
+            # fast path: ordered float64 vectors of 3 (finiteness checked on the sum)
+            gyro = angular_velocity_rad_s.tolist()
+            acc = linear_acceleration_m_s2.tolist()
+            total = sum(gyro) + sum(acc)
+            if total - total == 0.0:
+                stream.last_t_ns = t_ns
+                self._imu = (t_ns, gyro, acc)
+                return
         try:
             self._check_order("imu", t_ns)
             gyro = _floats(angular_velocity_rad_s)
@@ -303,7 +391,7 @@ class RadiusEstimator:
         except (InputError, TypeError, ValueError) as exc:
             self._drop(exc.kind if isinstance(exc, InputError) else "bad_value")
             return
-        self._streams["imu"].last_t_ns = int(t_ns)
+        stream.last_t_ns = int(t_ns)
         self._imu = (int(t_ns), gyro, acc)
 
     def _parse_wheels(self, wheel_speed_rad_s: Any) -> F64:
@@ -327,13 +415,30 @@ class RadiusEstimator:
 
     def on_wheel_speeds(self, t_ns: int, wheel_speed_rad_s: Any) -> None:
         """Wheel speeds (fl, fr, rl, rr) in rad/s; drives the prediction of the filters."""
-        try:
-            self._check_order("wheel", t_ns)
-            ws = self._parse_wheels(wheel_speed_rad_s)
-        except (InputError, TypeError, ValueError) as exc:
-            self._drop(exc.kind if isinstance(exc, InputError) else "bad_value")
-            return
-        t_ns = int(t_ns)
+        stream = self._streams["wheel"]
+        last = stream.last_t_ns
+        ws: Any = None
+        if (
+            type(t_ns) is int
+            and (last is None or t_ns > last)
+            and type(wheel_speed_rad_s) is np.ndarray
+            and wheel_speed_rad_s.shape == (4,)
+            and wheel_speed_rad_s.dtype == np.float64
+        ):
+            # fast path: ordered, finite (a sum is finite when every term is) float64 vector of
+            # 4 within +-1000 rad/s; anything else takes the checks below
+            vals = wheel_speed_rad_s.tolist()
+            total = sum(vals)
+            if total - total == 0.0 and min(vals) >= -1000.0 and max(vals) <= 1000.0:
+                ws = np.array(vals)
+        if ws is None:
+            try:
+                self._check_order("wheel", t_ns)
+                ws = self._parse_wheels(wheel_speed_rad_s)
+            except (InputError, TypeError, ValueError) as exc:
+                self._drop(exc.kind if isinstance(exc, InputError) else "bad_value")
+                return
+            t_ns = int(t_ns)
         if self._speed_gain:
             # speed-dependent radius r = r_n + delta + k v^2 (r_n nominal, delta the radius
             # error at standstill); with k v^2 ~ k omega^2 r_n^2:
@@ -344,7 +449,6 @@ class RadiusEstimator:
             ws = ws * (1.0 + self._speed_gain * ws * ws)
         if self._load_gain:
             ws = ws * self._load_scale(t_ns, ws)
-        last = self._streams["wheel"].last_t_ns
         if last is not None and (t_ns - last) * 1e-9 <= self.config.max_gap_s:
             # slope distance rolled by the rear wheels (nominal radius) for the grade fit
             rolled = 0.5 * self.model.nominal_radius_m * float(abs(ws[RL]) + abs(ws[RR]))
@@ -357,7 +461,7 @@ class RadiusEstimator:
             mf = 0.5 * float(ws[FL] + ws[FR])
             mr = 0.5 * float(ws[RL] + ws[RR])
             ws = ws - eps * np.array([mf, mf, mr, mr])
-        self._streams["wheel"].last_t_ns = t_ns
+        stream.last_t_ns = t_ns
         prev = self._prev_ws
         self._prev_ws = ws
         if last is None or prev is None:
@@ -402,17 +506,17 @@ class RadiusEstimator:
         """Update the road grade with a GNSS altitude: least-squares slope of the altitude
         over the wheel-travelled distance in the last ``road_grade_window_m``."""
         window = self.config.road_grade_window_m
-        pts = self._grade_pts
-        pts.append((self._distance_m, up_m))
+        fit = self._grade_fit
+        fit.append(self._distance_m, up_m)
+        pts = fit.pts
         while pts and pts[0][0] < self._distance_m - window:
-            pts.popleft()
+            fit.popleft()
         if len(pts) < 5 or pts[-1][0] - pts[0][0] < 0.5 * window:
             return  # keep the last estimate (standstill, start)
-        a = np.asarray(pts)
-        s = a[:, 0] - a[:, 0].mean()
-        # sin(theta) = dz / ds along the slope distance s
-        sin_grade = float(s @ (a[:, 1] - a[:, 1].mean()) / (s @ s))
-        self._grade_rad = math.asin(min(0.5, max(-0.5, sin_grade)))
+        # sin(theta) = dz / ds along the slope distance s (least-squares slope)
+        sin_grade = fit.slope()
+        if math.isfinite(sin_grade):
+            self._grade_rad = math.asin(min(0.5, max(-0.5, sin_grade)))
 
     def _speed_yaw_rate(self, ws: F64) -> tuple[float, float]:
         """Eq. (6) with the learned mean rear radius errors, in Python floats."""
@@ -727,8 +831,8 @@ class RadiusEstimator:
         baseline = None
         if self.kf is not None:
             baseline = BaselineEstimate(
-                radius_error_m=self.kf.x[3:].copy(),
-                radius_error_std_m=np.sqrt(np.maximum(np.diag(self.kf.p)[3:], 0.0)),
+                radius_error_m=self.kf.x[3:5].copy(),
+                radius_error_std_m=np.sqrt(np.maximum(np.diag(self.kf.p)[3:5], 0.0)),
                 pose=self.kf.x[:3].copy(),
                 pose_cov=self.kf.p[:3, :3].copy(),
             )
@@ -778,8 +882,8 @@ class RadiusEstimator:
             }
         if self.kf is not None:
             out["aug_kf"] = {
-                "mean_m": self.kf.x[3:].tolist(),
-                "cov_m2": self.kf.p[3:, 3:].tolist(),
+                "mean_m": self.kf.x[3:5].tolist(),
+                "cov_m2": self.kf.p[3:5, 3:5].tolist(),
             }
         return out
 
@@ -831,8 +935,8 @@ class RadiusEstimator:
         if front is not None:
             self._front = front
         if self.kf is not None and "aug_kf" in d:
-            self.kf.x[3:] = np.asarray(d["aug_kf"]["mean_m"], dtype=float).reshape(2)
-            self.kf.p[3:, 3:] = np.asarray(d["aug_kf"]["cov_m2"], dtype=float).reshape(2, 2)
+            self.kf.x[3:5] = np.asarray(d["aug_kf"]["mean_m"], dtype=float).reshape(2)
+            self.kf.p[3:5, 3:5] = np.asarray(d["aug_kf"]["cov_m2"], dtype=float).reshape(2, 2)
         self._set_cache(self.mpf.estimate())
 
 

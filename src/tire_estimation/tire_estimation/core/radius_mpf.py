@@ -27,6 +27,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tire_estimation.core import niw, radius_kernels
+from tire_estimation.core.kernel_random import kernel_state
 from tire_estimation.core.radius_model import RL, RR, RadiusMotionModel
 from tire_estimation.core.resampling import RESAMPLERS, ess
 
@@ -50,6 +51,8 @@ class FixPrediction:
     innovation_m: F64
     innovation_cov_m2: F64
     nis: float
+    #: covariance each particle's likelihood uses: ``R``, or with the GNSS bias ``P_b + R_w``
+    likelihood_cov_m2: F64 | None = None
 
 
 @dataclass(frozen=True)
@@ -104,6 +107,9 @@ class RadiusMPF:
             paper); 0 disables.
         rng: random generator (all draws).
         block_size: at most this many queued predictions are processed as one block.
+        gnss_bias_std_m: stationary std of a Gauss-Markov GNSS position error per axis (beyond
+            the paper), m; 0 disables. See :meth:`predict_fix`.
+        gnss_bias_time_constant_s: its correlation time, s.
     """
 
     D = 2
@@ -125,6 +131,8 @@ class RadiusMPF:
         mean_random_walk_m_sqrt_s: float = 0.0,
         kernel_shrinkage: float = 0.0,
         block_size: int = 64,
+        gnss_bias_std_m: float = 0.0,
+        gnss_bias_time_constant_s: float = 120.0,
     ) -> None:
         self.model = model
         self.n = int(n_particles)
@@ -159,6 +167,13 @@ class RadiusMPF:
         self._stats = self._wrap(niw.init_stats(n, *self._prior))
         #: queued predictions (dt_s, w_rl, w_rr, learn, steer or NaN), see :meth:`_flush`
         self._pending: list[tuple[float, float, float, float, float]] = []
+        # Gauss-Markov GNSS error (beyond the paper), marginalized: per-particle means (2, N)
+        # and one covariance (2, 2) shared by all particles (same linear model and R for all)
+        self.bias_var = float(gnss_bias_std_m) ** 2
+        self.bias_tau_s = float(gnss_bias_time_constant_s)
+        self.bias_dt_s = 0.0
+        self._bias = np.zeros((d, n))
+        self._bias_p = np.eye(d) * self.bias_var
 
     # ------------------------------------------------------------------ state access
     # Reading any of these first processes the queued predictions.
@@ -237,9 +252,12 @@ class RadiusMPF:
         self._speed[:] = 0.0
         self.weights[:] = 1.0 / self.n
         self.jitter_dt_s = 0.0
+        # the fix the pose was initialized from holds the current GNSS error
+        self._bias[:] = 0.0
+        self._bias_p = np.eye(self.D) * self.bias_var
+        self.bias_dt_s = 0.0
 
     # ------------------------------------------------------------------ prediction
-    @_mutates
     def predict(
         self,
         dt_s: float,
@@ -258,7 +276,9 @@ class RadiusMPF:
         The sample is queued; the queue is processed as one block (see :meth:`_flush`) before
         anything reads the state, so callers always see the propagated filter.
         """
+        self.version += 1  # as @_mutates does (inline: this runs at every wheel-speed sample)
         self.jitter_dt_s += dt_s
+        self.bias_dt_s += dt_s
         self._pending.append(
             (
                 float(dt_s),
@@ -302,8 +322,9 @@ class RadiusMPF:
         the NiW update and the pose propagation; this method leaves the statistics unchanged.
         """
         st = self._stats
+        state = kernel_state(self.rng)
         return radius_kernels.draw_block(
-            self._mu, self._lam, self.lam, float(st.gamma), float(st.dof), k, self.rng
+            self._mu, self._lam, self.lam, float(st.gamma), float(st.dof), k, state
         )
 
     def _niw_block_update(self, d3: F64, d4: F64) -> None:
@@ -327,7 +348,7 @@ class RadiusMPF:
         g, nu = radius_kernels.propagate_block(
             self._east, self._north, self._yaw, self._speed, self._mu, self._lam,
             seg[0], seg[1], seg[2], seg[4], learn, self.lam, float(st.gamma), float(st.dof),
-            m.nominal_radius_m, m.track_width_m, m.wheelbase_m, self.rng,
+            m.nominal_radius_m, m.track_width_m, m.wheelbase_m, kernel_state(self.rng),
         )  # fmt: skip
         st.gamma[...] = g
         st.dof[...] = nu
@@ -356,9 +377,12 @@ class RadiusMPF:
         h, mean, cov = radius_kernels.fix_predict(
             self._east, self._north, self._yaw, self._speed, self._mu, self.weights,
             *self._jitter_std(), float(lever_arm_m[0]), float(lever_arm_m[1]),
-            float(extrapolate_s), self.rng,
+            float(extrapolate_s), kernel_state(self.rng),
         )  # fmt: skip
-        s_mat = cov + r_m2
+        lik_cov = r_m2
+        if self.bias_var > 0.0:
+            h, mean, cov, lik_cov = self._bias_predict(h, r_m2)
+        s_mat = cov + lik_cov
         i0 = float(y_m[0]) - float(mean[0])
         i1 = float(y_m[1]) - float(mean[1])
         # NIS with the closed-form 2x2 inverse
@@ -366,7 +390,45 @@ class RadiusMPF:
         det = s00 * s11 - s01 * s01
         nis = (s11 * i0 * i0 - 2.0 * s01 * i0 * i1 + s00 * i1 * i1) / det if det > 0 else math.inf
         innov = np.array([i0, i1])
-        return FixPrediction(h=h, innovation_m=innov, innovation_cov_m2=s_mat, nis=nis)
+        return FixPrediction(
+            h=h, innovation_m=innov, innovation_cov_m2=s_mat, nis=nis, likelihood_cov_m2=lik_cov
+        )
+
+    def _bias_predict(self, h: F64, r_m2: F64) -> tuple[F64, F64, F64, F64]:
+        """GNSS fix model with a first-order Gauss-Markov error ``b`` (beyond the paper):
+        ``y = h(x) + b + v``, ``b_k = phi b_{k-1} + u``, ``phi = exp(-dt / tau)``,
+        ``u ~ N(0, sigma_b^2 (1 - phi^2) I)``, ``v ~ N(0, R_w)``. ``b`` enters linearly with the
+        same ``H = I`` and ``R_w`` for every particle, so it is marginalized with one Kalman
+        filter per particle whose covariance ``P`` is shared (Schoen, Gustafsson & Nordlund,
+        IEEE TSP 2005, the marginalized PF with a linear substructure). The fix covariance is
+        taken as the total error: ``R_w = R - c I``, ``c = min(sigma_b^2, 0.9 lambda_min(R))``.
+
+        Returns ``h + b_i`` (2, N), its weighted mean and covariance, and ``P + R_w``.
+        """
+        dt = self.bias_dt_s
+        self.bias_dt_s = 0.0
+        phi = math.exp(-dt / self.bias_tau_s) if dt > 0.0 else 1.0
+        # time update of every particle's bias filter: b = phi b, P = phi^2 P + Q
+        self._bias *= phi
+        self._bias_p = phi * phi * self._bias_p + np.eye(self.D) * self.bias_var * (1.0 - phi**2)
+        c = min(self.bias_var, 0.9 * float(np.linalg.eigvalsh(r_m2)[0]))
+        r_white = r_m2 - c * np.eye(self.D)
+        hb = h + self._bias
+        w = self.weights
+        mean = hb @ w
+        dev = hb - mean[:, None]
+        cov = (dev * w) @ dev.T
+        return hb, mean, cov, self._bias_p + r_white
+
+    def _bias_update(self, y_m: F64, pred: FixPrediction) -> None:
+        """Measurement update of every particle's bias filter (before any resampling):
+        ``K = P S^-1``, ``b_i += K (y - h_i - b_i)``, ``P = P - K P``, ``S = P + R_w``."""
+        if self.bias_var <= 0.0 or pred.likelihood_cov_m2 is None:
+            return
+        p = self._bias_p
+        gain = p @ np.linalg.inv(pred.likelihood_cov_m2)
+        self._bias += gain @ (np.asarray(y_m, dtype=float)[:, None] - pred.h)
+        self._bias_p = p - gain @ p
 
     @_mutates
     def update(self, y_m: F64, r_m2: F64, pred: FixPrediction) -> float:
@@ -377,10 +439,12 @@ class RadiusMPF:
         (:func:`radius_kernels.fix_reweight`).
         """
         self._flush()
+        lik = r_m2 if pred.likelihood_cov_m2 is None else pred.likelihood_cov_m2
         log_norm, n_eff = radius_kernels.fix_reweight(
             self.weights, pred.h, float(y_m[0]), float(y_m[1]),
-            float(r_m2[0, 0]), float(r_m2[0, 1]), float(r_m2[1, 1]),
+            float(lik[0, 0]), float(lik[0, 1]), float(lik[1, 1]),
         )  # fmt: skip
+        self._bias_update(y_m, pred)
         if n_eff < self.resample_threshold * self.n:
             self.resample()
         return log_norm
@@ -397,6 +461,8 @@ class RadiusMPF:
         idx = self.resample_fn(w, self.rng)
         for a in (self._east, self._north, self._yaw, self._speed):
             a[:] = a[idx]
+        if self.bias_var > 0.0:
+            self._bias[:] = self._bias[:, idx]
         self._stats.take(idx)
         self.weights[:] = 1.0 / self.n
         self.resample_count += 1
@@ -417,11 +483,19 @@ class RadiusMPF:
         model mismatch (braking slip, low speed) select radius hypotheses.
         """
         self._flush()
-        cov = pred.innovation_cov_m2 - r_m2
-        gain = cov @ np.linalg.inv(pred.innovation_cov_m2)
-        shift = gain @ pred.innovation_m
+        lik = r_m2 if pred.likelihood_cov_m2 is None else pred.likelihood_cov_m2
+        s_inv = np.linalg.inv(pred.innovation_cov_m2)
+        # the cloud's covariance (innovation covariance minus the likelihood's) sets the gain
+        cov = pred.innovation_cov_m2 - lik
+        shift = cov @ s_inv @ pred.innovation_m
         self._east += shift[0]
         self._north += shift[1]
+        if self.bias_var > 0.0:
+            # the bias filters take their share of the mean innovation (pose and bias
+            # uncorrelated): b += P S^-1 innovation, P -= P S^-1 P
+            p = self._bias_p
+            self._bias += (p @ s_inv @ pred.innovation_m)[:, None]
+            self._bias_p = p - p @ s_inv @ p
 
     @_mutates
     def clip_mean(self, upper_m: F64) -> None:

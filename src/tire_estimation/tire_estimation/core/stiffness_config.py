@@ -15,6 +15,7 @@ from tire_estimation.errors import ConfigError
 DRIVE_CHOICES = ("vehicle", "front", "rear", "all")
 SPEED_MODELS = ("input", "kinematic")
 RESAMPLERS = ("systematic", "stratified", "multinomial", "residual")
+STATE_PROPOSALS = ("prior", "measured")
 
 
 @dataclass(frozen=True)
@@ -66,6 +67,13 @@ class StiffnessEstimatorConfig:
         state_jitter_vy_m_s_sqrt_s: extra random walk on vY, m/s/sqrt(s) (default 0.006).
         state_jitter_yaw_rate_rad_s_sqrt_s: extra random walk on the yaw rate, rad/s/sqrt(s)
             (default 0.0006).
+        state_proposal: how the random walk (``state_jitter_*``) of the states that are measured
+            directly is drawn (not in the paper): ``prior`` from its own distribution, the
+            particles then only weighed by the measurement (Algorithm 1); ``measured`` from the
+            locally optimal proposal given the measurement, for the yaw rate (gyro) and, with
+            ``measured_speed_model`` = ``kinematic``, vX (measured speed); those rows are then
+            weighed with their Gaussian predictive and the other rows with their Student-t
+            marginal (``core/stiffness_proposal.py``) (default ``prior``).
         wheel_radius_m: effective wheel radius R_w of eq. (3), m; 0 uses the vehicle's nominal
             radius (default 0.0).
         rolling_resistance_n: known constant longitudinal resistance, N (default 0.0, the
@@ -132,6 +140,7 @@ class StiffnessEstimatorConfig:
     state_jitter_vx_m_s_sqrt_s: float = 0.015
     state_jitter_vy_m_s_sqrt_s: float = 0.006
     state_jitter_yaw_rate_rad_s_sqrt_s: float = 0.0006
+    state_proposal: str = "prior"
     wheel_radius_m: float = 0.0
     rolling_resistance_n: float = 0.0
     drag_n_s2_m2: float = 0.0
@@ -160,6 +169,10 @@ class StiffnessEstimatorConfig:
                 "measured_speed_model",
                 self.measured_speed_model,
                 f"must be one of {SPEED_MODELS}",
+            )
+        if self.state_proposal not in STATE_PROPOSALS:
+            raise ConfigError(
+                "state_proposal", self.state_proposal, f"must be one of {STATE_PROPOSALS}"
             )
         if self.drive not in DRIVE_CHOICES:
             raise ConfigError("drive", self.drive, f"must be one of {DRIVE_CHOICES}")

@@ -34,6 +34,13 @@ hence the longitudinal tyre force, is unknown: by default (``measured_speed_mode
 speed replaces ax as measurement row 0 (``stiffness_model.kinematic_speed_row``); the ax bias
 is then not estimated; (viii) optional saturating lateral tyre ``Fy = C alpha_s tanh(alpha /
 alpha_s)`` (``friction_coefficient``, still affine in ``C``).
+
+Speed: :meth:`StiffnessMpf.predict` and :meth:`StiffnessMpf.update` run the per-particle algebra
+after the linearization in the compiled kernels of :mod:`.stiffness_kernels` (three passes over
+the particles per IMU step, the same random stream); the vectorized NumPy functions below
+(:func:`likelihood_params`, :func:`conditional_predictive`, :func:`sample_student_t`,
+:func:`bias_update`, ...) are the reference they are tested against, and run the filter when
+``StiffnessMpf.compiled`` is False (and with ``state_proposal`` = ``measured``).
 """
 
 from __future__ import annotations
@@ -43,7 +50,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from tire_estimation.core import mat3, niw, resampling
+from tire_estimation.core import mat3, niw, resampling, stiffness_kernels
 from tire_estimation.core.stiffness_config import StiffnessEstimatorConfig
 from tire_estimation.core.stiffness_model import (
     Linearized,
@@ -51,6 +58,10 @@ from tire_estimation.core.stiffness_model import (
     kinematic_speed_row,
     linearize,
     wheel_speed_gain,
+)
+from tire_estimation.core.stiffness_proposal import (
+    marginal_maha_logdet,
+    measured_state_proposal,
 )
 
 F64 = NDArray[np.float64]
@@ -213,12 +224,19 @@ class ConditionalPredictive:
 
 
 def conditional_predictive(
-    stats: niw.NiwStats, d: F64, e_bar: F64, lp: LikelihoodParams, maha: F64 | None = None
+    stats: niw.NiwStats,
+    d: F64,
+    e_bar: F64,
+    lp: LikelihoodParams,
+    maha: F64 | None = None,
+    n_meas: int = NE,
 ) -> ConditionalPredictive:
     """Conditional Student-t of ``w`` given the measurement (Theorem 1 via eq. 41).
 
     ``maha`` (N,): ``z^T Lambda~_e^-1 z`` with ``z = e_bar - mu_e`` when the caller has it
-    already (the likelihood of eq. 36 needs the same); computed here otherwise.
+    already (the likelihood of eq. 36 needs the same); computed here otherwise. ``n_meas`` < 3
+    conditions on the rows that carry ``d w`` only (``maha`` then of those rows; a row with no
+    ``d w``, gyro or measured speed, does not move the gain: ``Lambda~_e`` is block diagonal).
     """
     # eq. (40) z = e_bar - mu_e
     z = e_bar - lp.loc
@@ -231,7 +249,7 @@ def conditional_predictive(
         maha = _maha(z, lp.shape_inv)
     nu = np.asarray(lp.dof, dtype=float)
     # eq. (41) nu_{1|2} = nu + d_2
-    dof = nu + NE
+    dof = nu + n_meas
     # eq. (41) mu_{1|2} = mu_1 + Lambda_12 Lambda_22^-1 (x_2 - mu_2)
     loc = stats.mean + mat3.aos(mat3.mv(gain, mat3.soa(z)))
     # eq. (41) Lambda_{1|2} = (nu + z^T L22^-1 z)/(nu + d_2) (L11 - L12 L22^-1 L12^T)
@@ -310,6 +328,10 @@ class StiffnessMpf:
         rng: random generator for every draw.
     """
 
+    #: run the per-particle algebra in the compiled kernels of :mod:`.stiffness_kernels`
+    #: (False: the NumPy reference functions of this module; same filter, same random stream)
+    compiled: bool = True
+
     def __init__(
         self,
         config: StiffnessEstimatorConfig,
@@ -348,6 +370,11 @@ class StiffnessMpf:
                 c.state_jitter_yaw_rate_rad_s_sqrt_s,
             ]
         )
+        #: state_proposal = measured (core/stiffness_proposal.py): the random walk of the
+        #: yaw rate and, with a measured speed in the kinematic model, of vX is drawn in
+        #: update() given the gyro / speed; ``_drawn_in_update`` marks those states
+        self.measured_proposal = c.state_proposal == "measured"
+        self._drawn_in_update = np.array([False, False, self.measured_proposal])
         self._resample = getattr(resampling, c.resampler)
         self.initialized = False
         self.x = np.zeros((self.n, 3))
@@ -369,6 +396,10 @@ class StiffnessMpf:
         self.bias_updated = False
         self._dt_s = 0.0
         self._before_learning: niw.NiwStats | None = None
+        # compiled path: ancestors without resampling, "no freeze", constant of eq. (35)
+        self._identity = np.arange(self.n, dtype=np.intp)
+        self._no_freeze = np.empty(0)
+        self._log_const: tuple[float, float] = (np.nan, np.nan)
 
     def prior_stats(self) -> niw.NiwStats:
         """Prior NiW statistics: mean at the initial guess, E[Sigma] and gamma from config."""
@@ -404,19 +435,28 @@ class StiffnessMpf:
         ``learn`` applies (20); ``learn_cx`` False (default ``learn``) keeps the statistics
         before (20) for the Cx freeze of the following :meth:`update`.
         """
-        # eq. (9) x_{k+1} = f + g w_k with the stored rate = rate_n + a w_k
-        self.x += dt_s * self.rate
-        if np.any(self.jitter > 0.0):
-            self.x += self.rng.standard_normal((self.n, 3)) * (self.jitter * np.sqrt(dt_s))
-        self.x[:, 0] = np.maximum(self.x[:, 0], 0.0)
+        # jitter (iii) of the states whose random walk update() does not draw
+        jitter = np.where(self._drawn_in_update, 0.0, self.jitter)
+        if self.compiled:
+            # eq. (9) with the stored rate, jitter (iii), vX >= 0 and eq. (29) P += Q Ts
+            stiffness_kernels.predict_states(
+                self.x, self.rate, self.p_bias, self.q_rate * dt_s, dt_s, jitter, self.rng
+            )
+        else:
+            # eq. (9) x_{k+1} = f + g w_k with the stored rate = rate_n + a w_k
+            self.x += dt_s * self.rate
+            if np.any(jitter > 0.0):
+                self.x += self.rng.standard_normal((self.n, 3)) * (jitter * np.sqrt(dt_s))
+            self.x[:, 0] = np.maximum(self.x[:, 0], 0.0)
         self._before_learning = None
         if learn:
             if learn_cx is False:
                 self._before_learning = self.stats.copy()
             # eq. (20) gamma/lambda, mu, lambda nu, lambda Lambda
             niw.time_update(self.stats, self.config.forgetting)
-        # eq. (29) P_{k+1} = P_k + Q
-        bias_predict(self.p_bias, self.q_rate * dt_s)
+        if not self.compiled:
+            # eq. (29) P_{k+1} = P_k + Q
+            bias_predict(self.p_bias, self.q_rate * dt_s)
         self._dt_s = dt_s
 
     def update(
@@ -445,6 +485,29 @@ class StiffnessMpf:
         if freeze_cx and before is None:
             before = self.stats.copy()
         self._before_learning = None
+        # state_proposal = measured: draw the random walk of the measured states given their
+        # measurement (stiffness_proposal.measured_state_proposal): (row, y, offset, P, R)
+        log_w_measured = None
+        rows = (0, 1, 2)
+        gyro_nis = 0.0
+        if self.measured_proposal:
+            self._drawn_in_update[0] = kinematic
+            measured = [(2, float(y[2]), self.b[:, 2], self.p_bias[:, 2, 2], self.r_cov[2, 2])]
+            if kinematic:
+                assert vx_m_s is not None
+                speed_var = self.config.speed_noise_std_m_s**2
+                measured.append((0, float(vx_m_s), 0.0, 0.0, speed_var))
+            log_w_measured = np.zeros(self.n)
+            for j, y_j, b_j, p_j, r_j in measured:
+                prop = measured_state_proposal(
+                    self.x[:, j], y_j, b_j, p_j, float(r_j), self.jitter[j] ** 2 * self._dt_s,
+                    self.rng,
+                )  # fmt: skip
+                self.x[:, j] = prop.state
+                log_w_measured += prop.log_weight
+                if j == 2:
+                    gyro_nis = float(self.weights @ prop.nis)
+            rows = tuple(i for i in range(NE) if i not in {m[0] for m in measured})
         if kinematic:
             assert vx_m_s is not None
             # slip 0 (wheel speed = each particle's vX): the longitudinal force is unknown
@@ -462,17 +525,34 @@ class StiffnessMpf:
         else:
             lin = linearize(self.x, delta_rad, wheel_speed_m_s, self.params)
             r_cov = self.measurement_cov(delta_rad, wheel_speed_m_s)
+        if (
+            self.compiled
+            and log_w_measured is None
+            and np.ndim(self.stats.dof) == 0
+            and np.ndim(self.stats.gamma) == 0
+        ):
+            # the steps below in stiffness_kernels (same filter, same random stream)
+            self._update_compiled(y, lin, r_cov, learn, before if freeze_cx else None)
+            return
         # e_bar = y - h - b_{k|k-1} (eq. 12)
         e_bar = y[None, :] - lin.h - self.b
         lp = likelihood_params(self.stats, lin.d, r_cov, self.p_bias)
-        self.yaw_rate_nis = yaw_rate_nis(e_bar, lp, self.weights)
+        self.yaw_rate_nis = (
+            yaw_rate_nis(e_bar, lp, self.weights) if log_w_measured is None else gyro_nis
+        )
         a = min(1.0, self._dt_s / self.config.bias_gate_window_s)
         self.yaw_rate_nis_mean += a * (self.yaw_rate_nis - self.yaw_rate_nis_mean)
         self._dt_s = 0.0
         # Algorithm 1 line 3: eq. (36)
         # (log_likelihood(e_bar, lp); the Mahalanobis term is kept for eq. 41 below)
-        maha = _maha(e_bar - lp.loc, lp.shape_inv)
-        self.log_w += niw.student_t_log_density(maha, lp.logdet, lp.dof, NE)
+        n_meas = len(rows)
+        if log_w_measured is None:
+            maha = _maha(e_bar - lp.loc, lp.shape_inv)
+            self.log_w += niw.student_t_log_density(maha, lp.logdet, lp.dof, NE)
+        else:
+            # measured proposal: q_k = q_{k-1} prod_j N(nu_j; 0, S_j) St(other rows)
+            maha, logdet = marginal_maha_logdet(e_bar - lp.loc, lp.shape, rows)
+            self.log_w += log_w_measured + niw.student_t_log_density(maha, logdet, lp.dof, n_meas)
         # line 6-7: normalize, N_eff; the normalizer of the normalized previous weights times
         # the likelihoods is the predictive density p(y_k | y_1:k-1) (model evidence increment)
         self.weights, log_pred = resampling.normalize_log_weights(self.log_w)
@@ -486,6 +566,9 @@ class StiffnessMpf:
         if self.n_eff <= self.config.resample_threshold * self.n:
             idx = self._resample(self.weights, self.rng)
             self._take(idx)
+            if before is not None:
+                # the statistics the Cx freeze restores follow their particles
+                before.take(idx)
             lin = Linearized(rate=lin.rate[idx], a=lin.a[idx], h=lin.h[idx], d=lin.d[idx])
             e_bar = e_bar[idx]
             r_cov = r_cov[idx]
@@ -495,7 +578,7 @@ class StiffnessMpf:
             self.resample_count += 1
         self.log_w = np.log(self.weights)
         # line 17: sample w_k from the conditional predictive (39)-(41)
-        cp = conditional_predictive(self.stats, lin.d, e_bar, lp, maha)
+        cp = conditional_predictive(self.stats, lin.d, e_bar, lp, maha, n_meas)
         w = sample_student_t(cp, self.rng)
         # Sec. V parameter projection to physical bounds
         w = np.clip(w, self.lower, self.upper)
@@ -521,6 +604,82 @@ class StiffnessMpf:
             bias_update(self.b, self.p_bias, resid, extra, r_cov, lp.dof)
         # line 18 (first half): derivative for eq. (9), applied in predict()
         self.rate = lin.rate + np.einsum("nij,nj->ni", lin.a, w)
+
+    def _student_t_log_const(self, nu_t: float) -> float:
+        """``lgamma((nu~+3)/2) - lgamma(nu~/2) - 3/2 log(nu~ pi)`` of eq. (35), cached on nu~."""
+        if self._log_const[0] != nu_t:
+            # the reference's own expression at maha = 0, logdet = 0 (same rounding)
+            c = niw.student_t_log_density(np.zeros(1), np.zeros(1), nu_t, NE)
+            self._log_const = (nu_t, float(c[0]))
+        return self._log_const[1]
+
+    def _update_compiled(
+        self,
+        y: F64,
+        lin: Linearized,
+        r_cov: F64,
+        learn: bool,
+        freeze_before: niw.NiwStats | None,
+    ) -> None:
+        """The measurement part of :meth:`update` in :mod:`.stiffness_kernels` (same steps).
+
+        ``freeze_before``: the statistics whose Cx part is kept (:func:`freeze_component`), or
+        ``None``. Shared ``gamma`` and ``nu`` only (``niw.init_stats(shared=True)``).
+        """
+        st = self.stats
+        gamma, nu = float(st.gamma), float(st.dof)
+        # eq. (21) nu~ = nu - d + 1
+        log_const = self._student_t_log_const(nu - NW + 1.0)
+        # Algorithm 1 line 3: eq. (35)-(36), normalize and N_eff (lines 6-7), yaw-rate NIS
+        e_bar, z, shape_inv, _, maha, weights, nis, log_pred, n_eff = (
+            stiffness_kernels.likelihood_weights(
+                y, lin.h, self.b, lin.d, st.mean, st.scale, r_cov, self.p_bias, gamma, nu,
+                log_const, self.weights, self.log_w,
+            )
+        )  # fmt: skip
+        self.yaw_rate_nis = nis
+        a = min(1.0, self._dt_s / self.config.bias_gate_window_s)
+        self.yaw_rate_nis_mean += a * (self.yaw_rate_nis - self.yaw_rate_nis_mean)
+        self._dt_s = 0.0
+        # the predictive density p(y_k | y_1:k-1) (model evidence increment)
+        self.weights = weights
+        if np.isfinite(log_pred):
+            self.log_evidence += log_pred
+            self.evidence_steps += 1
+        self.n_eff = n_eff
+        # line 8-10: resample (the kernel below reads each particle's ancestor)
+        idx = self._identity
+        if self.n_eff <= self.config.resample_threshold * self.n:
+            idx = self._resample(self.weights, self.rng)
+            self.weights = np.full(self.n, 1.0 / self.n)
+            self.resample_count += 1
+        self.log_w = np.log(self.weights)
+        # eq. (30) on straight driving; while learning only when the particles' yaw rate plus
+        # bias agrees with the gyro (else the bias filters absorb the yaw-rate model error)
+        self.bias_updated = (not learn) or (
+            self.yaw_rate_nis_mean <= self.config.bias_gate_sigma**2
+        )
+        mean0 = scale00 = self._no_freeze
+        if learn and freeze_before is not None:
+            # freeze_component: E[Sigma_00] = Lambda_00 / (nu - 4) (eq. 27b) unchanged
+            ratio = ((np.asarray(st.dof, dtype=float) + 1.0) - NW - 1.0) / (
+                np.asarray(freeze_before.dof, dtype=float) - NW - 1.0
+            )
+            mean0 = np.ascontiguousarray(freeze_before.mean[:, 0])
+            scale00 = freeze_before.scale[:, 0, 0] * ratio
+        # lines 17, 4, 15, 18: eq. (39)-(41) draw, projection, eq. (19), eq. (30), eq. (9) rate
+        x, b, p_bias, rate, mean, scale, _ = stiffness_kernels.posterior_step(
+            idx, self.x, self.b, self.p_bias, st.mean, st.scale, gamma, nu, lin.d, lin.a,
+            lin.rate, r_cov, e_bar, z, shape_inv, maha, self.lower, self.upper, learn, mean0,
+            scale00, self.bias_updated, self.rng,
+        )  # fmt: skip
+        self.x, self.b, self.p_bias, self.rate = x, b, p_bias, rate
+        st.mean, st.scale = mean, scale
+        if learn:
+            # eq. (19) shared scalars: gamma_{k|k} = gamma / (1 + gamma), nu_{k|k} = nu + 1
+            c = 1.0 / (1.0 + st.gamma)
+            st.gamma[...] = st.gamma * c
+            st.dof += 1.0
 
     def measurement_cov(self, delta_rad: float, wheel_speed_m_s: tuple[float, float]) -> F64:
         """Measurement-noise covariance of ``y`` per particle, (N, 3, 3).
