@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from tire_estimation.core.radius_model import RL, RR, RadiusMotionModel
+from tire_estimation.core.radius_model import RL, RR, RadiusMotionModel, gnss_white_cov
 
 F64 = NDArray[np.float64]
 
@@ -184,8 +184,7 @@ class AugKf:
             # y = h(x) + b + v: the fix covariance is the total, R_w = R - c I (as the MPF)
             h = h + self.x[5:]
             hj[0, 5] = hj[1, 6] = 1.0
-            c_b = min(self.bias_var, 0.9 * float(np.linalg.eigvalsh(r_m2)[0]))
-            r_m2 = r_m2 - c_b * np.eye(2)
+            r_m2 = gnss_white_cov(r_m2, self.bias_var)
         hj[0, 0] = 1.0
         hj[1, 1] = 1.0
         hj[0, 2] = -ax * s - ay * c

@@ -156,3 +156,12 @@ class RadiusMotionModel:
             out[sel, FL] = a[0] * v[sel] + b[0] * yr[sel]
             out[sel, FR] = a[1] * v[sel] + b[1] * yr[sel]
         return out / radius_m
+
+
+def gnss_white_cov(r_m2: F64, bias_var_m2: float) -> F64:
+    """White part ``R_w = R - c I`` (2, 2) of a fix covariance ``R`` read as white noise plus a
+    Gauss-Markov error of variance ``bias_var_m2`` per axis (the GNSS error model of the MPF and
+    the AUG-KF), with ``c = min(bias_var, 0.9 lambda_min(R))`` so that ``R_w`` stays positive
+    definite when the receiver reports less than the configured error."""
+    c = min(bias_var_m2, 0.9 * float(np.linalg.eigvalsh(r_m2)[0]))
+    return np.asarray(r_m2, dtype=float) - c * np.eye(2)

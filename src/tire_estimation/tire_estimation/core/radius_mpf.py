@@ -28,7 +28,7 @@ from numpy.typing import NDArray
 
 from tire_estimation.core import niw, radius_kernels
 from tire_estimation.core.kernel_random import kernel_state
-from tire_estimation.core.radius_model import RL, RR, RadiusMotionModel
+from tire_estimation.core.radius_model import RL, RR, RadiusMotionModel, gnss_white_cov
 from tire_estimation.core.resampling import RESAMPLERS, ess
 
 _R = TypeVar("_R")
@@ -411,8 +411,7 @@ class RadiusMPF:
         # time update of every particle's bias filter: b = phi b, P = phi^2 P + Q
         self._bias *= phi
         self._bias_p = phi * phi * self._bias_p + np.eye(self.D) * self.bias_var * (1.0 - phi**2)
-        c = min(self.bias_var, 0.9 * float(np.linalg.eigvalsh(r_m2)[0]))
-        r_white = r_m2 - c * np.eye(self.D)
+        r_white = gnss_white_cov(r_m2, self.bias_var)
         hb = h + self._bias
         w = self.weights
         mean = hb @ w
