@@ -108,3 +108,27 @@ def test_gnss_bias_states_are_the_kalman_filter_of_a_gauss_markov_error():
         np.testing.assert_allclose(kf.x[5:], b_ref, atol=1e-7)
         np.testing.assert_allclose(np.diag(kf.p)[5:], p_ref, rtol=1e-6)
     np.testing.assert_array_equal(kf.x[3:5], 0.0)  # learn=False: radii untouched
+
+
+def test_gnss_bias_fraction_equals_the_fixed_size_for_a_constant_covariance():
+    """sigma_b^2 = f lambda_min(R): f = 0.4 of R = diag(2.5, 4) is the 1 m of a fixed model."""
+    model = RadiusMotionModel(R_NOM, TRACK, WHEELBASE)
+    fixed = AugKf(model, np.zeros(2), 3e-3, 1e-3, 0.0, 0.0, 0.0, gnss_bias_std_m=1.0)
+    frac = AugKf(model, np.zeros(2), 3e-3, 1e-3, 0.0, 0.0, 0.0, gnss_bias_fraction=0.4)
+    assert frac.nx == 7
+    r = np.diag([2.5, 4.0])
+    frac.observe_fix_cov(r)
+    for kf in (fixed, frac):
+        kf.init_pose(np.zeros(3), np.eye(3) * 1e-16)
+    rng = np.random.default_rng(6)
+    for _ in range(20):
+        y = rng.normal(0.0, 1.5, 2)
+        for kf in (fixed, frac):
+            for _ in range(10):
+                kf.predict(0.1, np.zeros(4), learn=False)
+            kf.observe_fix_cov(r)
+            upd, hj = kf.innovation(y, r, np.zeros(2))
+            kf.update(upd, hj, learn=False)
+        np.testing.assert_allclose(frac.x, fixed.x, atol=1e-12)
+        np.testing.assert_allclose(frac.p, fixed.p, atol=1e-12)
+    assert abs(frac.x[5]) > 0.05  # the bias states did move

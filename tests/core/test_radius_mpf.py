@@ -332,3 +332,55 @@ def test_gnss_bias_off_uses_the_fix_covariance():
     pred = f.predict_fix(np.array([0.3, -0.2]), r, np.zeros(2))
     np.testing.assert_array_equal(pred.likelihood_cov_m2, r)
     np.testing.assert_array_equal(f._bias, 0.0)
+
+
+def test_gnss_bias_fraction_takes_the_error_size_from_each_fix():
+    """``gnss_bias_fraction`` f: sigma_b^2 = f lambda_min(R) for each fix. With a constant R
+    the filter equals the one given that sigma_b directly; when the receiver reports a larger
+    covariance the modelled error's level follows it."""
+    model = RadiusMotionModel(R_NOM, TRACK, WHEELBASE)
+    r = np.diag([2.5, 4.0])  # lambda_min 2.5: f = 0.4 gives sigma_b^2 = 1.0
+    fixed = _bias_mpf(3, 1.0, 60.0)
+    frac = RadiusMPF(
+        model, 3, np.zeros(2), 1e-3, 1e-3, 10.0, 0.9998, "systematic", 0.5, 0.0, 0.0,
+        np.random.default_rng(0), gnss_bias_time_constant_s=60.0, gnss_bias_fraction=0.4,
+    )  # fmt: skip
+    assert frac.bias_on and frac.bias_var == 0.0
+    frac.observe_fix_cov(r)
+    assert frac.bias_var == pytest.approx(1.0, rel=1e-12)
+    frac.init_pose(np.zeros(3), np.diag([1e-14, 1e-14, 1e-14]))
+    for a in (frac._east, frac._north, frac._yaw):
+        a[:] = 0.0
+    rng = np.random.default_rng(5)
+    for _ in range(20):
+        for f in (fixed, frac):
+            for _ in range(10):
+                f.predict(0.1, np.zeros(4), learn=False)
+        y = rng.normal(0.0, 1.5, 2)
+        frac.observe_fix_cov(r)
+        ll = [f.update(y, r, f.predict_fix(y, r, np.zeros(2))) for f in (fixed, frac)]
+        assert ll[1] == pytest.approx(ll[0], abs=1e-12)
+        np.testing.assert_allclose(frac._bias, fixed._bias, atol=1e-12)
+    # a fix with four times the covariance: the time update tends to 4 sigma_b^2
+    frac.observe_fix_cov(4.0 * r)
+    assert frac.bias_var == pytest.approx(4.0, rel=1e-12)
+    for _ in range(2000):
+        frac.predict(0.1, np.zeros(4), learn=False)
+    pred = frac.predict_fix(np.zeros(2), 4.0 * r, np.zeros(2))
+    np.testing.assert_allclose(pred.likelihood_cov_m2, 4.0 * r, rtol=1e-3)
+
+
+def test_gnss_bias_std_overrides_the_fraction():
+    model = RadiusMotionModel(R_NOM, TRACK, WHEELBASE)
+    f = RadiusMPF(
+        model, 3, np.zeros(2), 1e-3, 1e-3, 10.0, 0.9998, "systematic", 0.5, 0.0, 0.0,
+        np.random.default_rng(0), gnss_bias_std_m=0.5, gnss_bias_fraction=0.8,
+    )  # fmt: skip
+    f.observe_fix_cov(np.eye(2) * 9.0)
+    assert f.bias_var == pytest.approx(0.25)
+    off = RadiusMPF(
+        model, 3, np.zeros(2), 1e-3, 1e-3, 10.0, 0.9998, "systematic", 0.5, 0.0, 0.0,
+        np.random.default_rng(0), gnss_bias_fraction=0.0,
+    )  # fmt: skip
+    off.observe_fix_cov(np.eye(2) * 9.0)
+    assert not off.bias_on and off.bias_var == 0.0

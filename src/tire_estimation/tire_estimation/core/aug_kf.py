@@ -14,7 +14,13 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from tire_estimation.core.radius_model import RL, RR, RadiusMotionModel, gnss_white_cov
+from tire_estimation.core.radius_model import (
+    RL,
+    RR,
+    RadiusMotionModel,
+    gnss_bias_var,
+    gnss_white_cov,
+)
 
 F64 = NDArray[np.float64]
 
@@ -43,6 +49,8 @@ class AugKf:
             appended to the state as ``[b_east, b_north]`` (beyond the paper; the MPF
             marginalizes the same model); 0 = not modelled (5 states), m.
         gnss_bias_time_constant_s: its correlation time, s.
+        gnss_bias_fraction: with ``gnss_bias_std_m`` 0, that error's variance is this share
+            of each fix's covariance (:meth:`observe_fix_cov`); both 0: five states.
     """
 
     def __init__(
@@ -56,12 +64,14 @@ class AugKf:
         yaw_noise_rad_sqrt_s: float,
         gnss_bias_std_m: float = 0.0,
         gnss_bias_time_constant_s: float = 120.0,
+        gnss_bias_fraction: float = 0.0,
     ) -> None:
         self.model = model
         self.bias_var = float(gnss_bias_std_m) ** 2
+        self.bias_fraction = 0.0 if self.bias_var > 0.0 else float(gnss_bias_fraction)
         self.bias_tau_s = float(gnss_bias_time_constant_s)
         #: state size: 5, or 7 with the GNSS bias
-        self.nx = 7 if self.bias_var > 0.0 else 5
+        self.nx = 7 if self.bias_var > 0.0 or self.bias_fraction > 0.0 else 5
         self.x = np.zeros(self.nx)
         self.p = np.eye(self.nx)
         if self.nx == 7:
@@ -84,6 +94,12 @@ class AugKf:
         self.p[3:5, :] = 0.0
         self.p[:, 3:5] = 0.0
         self.p[3:5, 3:5] = np.eye(2) * self._prior[1] ** 2
+
+    def observe_fix_cov(self, r_m2: F64) -> None:
+        """As :meth:`RadiusMPF.observe_fix_cov`: with ``gnss_bias_fraction`` the Gauss-Markov
+        error's variance follows each fix's (2, 2) covariance."""
+        if self.bias_fraction > 0.0:
+            self.bias_var = gnss_bias_var(r_m2, self.bias_fraction)
 
     def init_pose(self, mean: F64, cov: F64) -> None:
         """Set the pose ``[east, north, yaw]`` (3,) and its covariance (3, 3); keep the radii."""

@@ -56,7 +56,12 @@ class RadiusEstimatorConfig:
         gnss_bias_std_m: stationary std per axis of a first-order Gauss-Markov GNSS position
             error (beyond the paper): marginalized in the MPF (per-particle Kalman filters with
             one shared covariance), two more states in the AUG-KF; the fix covariance is then
-            read as white part plus this; 0 = not modelled, m. Default 0.
+            read as white part plus this; 0 = take its size from each fix's covariance with
+            ``gnss_bias_fraction``, m. Default 0.
+        gnss_bias_fraction: when ``gnss_bias_std_m`` is 0, the share of each fix's reported
+            horizontal variance taken as that Gauss-Markov error: ``sigma_b^2 = f
+            lambda_min(R)`` per fix, the rest white; both 0 = white GNSS error only, as in the
+            paper. In [0, 0.9]. Default 0.5.
         gnss_bias_time_constant_s: correlation time of that error, s. Default 120.
         gnss_gate_probability: chi-square (2 dof) probability of the innovation gate; fixes
             with a larger NIS are rejected as outliers. Default 0.9999 (NIS 18.4).
@@ -140,6 +145,7 @@ class RadiusEstimatorConfig:
     yaw_process_noise_rad_sqrt_s: float = 0.002
     gnss_default_std_m: float = 1.5
     gnss_bias_std_m: float = 0.0
+    gnss_bias_fraction: float = 0.5
     gnss_bias_time_constant_s: float = 120.0
     gnss_gate_probability: float = 0.9999
     gnss_max_rejections: int = 5
@@ -187,6 +193,7 @@ class RadiusEstimatorConfig:
         require_non_negative("yaw_process_noise_rad_sqrt_s", self.yaw_process_noise_rad_sqrt_s)
         require_positive("gnss_default_std_m", self.gnss_default_std_m)
         require_range("gnss_bias_std_m", self.gnss_bias_std_m, 0.0, 100.0)
+        require_range("gnss_bias_fraction", self.gnss_bias_fraction, 0.0, 0.9)
         require_range("gnss_bias_time_constant_s", self.gnss_bias_time_constant_s, 0.1, 1e5)
         require_range("gnss_gate_probability", self.gnss_gate_probability, 0.5, 1.0 - 1e-15)
         require_int_range("gnss_max_rejections", self.gnss_max_rejections, 1, 1000)

@@ -257,6 +257,7 @@ class RadiusEstimator:
             kernel_shrinkage=c.kernel_shrinkage,
             gnss_bias_std_m=c.gnss_bias_std_m,
             gnss_bias_time_constant_s=c.gnss_bias_time_constant_s,
+            gnss_bias_fraction=c.gnss_bias_fraction,
         )
         self.kf: AugKf | None = None
         if c.run_aug_kf:
@@ -270,6 +271,7 @@ class RadiusEstimator:
                 c.yaw_process_noise_rad_sqrt_s,
                 gnss_bias_std_m=c.gnss_bias_std_m,
                 gnss_bias_time_constant_s=c.gnss_bias_time_constant_s,
+                gnss_bias_fraction=c.gnss_bias_fraction,
             )
         self.stats: dict[str, int] = {}
         self.reset()
@@ -680,6 +682,9 @@ class RadiusEstimator:
         covariance. Called by :meth:`on_gnss_fix`; usable directly by tests and simulations."""
         c = self.config
         zeros2 = np.zeros(2)
+        self.mpf.observe_fix_cov(r_m2)
+        if self.kf is not None:
+            self.kf.observe_fix_cov(r_m2)
         if (
             self._pose_ok
             and self._t_last_fix_ns is not None

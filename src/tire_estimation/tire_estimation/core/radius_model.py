@@ -158,6 +158,14 @@ class RadiusMotionModel:
         return out / radius_m
 
 
+def gnss_bias_var(r_m2: F64, fraction: float) -> float:
+    """Variance per axis of the Gauss-Markov GNSS error taken from a fix's reported (2, 2)
+    covariance ``R`` (beyond the paper): ``sigma_b^2 = f lambda_min(R)``, the share ``f`` of
+    the smaller principal variance, so that ``R_w = R - sigma_b^2 I`` keeps ``(1 - f) R``'s
+    positive definiteness for ``f < 1``."""
+    return float(fraction) * float(np.linalg.eigvalsh(r_m2)[0])
+
+
 def gnss_white_cov(r_m2: F64, bias_var_m2: float) -> F64:
     """White part ``R_w = R - c I`` (2, 2) of a fix covariance ``R`` read as white noise plus a
     Gauss-Markov error of variance ``bias_var_m2`` per axis (the GNSS error model of the MPF and

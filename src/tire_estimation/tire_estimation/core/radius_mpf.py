@@ -28,7 +28,13 @@ from numpy.typing import NDArray
 
 from tire_estimation.core import niw, radius_kernels
 from tire_estimation.core.kernel_random import kernel_state
-from tire_estimation.core.radius_model import RL, RR, RadiusMotionModel, gnss_white_cov
+from tire_estimation.core.radius_model import (
+    RL,
+    RR,
+    RadiusMotionModel,
+    gnss_bias_var,
+    gnss_white_cov,
+)
 from tire_estimation.core.resampling import RESAMPLERS, ess
 
 _R = TypeVar("_R")
@@ -108,8 +114,10 @@ class RadiusMPF:
         rng: random generator (all draws).
         block_size: at most this many queued predictions are processed as one block.
         gnss_bias_std_m: stationary std of a Gauss-Markov GNSS position error per axis (beyond
-            the paper), m; 0 disables. See :meth:`predict_fix`.
+            the paper), m; 0: see ``gnss_bias_fraction``. See :meth:`_bias_predict`.
         gnss_bias_time_constant_s: its correlation time, s.
+        gnss_bias_fraction: with ``gnss_bias_std_m`` 0, that error's variance is this share
+            of each fix's covariance (:meth:`observe_fix_cov`); both 0 disable the model.
     """
 
     D = 2
@@ -133,6 +141,7 @@ class RadiusMPF:
         block_size: int = 64,
         gnss_bias_std_m: float = 0.0,
         gnss_bias_time_constant_s: float = 120.0,
+        gnss_bias_fraction: float = 0.0,
     ) -> None:
         self.model = model
         self.n = int(n_particles)
@@ -170,6 +179,9 @@ class RadiusMPF:
         # Gauss-Markov GNSS error (beyond the paper), marginalized: per-particle means (2, N)
         # and one covariance (2, 2) shared by all particles (same linear model and R for all)
         self.bias_var = float(gnss_bias_std_m) ** 2
+        self.bias_fraction = 0.0 if self.bias_var > 0.0 else float(gnss_bias_fraction)
+        #: the GNSS error model is on (a fixed size, or a share of each fix's covariance)
+        self.bias_on = self.bias_var > 0.0 or self.bias_fraction > 0.0
         self.bias_tau_s = float(gnss_bias_time_constant_s)
         self.bias_dt_s = 0.0
         self._bias = np.zeros((d, n))
@@ -237,6 +249,15 @@ class RadiusMPF:
         self._stats = self._wrap(stats)
 
     @_mutates
+    def observe_fix_cov(self, r_m2: F64) -> None:
+        """Take the Gauss-Markov error's variance from a fix's (2, 2) covariance when it is
+        configured as a share of it (``sigma_b^2 = f lambda_min(R)``, :func:`gnss_bias_var`);
+        called for every fix before :meth:`init_pose` or :meth:`predict_fix`. The new variance
+        sets the stationary level of the time update that follows (a receiver whose reported
+        accuracy changes moves the modelled error's level with it)."""
+        if self.bias_fraction > 0.0:
+            self.bias_var = gnss_bias_var(r_m2, self.bias_fraction)
+
     def init_pose(self, mean: F64, cov: F64) -> None:
         """Draw the particle poses from ``N(mean, cov)`` (3,), (3, 3); uniform weights.
 
@@ -380,7 +401,7 @@ class RadiusMPF:
             float(extrapolate_s), kernel_state(self.rng),
         )  # fmt: skip
         lik_cov = r_m2
-        if self.bias_var > 0.0:
+        if self.bias_on:
             h, mean, cov, lik_cov = self._bias_predict(h, r_m2)
         s_mat = cov + lik_cov
         i0 = float(y_m[0]) - float(mean[0])
@@ -422,7 +443,7 @@ class RadiusMPF:
     def _bias_update(self, y_m: F64, pred: FixPrediction) -> None:
         """Measurement update of every particle's bias filter (before any resampling):
         ``K = P S^-1``, ``b_i += K (y - h_i - b_i)``, ``P = P - K P``, ``S = P + R_w``."""
-        if self.bias_var <= 0.0 or pred.likelihood_cov_m2 is None:
+        if not self.bias_on or pred.likelihood_cov_m2 is None:
             return
         p = self._bias_p
         gain = p @ np.linalg.inv(pred.likelihood_cov_m2)
@@ -460,7 +481,7 @@ class RadiusMPF:
         idx = self.resample_fn(w, self.rng)
         for a in (self._east, self._north, self._yaw, self._speed):
             a[:] = a[idx]
-        if self.bias_var > 0.0:
+        if self.bias_on:
             self._bias[:] = self._bias[:, idx]
         self._stats.take(idx)
         self.weights[:] = 1.0 / self.n
@@ -489,7 +510,7 @@ class RadiusMPF:
         shift = cov @ s_inv @ pred.innovation_m
         self._east += shift[0]
         self._north += shift[1]
-        if self.bias_var > 0.0:
+        if self.bias_on:
             # the bias filters take their share of the mean innovation (pose and bias
             # uncorrelated): b += P S^-1 innovation, P -= P S^-1 P
             p = self._bias_p
