@@ -50,7 +50,12 @@ def feed(est, drive, k0=0, k1=None, use_lla=False, every=None, hook=None):
 @pytest.fixture(scope="module")
 def converged():
     drive = make_drive(duration_s=300.0, gnss_rate_hz=1.0, seed=5)
-    est = RadiusEstimator(RadiusEstimatorConfig(run_aug_kf=True), VEH, np.random.default_rng(5))
+    # this drive's GNSS error is white: the model that says so (no Gauss-Markov part)
+    est = RadiusEstimator(
+        RadiusEstimatorConfig(run_aug_kf=True, gnss_bias_fraction=0.0),
+        VEH,
+        np.random.default_rng(5),
+    )
     hist = []
     fixes = feed(
         est,
@@ -81,6 +86,26 @@ def test_estimator_converges_with_lla_input_and_baseline(converged):
     assert e.speed_m_s == pytest.approx(drive["v"][-1], abs=0.05)
     assert abs(e.yaw_rate_rad_s - drive["yr"][-1]) < 0.01
     assert est.stats == {}
+
+
+def test_default_gnss_error_model_on_a_white_gnss_drive():
+    """The default model reads half of each fix's variance as a slow Gauss-Markov error. On a
+    drive whose GNSS error is all white it under-predicts the innovation (NIS about twice its
+    2 dof), so about 1 % of the fixes fall outside the 0.9999 gate (2 chi2_2 > 18.4); the
+    radii still converge."""
+    drive = make_drive(duration_s=300.0, gnss_rate_hz=1.0, seed=5)
+    est = RadiusEstimator(RadiusEstimatorConfig(run_aug_kf=True), VEH, np.random.default_rng(5))
+    assert est.config.gnss_bias_fraction == 0.5 and est.mpf.bias_on and est.kf is not None
+    assert est.kf.nx == 7
+    fixes = feed(est, drive, use_lla=False)
+    e = est.estimate()
+    truth = np.array(TRUE_REAR_ERR)
+    assert np.all(np.abs(e.radius_error_m - truth) < 0.6e-3), e.radius_error_m
+    assert e.baseline is not None
+    assert np.all(np.abs(e.baseline.radius_error_m - truth) < 0.5e-3), e.baseline.radius_error_m
+    nis = np.array([f.nis for f in fixes[5:] if f.accepted])
+    assert 2.5 < nis.mean() < 4.5  # white noise read as half white: NIS above its 2 dof
+    assert est.stats.get("gnss_outlier", 0) <= 0.02 * len(fixes)
 
 
 def test_state_dict_round_trip(converged):
