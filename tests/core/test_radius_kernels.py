@@ -152,8 +152,10 @@ def test_fix_prediction_without_noise_is_eq13():
     mu = np.zeros((2, n))
     w = rng.dirichlet(np.ones(n))
     before = east.copy()
+    no_bias = np.zeros((2, n))
+    st = kernel_state(np.random.default_rng(0))
     h, mean, cov = rk.fix_predict(east, north, yaw, speed, mu, w, 0.0, 0.0, 0.0, 1.2, -0.4, 0.1,
-                                  kernel_state(np.random.default_rng(0)))  # fmt: skip
+                                  st, no_bias, 1.0, False)  # fmt: skip
     lx = 1.2 + 0.1 * speed
     ref = np.stack([east + lx * np.cos(yaw) + 0.4 * np.sin(yaw),
                     north + lx * np.sin(yaw) - 0.4 * np.cos(yaw)])  # fmt: skip
@@ -164,5 +166,35 @@ def test_fix_prediction_without_noise_is_eq13():
     np.testing.assert_array_equal(east, before)  # no pose noise requested, none applied
     # with pose noise: positions move by about the requested std
     rk.fix_predict(east, north, yaw, speed, mu, w, 0.5, 0.0, 0.0, 0.0, 0.0, 0.0,
-                   kernel_state(np.random.default_rng(0)))  # fmt: skip
+                   kernel_state(np.random.default_rng(0)), no_bias, 1.0, False)  # fmt: skip
     assert np.std(east - before) == pytest.approx(0.5, rel=0.3)
+
+
+def test_fix_prediction_with_the_gnss_bias_adds_the_propagated_means():
+    """``with_bias``: b = phi b in place, h + b, and the moments are those of h + b."""
+    rng = np.random.default_rng(8)
+    n = 40
+    east, north, yaw = rng.normal(0, 5, n), rng.normal(0, 5, n), rng.uniform(-3, 3, n)
+    speed, mu, w = rng.uniform(20, 30, n), np.zeros((2, n)), rng.dirichlet(np.ones(n))
+    bias = rng.normal(0.0, 1.0, (2, n))
+    b0 = bias.copy()
+    args = (east, north, yaw, speed, mu, w, 0.0, 0.0, 0.0, 0.5, 0.2, 0.0)
+    h0, _, _ = rk.fix_predict(*args, kernel_state(np.random.default_rng(0)), bias, 0.9, False)
+    np.testing.assert_array_equal(bias, b0)  # off: untouched
+    h, mean, cov = rk.fix_predict(*args, kernel_state(np.random.default_rng(0)), bias, 0.9, True)
+    np.testing.assert_allclose(bias, 0.9 * b0, rtol=1e-15)
+    ref = h0 + 0.9 * b0
+    np.testing.assert_allclose(h, ref, rtol=1e-13)
+    np.testing.assert_allclose(mean, ref @ w, rtol=1e-12)
+    dev = ref - (ref @ w)[:, None]
+    np.testing.assert_allclose(cov, (dev * w) @ dev.T, rtol=1e-9)
+
+
+def test_bias_correct_is_the_kalman_update_of_every_mean():
+    rng = np.random.default_rng(9)
+    bias, h = rng.normal(0, 1, (2, 30)), rng.normal(0, 2, (2, 30))
+    k = np.array([[0.3, 0.05], [-0.02, 0.4]])
+    y = np.array([0.7, -1.1])
+    ref = bias + k @ (y[:, None] - h)
+    rk.bias_correct(bias, h, y[0], y[1], k[0, 0], k[0, 1], k[1, 0], k[1, 1])
+    np.testing.assert_allclose(bias, ref, rtol=1e-14, atol=1e-15)

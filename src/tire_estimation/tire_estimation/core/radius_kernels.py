@@ -284,13 +284,18 @@ def fix_predict(
     lever_y_m: float,
     extrapolate_s: float,
     state: U64,
+    bias: F64,
+    bias_phi: float,
+    with_bias: bool,
 ) -> tuple[F64, F64, F64]:
     """Pose noise since the last fix, then the predicted antenna positions and their moments.
 
     ``*_std_*``: std of the additive random walk accumulated since the last fix (east/north,
     yaw, NiW means; all zero: none is drawn), applied in place. Returns ``h`` (2, N) (eq. 13
     with the lever arm and the extrapolation to the fix time), the weighted mean (2,) and the
-    weighted covariance (2, 2) of ``h``.
+    weighted covariance (2, 2) of ``h``. With ``with_bias`` each particle's Gauss-Markov GNSS
+    error mean ``bias`` (2, N) is first propagated in place (``b = phi b``) and added to its
+    ``h`` (the fix model ``y = h(x) + b + v`` of ``RadiusMPF._bias_predict``).
     """
     n = east.shape[0]
     h = np.empty((2, n))
@@ -318,6 +323,12 @@ def fix_predict(
         # eq. (13) h(x) = [x, y] of the antenna: base_link + R(psi) lever arm
         h[0, i] = east[i] + lx * c - lever_y_m * s
         h[1, i] = north[i] + lx * s + lever_y_m * c
+        if with_bias:
+            # Gauss-Markov GNSS error: b = phi b (time update), then y = h(x) + b + v
+            bias[0, i] *= bias_phi
+            bias[1, i] *= bias_phi
+            h[0, i] += bias[0, i]
+            h[1, i] += bias[1, i]
         m0 += weights[i] * h[0, i]
         m1 += weights[i] * h[1, i]
     c00 = 0.0
@@ -333,6 +344,20 @@ def fix_predict(
     mean = np.array([m0, m1])
     cov = np.array([[c00, c01], [c01, c11]])
     return h, mean, cov
+
+
+@numba.njit(cache=True, error_model="numpy")
+def bias_correct(
+    bias: F64, h: F64, y0_m: float, y1_m: float, k00: float, k01: float, k10: float, k11: float
+) -> None:
+    """Measurement update of every particle's Gauss-Markov GNSS error mean, in place:
+    ``b_i += K (y - h_i)`` with the shared gain ``K`` (2, 2) and ``h_i`` the predicted fix
+    including ``b_i`` (Kalman filter update of ``RadiusMPF._bias_update``)."""
+    for i in range(bias.shape[1]):
+        d0 = y0_m - h[0, i]
+        d1 = y1_m - h[1, i]
+        bias[0, i] += k00 * d0 + k01 * d1
+        bias[1, i] += k10 * d0 + k11 * d1
 
 
 @numba.njit(cache=True, error_model="numpy")

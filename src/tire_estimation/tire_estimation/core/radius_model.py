@@ -163,7 +163,14 @@ def gnss_bias_var(r_m2: F64, fraction: float) -> float:
     covariance ``R`` (beyond the paper): ``sigma_b^2 = f lambda_min(R)``, the share ``f`` of
     the smaller principal variance, so that ``R_w = R - sigma_b^2 I`` keeps ``(1 - f) R``'s
     positive definiteness for ``f < 1``."""
-    return float(fraction) * float(np.linalg.eigvalsh(r_m2)[0])
+    return float(fraction) * _lambda_min(r_m2)
+
+
+def _lambda_min(r_m2: F64) -> float:
+    """Smaller eigenvalue of a symmetric (2, 2) matrix, closed form:
+    ``(a + c) / 2 - sqrt(((a - c) / 2)^2 + b^2)``."""
+    a, b, c = float(r_m2[0, 0]), float(r_m2[0, 1]), float(r_m2[1, 1])
+    return 0.5 * (a + c) - math.hypot(0.5 * (a - c), b)
 
 
 def gnss_white_cov(r_m2: F64, bias_var_m2: float) -> F64:
@@ -171,5 +178,5 @@ def gnss_white_cov(r_m2: F64, bias_var_m2: float) -> F64:
     Gauss-Markov error of variance ``bias_var_m2`` per axis (the GNSS error model of the MPF and
     the AUG-KF), with ``c = min(bias_var, 0.9 lambda_min(R))`` so that ``R_w`` stays positive
     definite when the receiver reports less than the configured error."""
-    c = min(bias_var_m2, 0.9 * float(np.linalg.eigvalsh(r_m2)[0]))
+    c = min(bias_var_m2, 0.9 * _lambda_min(r_m2))
     return np.asarray(r_m2, dtype=float) - c * np.eye(2)

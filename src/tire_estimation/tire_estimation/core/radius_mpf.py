@@ -395,14 +395,13 @@ class RadiusMPF:
         Applies the accumulated pose noise first (:func:`radius_kernels.fix_predict`).
         """
         self._flush()
+        phi = self._bias_phi() if self.bias_on else 1.0
         h, mean, cov = radius_kernels.fix_predict(
             self._east, self._north, self._yaw, self._speed, self._mu, self.weights,
             *self._jitter_std(), float(lever_arm_m[0]), float(lever_arm_m[1]),
-            float(extrapolate_s), kernel_state(self.rng),
+            float(extrapolate_s), kernel_state(self.rng), self._bias, phi, self.bias_on,
         )  # fmt: skip
-        lik_cov = r_m2
-        if self.bias_on:
-            h, mean, cov, lik_cov = self._bias_predict(h, r_m2)
+        lik_cov = self._bias_predict(phi, r_m2) if self.bias_on else r_m2
         s_mat = cov + lik_cov
         i0 = float(y_m[0]) - float(mean[0])
         i1 = float(y_m[1]) - float(mean[1])
@@ -415,7 +414,13 @@ class RadiusMPF:
             h=h, innovation_m=innov, innovation_cov_m2=s_mat, nis=nis, likelihood_cov_m2=lik_cov
         )
 
-    def _bias_predict(self, h: F64, r_m2: F64) -> tuple[F64, F64, F64, F64]:
+    def _bias_phi(self) -> float:
+        """``phi = exp(-dt / tau)`` over the time since the last fix (and restart the clock)."""
+        dt = self.bias_dt_s
+        self.bias_dt_s = 0.0
+        return math.exp(-dt / self.bias_tau_s) if dt > 0.0 else 1.0
+
+    def _bias_predict(self, phi: float, r_m2: F64) -> F64:
         """GNSS fix model with a first-order Gauss-Markov error ``b`` (beyond the paper):
         ``y = h(x) + b + v``, ``b_k = phi b_{k-1} + u``, ``phi = exp(-dt / tau)``,
         ``u ~ N(0, sigma_b^2 (1 - phi^2) I)``, ``v ~ N(0, R_w)``. ``b`` enters linearly with the
@@ -424,31 +429,46 @@ class RadiusMPF:
         IEEE TSP 2005, the marginalized PF with a linear substructure). The fix covariance is
         taken as the total error: ``R_w = R - c I``, ``c = min(sigma_b^2, 0.9 lambda_min(R))``.
 
-        Returns ``h + b_i`` (2, N), its weighted mean and covariance, and ``P + R_w``.
+        The means' time update ``b_i = phi b_i`` and ``h_i + b_i`` run in
+        :func:`radius_kernels.fix_predict`; here the shared covariance's time update
+        ``P = phi^2 P + sigma_b^2 (1 - phi^2) I``. Returns ``P + R_w`` (2, 2), the covariance of
+        each particle's likelihood.
         """
-        dt = self.bias_dt_s
-        self.bias_dt_s = 0.0
-        phi = math.exp(-dt / self.bias_tau_s) if dt > 0.0 else 1.0
-        # time update of every particle's bias filter: b = phi b, P = phi^2 P + Q
-        self._bias *= phi
-        self._bias_p = phi * phi * self._bias_p + np.eye(self.D) * self.bias_var * (1.0 - phi**2)
+        p = self._bias_p
+        q = self.bias_var * (1.0 - phi * phi)
+        phi2 = phi * phi
+        p00 = phi2 * float(p[0, 0]) + q
+        p01 = phi2 * float(p[0, 1])
+        p11 = phi2 * float(p[1, 1]) + q
+        self._bias_p = np.array([[p00, p01], [p01, p11]])
         r_white = gnss_white_cov(r_m2, self.bias_var)
-        hb = h + self._bias
-        w = self.weights
-        mean = hb @ w
-        dev = hb - mean[:, None]
-        cov = (dev * w) @ dev.T
-        return hb, mean, cov, self._bias_p + r_white
+        return self._bias_p + r_white
 
     def _bias_update(self, y_m: F64, pred: FixPrediction) -> None:
         """Measurement update of every particle's bias filter (before any resampling):
-        ``K = P S^-1``, ``b_i += K (y - h_i - b_i)``, ``P = P - K P``, ``S = P + R_w``."""
+        ``K = P S^-1``, ``b_i += K (y - h_i - b_i)``, ``P = P - K P``, ``S = P + R_w``
+        (closed-form 2x2 inverse; the means in :func:`radius_kernels.bias_correct`)."""
         if not self.bias_on or pred.likelihood_cov_m2 is None:
             return
         p = self._bias_p
-        gain = p @ np.linalg.inv(pred.likelihood_cov_m2)
-        self._bias += gain @ (np.asarray(y_m, dtype=float)[:, None] - pred.h)
-        self._bias_p = p - gain @ p
+        sm = pred.likelihood_cov_m2
+        s00, s01, s11 = float(sm[0, 0]), float(sm[0, 1]), float(sm[1, 1])
+        det = s00 * s11 - s01 * s01
+        i00, i01, i11 = s11 / det, -s01 / det, s00 / det
+        p00, p01, p11 = float(p[0, 0]), float(p[0, 1]), float(p[1, 1])
+        # K = P S^-1 (P and S symmetric; K in general not)
+        k00 = p00 * i00 + p01 * i01
+        k01 = p00 * i01 + p01 * i11
+        k10 = p01 * i00 + p11 * i01
+        k11 = p01 * i01 + p11 * i11
+        radius_kernels.bias_correct(
+            self._bias, pred.h, float(y_m[0]), float(y_m[1]), k00, k01, k10, k11
+        )
+        # P = P - K P (= P - P S^-1 P, symmetric)
+        n00 = p00 - (k00 * p00 + k01 * p01)
+        n01 = p01 - (k00 * p01 + k01 * p11)
+        n11 = p11 - (k10 * p01 + k11 * p11)
+        self._bias_p = np.array([[n00, n01], [n01, n11]])
 
     @_mutates
     def update(self, y_m: F64, r_m2: F64, pred: FixPrediction) -> float:
