@@ -128,6 +128,18 @@ class RadiusEstimatorConfig:
         road_grade_window_m: travelled distance over which the grade is fitted (least-squares
             slope of the GNSS altitude over the wheel-travelled distance), m. In [20, 5000];
             default 100.
+        rear_brake_slip_s2_per_m: braking slip ``k`` of the rear (non-driven) wheels per unit
+            braking deceleration, s^2/m: ``kappa = -k b`` with ``b = max(0, -f_x - a_0)``
+            (``f_x`` the longitudinal specific force, IMU when fresh, else the wheel-speed
+            derivative of the gates; ``a_0`` = ``rear_brake_slip_onset_m_s2``); every rear wheel
+            speed ``omega`` is divided by ``1 + kappa`` before use (ground speed
+            ``omega r / (1 + kappa)``). Physically ``(1 - front brake share) m / C_x,rear``
+            (rear-axle longitudinal stiffness): 3.5e-3 for the simulator's default vehicle
+            (rear share 0.35, 1500 kg, 150 kN). In [0, 0.05]; default 0 (off).
+        rear_brake_slip_onset_m_s2: the deceleration ``a_0`` that the driving resistances
+            (rolling resistance, drag: body forces, not rear tyre forces) explain without
+            braking, m/s^2. In [0, 3]; default 0.25 (the simulator's default vehicle:
+            ``c_rr g + rho C_d A v^2 / (2 m)`` = 0.19 / 0.23 / 0.29 m/s^2 at 16 / 20 / 25 m/s).
         seed: seed for the node's ``np.random.Generator``. Default 0.
     """
 
@@ -173,6 +185,8 @@ class RadiusEstimatorConfig:
     radius_load_coefficient_m_per_n: float = 0.0
     road_grade_correction_gain: float = 0.0
     road_grade_window_m: float = 100.0
+    rear_brake_slip_s2_per_m: float = 0.0
+    rear_brake_slip_onset_m_s2: float = 0.25
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -237,6 +251,8 @@ class RadiusEstimatorConfig:
         )
         require_range("road_grade_correction_gain", self.road_grade_correction_gain, 0.0, 5.0)
         require_range("road_grade_window_m", self.road_grade_window_m, 20.0, 5000.0)
+        require_range("rear_brake_slip_s2_per_m", self.rear_brake_slip_s2_per_m, 0.0, 0.05)
+        require_range("rear_brake_slip_onset_m_s2", self.rear_brake_slip_onset_m_s2, 0.0, 3.0)
         require_int_range("seed", self.seed, 0, 2**63 - 1)
 
     @classmethod

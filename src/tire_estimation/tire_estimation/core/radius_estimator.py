@@ -94,6 +94,9 @@ class RadiusEstimate:
         baseline: AUG-KF estimate when ``run_aug_kf`` (else None).
         road_grade_rad: online road-grade estimate (GNSS altitude over the wheel-travelled
             distance, positive uphill), rad; 0 until a window of fixes is available.
+        rear_brake_decel_m_s2: braking deceleration ``b = max(0, -f_x - a_0)``: the one of the
+            latest wheel-speed sample when the rear brake slip is on, else computed at the pose
+            time for the residual signature, m/s^2.
     """
 
     t_ns: int
@@ -112,6 +115,7 @@ class RadiusEstimate:
     state_reason: str
     baseline: BaselineEstimate | None = None
     road_grade_rad: float = 0.0
+    rear_brake_decel_m_s2: float = 0.0
 
 
 #: at most this many GNSS altitudes are kept for the grade fit (100 s at 10 Hz)
@@ -303,6 +307,7 @@ class RadiusEstimator:
         self._distance_m = 0.0
         self._grade_fit = _SlidingLine(GRADE_MAX_POINTS)
         self._grade_rad = 0.0
+        self._brake_decel = 0.0
         self._set_cache(self.mpf.estimate())
 
     def _set_cache(self, est: MpfEstimate) -> None:
@@ -362,7 +367,7 @@ class RadiusEstimator:
     def on_imu(
         self, t_ns: int, angular_velocity_rad_s: Any, linear_acceleration_m_s2: Any
     ) -> None:
-        """IMU sample in ``base_link`` axes (only used by the acceleration gates)."""
+        """IMU sample in ``base_link`` axes (acceleration gates, load transfer, brake slip)."""
         stream = self._streams["imu"]
         last = stream.last_t_ns
         if (
@@ -451,6 +456,16 @@ class RadiusEstimator:
             ws = ws * (1.0 + self._speed_gain * ws * ws)
         if self._load_gain:
             ws = ws * self._load_scale(t_ns, ws)
+        b = 0.0
+        if self.config.rear_brake_slip_s2_per_m:
+            self._brake_decel = b = self._braking_decel(t_ns)
+        if b > 0.0:
+            # braked rear wheel: omega r = v (1 + kappa) with the slip kappa = -k b
+            # (k = (1 - front brake share) m / C_x,rear), so the ground speed is
+            # v = omega r / (1 + kappa); kappa floored at -0.5 (a locking wheel is not modelled)
+            kappa = max(-0.5, -self.config.rear_brake_slip_s2_per_m * b)
+            ws = ws.copy()
+            ws[RL:] /= 1.0 + kappa
         if last is not None and (t_ns - last) * 1e-9 <= self.config.max_gap_s:
             # slope distance rolled by the rear wheels (nominal radius) for the grade fit
             rolled = 0.5 * self.model.nominal_radius_m * float(abs(ws[RL]) + abs(ws[RR]))
@@ -503,6 +518,17 @@ class RadiusEstimator:
         # r_i = r_n + delta_i + c dFz_i  ->  v_i = omega_i (r_n + delta_i) (1 + c dFz_i / r_n)
         # (neglected: c dFz_i delta_i / r_n, 1e-9 m for c = -5e-7, 600 N, delta_i = 1 mm)
         return 1.0 + self._load_gain * dfz
+
+    def _braking_decel(self, t_ns: int) -> float:
+        """Braking deceleration ``b = max(0, -f_x - a_0)`` of the rear brake slip, m/s^2."""
+        c = self.config
+        if self._imu is not None and (t_ns - self._imu[0]) * 1e-9 <= c.imu_timeout_s:
+            # longitudinal specific force: m f_x = sum of the tyre forces - resistances
+            fx = float(self._imu[2][0])
+        else:
+            fx = self._ax_lp  # the fallback of the gates (as in the load transfer)
+        # the brakes take what the driving resistances (a_0, body forces) do not explain
+        return max(0.0, -fx - c.rear_brake_slip_onset_m_s2)
 
     def _grade_fix(self, up_m: float) -> None:
         """Update the road grade with a GNSS altitude: least-squares slope of the altitude
@@ -858,6 +884,11 @@ class RadiusEstimator:
             state_reason=self._reason,
             baseline=baseline,
             road_grade_rad=self._grade_rad,
+            rear_brake_decel_m_s2=(
+                self._brake_decel
+                if self.config.rear_brake_slip_s2_per_m
+                else self._braking_decel(int(self._t_pose_ns or 0))
+            ),
         )
         return out
 

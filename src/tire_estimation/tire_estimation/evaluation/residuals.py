@@ -41,6 +41,11 @@ filter absorbs part of a slowly varying residual into its position states):
   ``v (1 - cos theta)`` with the estimator's online grade (negative slope), intercept and time as
   nuisance regressors. Size: the profile of the correction gain (1 = the geometric correction
   with the online grade).
+* ``rear_brake_slip`` (the braked rear wheels turn slower, ``omega r = v (1 - k b)`` with the
+  braking deceleration ``b = max(0, -f_x - a_0)`` beyond the driving resistances ``a_0``): the
+  odometry is short by ``v k b`` -> along-track innovation on ``v b`` (the estimator's ``b``)
+  with intercept and time as nuisance regressors (positive slope when unmodelled). Size: the
+  profile of ``k`` (physically ``(1 - front brake share) m / C_x,rear``).
 
 The regression slopes are attenuated by the filter (it pulls its pose towards the fixes with a
 time constant of tens of seconds), so they rank the effects but do not size them. The size of
@@ -126,6 +131,12 @@ EFFECTS: tuple[Effect, ...] = (
         "speed*(1-cos(grade))",
         "along-track drift = -v (1 - cos grade) (slope distance vs horizontal)",
     ),
+    Effect(
+        "rear_brake_slip",
+        "s^2/m",
+        "speed*brake_decel",
+        "along-track drift = +v k b (braked rear wheels turn slower)",
+    ),
 )
 
 
@@ -202,6 +213,7 @@ def analyze(
     speed_m_s: F64,
     min_speed_m_s: float = 3.0,
     road_grade_rad: F64 | None = None,
+    rear_brake_decel_m_s2: F64 | None = None,
 ) -> dict[str, Any]:
     """The ``residuals`` block of metrics.json: consistency tests, regressions, ranked effects.
 
@@ -209,7 +221,8 @@ def analyze(
     |t| statistic of their signature (decimated innovations), most likely first, and empty
     when the run is consistent. ``estimate`` is the (filter-attenuated) regression size; use
     :func:`profile_scan` for a calibrated size. ``road_grade_rad`` (per trace sample, the
-    estimator's online grade) enables the ``road_grade`` signature.
+    estimator's online grade) enables the ``road_grade`` signature, ``rear_brake_decel_m_s2``
+    (per trace sample, the estimator's braking deceleration) the ``rear_brake_slip`` one.
     """
     base = innovation_tests(innov_m, innov_cov_m2, nis, accepted)
     base.pop("consistent", None)
@@ -224,6 +237,11 @@ def analyze(
         reg["speed*(1-cos(grade))"] = reg["speed"] * (
             1.0 - np.cos(np.interp(t_in, t_tr, road_grade_rad))
         )
+    if rear_brake_decel_m_s2 is not None and rear_brake_decel_m_s2.shape == trace_t_ns.shape:
+        t_in = (innov_t_ns[ok] - trace_t_ns[0]) * 1e-9
+        t_tr = (trace_t_ns - trace_t_ns[0]) * 1e-9
+        # odometry deficit rate of the braked rear wheels (per unit slip coefficient k)
+        reg["speed*brake_decel"] = reg["speed"] * np.interp(t_in, t_tr, rear_brake_decel_m_s2)
     ok_idx = np.flatnonzero(ok)
     moving = reg["speed"] >= min_speed_m_s
     reg = {k: v[moving] for k, v in reg.items()}
@@ -312,6 +330,14 @@ def analyze(
             t_grade = float(b[2] / se[2])
             tests["along_track_on_time_and_grade"] = {"slope": float(b[2]), "t": t_grade}
             effects.append(_effect("road_grade", -t_grade if t_grade < 0 else 0.0, None))
+    # rear brake slip: along-track on v b beyond time (positive when unmodelled)
+    if "speed*brake_decel" in reg:
+        xb = reg["speed*brake_decel"][keep]
+        if np.std(xb) > 1e-6:
+            b, se, _ = _ols(np.column_stack([o, tt, xb]), along[keep])
+            t_brake = float(b[2] / se[2])
+            tests["along_track_on_time_and_brake"] = {"slope": float(b[2]), "t": t_brake}
+            effects.append(_effect("rear_brake_slip", max(t_brake, 0.0), None))
     effects.sort(key=lambda e: -e["score"])
     nis_ok = True
     if "mean_nis_bounds_95" in base:
@@ -360,6 +386,7 @@ def analyze_trace(trace: Any) -> dict[str, Any]:
         a["pose"],
         a["speed_m_s"],
         road_grade_rad=a.get("road_grade_rad"),
+        rear_brake_decel_m_s2=a.get("rear_brake_decel_m_s2"),
     )
 
 
@@ -424,6 +451,7 @@ CONFIG_FIELDS: dict[str, str] = {
     "radius_speed_dependence": "radius_speed_coefficient_m_per_m2_s2",
     "radius_load_dependence": "radius_load_coefficient_m_per_n",
     "road_grade": "road_grade_correction_gain",
+    "rear_brake_slip": "rear_brake_slip_s2_per_m",
 }
 
 #: Scan grids of the effects that the estimator can switch on (0 = not modelled).
@@ -435,6 +463,8 @@ DEFAULT_GRIDS: dict[str, tuple[float, ...]] = {
     "radius_speed_dependence": (0.0, 2e-6, 4e-6, 6e-6, 8e-6),
     "radius_load_dependence": (-4e-6, -2e-6, -1e-6, 0.0, 1e-6),
     "road_grade": (0.0, 0.5, 1.0, 1.5),
+    # physical value of the simulator's default vehicle: 3.5e-3 s^2/m
+    "rear_brake_slip": (0.0, 2e-3, 4e-3, 6e-3),
 }
 
 

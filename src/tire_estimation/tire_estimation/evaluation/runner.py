@@ -57,6 +57,7 @@ class RadiusTrace:
     accepted: list[bool] = field(default_factory=list)
     gnss_enu_m: list[NDArray[np.float64]] = field(default_factory=list)
     road_grade_rad: list[float] = field(default_factory=list)
+    rear_brake_decel_m_s2: list[float] = field(default_factory=list)
     dropped: dict[str, int] = field(default_factory=dict)
     resample_count: int = 0
     origin_lla: tuple[float, float, float] | None = None
@@ -87,6 +88,7 @@ class RadiusTrace:
             "accepted": np.asarray(self.accepted, dtype=bool),
             "gnss_enu_m": stack(self.gnss_enu_m, (2,)),
             "road_grade_rad": np.asarray(self.road_grade_rad, dtype=float),
+            "rear_brake_decel_m_s2": np.asarray(self.rear_brake_decel_m_s2, dtype=float),
         }
 
 
@@ -177,6 +179,7 @@ def _record(trace: RadiusTrace, estimator: RadiusEstimator, upd: Any, t_ns: int)
     trace.pose_var.append(np.diag(np.asarray(est.pose_cov, dtype=float)).copy())
     trace.speed_m_s.append(float(est.speed_m_s))
     trace.road_grade_rad.append(float(getattr(est, "road_grade_rad", 0.0)))
+    trace.rear_brake_decel_m_s2.append(float(getattr(est, "rear_brake_decel_m_s2", 0.0)))
     trace.n_eff.append(float(est.n_eff))
     trace.state.append(str(est.state))
     trace.resample_count = int(est.resample_count)
