@@ -88,14 +88,18 @@ def test_estimator_converges_with_lla_input_and_baseline(converged):
     assert est.stats == {}
 
 
-def test_default_gnss_error_model_on_a_white_gnss_drive():
-    """The default model reads half of each fix's variance as a slow Gauss-Markov error. On a
-    drive whose GNSS error is all white it under-predicts the innovation (NIS about twice its
-    2 dof), so about 1 % of the fixes fall outside the 0.9999 gate (2 chi2_2 > 18.4); the
-    radii still converge."""
+def test_gnss_error_share_on_a_white_gnss_drive():
+    """``gnss_bias_fraction`` 0.5 reads half of each fix's variance as a slow Gauss-Markov
+    error. On a drive whose GNSS error is all white it under-predicts the innovation (NIS
+    about twice its 2 dof), so about 1 % of the fixes fall outside the 0.9999 gate
+    (2 chi2_2 > 18.4); the radii still converge."""
     drive = make_drive(duration_s=300.0, gnss_rate_hz=1.0, seed=5)
-    est = RadiusEstimator(RadiusEstimatorConfig(run_aug_kf=True), VEH, np.random.default_rng(5))
-    assert est.config.gnss_bias_fraction == 0.5 and est.mpf.bias_on and est.kf is not None
+    est = RadiusEstimator(
+        RadiusEstimatorConfig(run_aug_kf=True, gnss_bias_fraction=0.5),
+        VEH,
+        np.random.default_rng(5),
+    )
+    assert est.mpf.bias_on and est.kf is not None
     assert est.kf.nx == 7
     fixes = feed(est, drive, use_lla=False)
     e = est.estimate()
