@@ -191,6 +191,12 @@ def _ols(x: F64, y: F64) -> tuple[F64, F64, float]:
     return b, se, r2
 
 
+def _slope_beyond_time(x: F64, y: F64, ones: F64, t: F64) -> tuple[float, float]:
+    """Slope of ``y`` on ``x`` with an intercept and a time trend, and its t statistic."""
+    b, se, _ = _ols(np.column_stack([ones, t, x]), y)
+    return float(b[2]), float(b[2] / se[2])
+
+
 def _decimation(t_s: F64) -> NDArray[np.intp]:
     """Indices keeping about one sample per :data:`DECIMATION_S`."""
     if t_s.size == 0:
@@ -318,25 +324,22 @@ def analyze(
     # load-dependent radius: yaw-rate error ~ c v a_y -> cross-track on v a_y beyond time
     vay = v * reg["lateral_acceleration"][keep]
     if np.std(vay) > 1e-3:
-        b, se, _ = _ols(np.column_stack([o, tt, vay]), cross[keep])
-        t_load = float(b[2] / se[2])
-        tests["cross_track_on_time_and_v_ay"] = {"slope": float(b[2]), "t": t_load}
+        slope, t_load = _slope_beyond_time(vay, cross[keep], o, tt)
+        tests["cross_track_on_time_and_v_ay"] = {"slope": slope, "t": t_load}
         effects.append(_effect("radius_load_dependence", abs(t_load), None))
     # road grade: along-track on v (1 - cos grade) beyond time (negative when unmodelled)
     if "speed*(1-cos(grade))" in reg:
         xg = reg["speed*(1-cos(grade))"][keep]
         if np.std(xg) > 1e-6:
-            b, se, _ = _ols(np.column_stack([o, tt, xg]), along[keep])
-            t_grade = float(b[2] / se[2])
-            tests["along_track_on_time_and_grade"] = {"slope": float(b[2]), "t": t_grade}
+            slope, t_grade = _slope_beyond_time(xg, along[keep], o, tt)
+            tests["along_track_on_time_and_grade"] = {"slope": slope, "t": t_grade}
             effects.append(_effect("road_grade", -t_grade if t_grade < 0 else 0.0, None))
     # rear brake slip: along-track on v b beyond time (positive when unmodelled)
     if "speed*brake_decel" in reg:
         xb = reg["speed*brake_decel"][keep]
         if np.std(xb) > 1e-6:
-            b, se, _ = _ols(np.column_stack([o, tt, xb]), along[keep])
-            t_brake = float(b[2] / se[2])
-            tests["along_track_on_time_and_brake"] = {"slope": float(b[2]), "t": t_brake}
+            slope, t_brake = _slope_beyond_time(xb, along[keep], o, tt)
+            tests["along_track_on_time_and_brake"] = {"slope": slope, "t": t_brake}
             effects.append(_effect("rear_brake_slip", max(t_brake, 0.0), None))
     effects.sort(key=lambda e: -e["score"])
     nis_ok = True
