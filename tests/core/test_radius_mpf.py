@@ -384,3 +384,14 @@ def test_gnss_bias_std_overrides_the_fraction():
     )  # fmt: skip
     off.observe_fix_cov(np.eye(2) * 9.0)
     assert not off.bias_on and off.bias_var == 0.0
+
+
+def test_init_pose_counts_as_a_state_change_and_observing_a_covariance_does_not():
+    """``version`` (the estimate cache key) moves with :meth:`RadiusMPF.init_pose`, not with
+    :meth:`RadiusMPF.observe_fix_cov` (a model setting, no state change)."""
+    f = _bias_mpf(5, 0.0, 120.0)
+    v0 = f.version
+    f.observe_fix_cov(np.eye(2) * 2.0)
+    assert f.version == v0
+    f.init_pose(np.zeros(3), np.eye(3) * 0.01)
+    assert f.version == v0 + 1

@@ -248,7 +248,6 @@ class RadiusMPF:
         self._flush()
         self._stats = self._wrap(stats)
 
-    @_mutates
     def observe_fix_cov(self, r_m2: F64) -> None:
         """Take the Gauss-Markov error's variance from a fix's (2, 2) covariance when it is
         configured as a share of it (``sigma_b^2 = f lambda_min(R)``, :func:`gnss_bias_var`);
@@ -258,6 +257,7 @@ class RadiusMPF:
         if self.bias_fraction > 0.0:
             self.bias_var = gnss_bias_var(r_m2, self.bias_fraction)
 
+    @_mutates
     def init_pose(self, mean: F64, cov: F64) -> None:
         """Draw the particle poses from ``N(mean, cov)`` (3,), (3, 3); uniform weights.
 
