@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import shutil
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
@@ -12,7 +13,7 @@ from rosbags.rosbag2 import StoragePlugin, Writer
 from tests.bag.synthetic import START_NS, make_result
 from tire_estimation.bag import messages as mb
 from tire_estimation.bag import topics as tp
-from tire_estimation.bag.reader import BagData, read_bag
+from tire_estimation.bag.reader import BagData, TopicInfo, read_bag
 from tire_estimation.bag.typestore import get_typestore
 from tire_estimation.bag.writer import sim_topic_series
 from tire_estimation.core.vehicle import VehicleParams, dump_vehicle_yaml
@@ -322,3 +323,18 @@ def test_wrong_topic_type(tmp_path: Path) -> None:
     )
     with pytest.raises(BagError, match="/imu/data has type sensor_msgs/msg/JointState"):
         read_bag(bag)
+
+
+def test_topics_chosen_from_the_bags_topic_list(bag: Path) -> None:
+    seen: dict[str, int] = {}
+
+    def choose(infos: Mapping[str, TopicInfo]) -> list[str]:
+        seen.update({name: info.count for name, info in infos.items()})
+        return [t for t in (tp.IMU_DATA, tp.TRUTH_ODOMETRY) if infos[t].count > 0][:1]
+
+    data = read_bag(bag, topics=choose)
+    assert seen[tp.IMU_DATA] > 0 and seen[tp.TRUTH_ODOMETRY] > 0
+    assert data.imu is not None and data.imu.t_ns.size == seen[tp.IMU_DATA]
+    assert data.truth_odometry is None and data.wheel_speeds is None
+    with pytest.raises(BagError, match="cannot decode topic /not/a/topic"):
+        read_bag(bag, topics=lambda infos: ["/not/a/topic"])

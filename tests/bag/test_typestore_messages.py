@@ -71,3 +71,34 @@ def test_imu_builder_covariances() -> None:
     np.testing.assert_allclose(msg.angular_velocity_covariance.reshape(3, 3), np.eye(3) * 0.01)
     np.testing.assert_allclose(msg.linear_acceleration_covariance.reshape(3, 3), np.eye(3) * 0.04)
     assert msg.header.frame_id == "base_link"
+
+
+def test_bag_typestore_from_the_bags_schemas(bag: Path) -> None:
+    from tire_estimation.bag.mcap_raw import read_mcap
+
+    raw = read_mcap(bag / f"{bag.name}.mcap", tp.TOPIC_TYPES)
+    schemas = tuple(sorted({(m.msgtype, *m.schema) for m in raw.values()}))
+    assert {enc for _, enc, _ in schemas} == {"ros2msg"}
+    store = typestore.bag_typestore(schemas)
+    full = typestore.get_typestore()
+    assert store is not full
+    for name, _, _ in schemas:  # same definitions as the Jazzy store, dependencies included
+        assert store.fielddefs[name] == full.fielddefs[name]
+        assert store.hash_rihs01(name) == full.hash_rihs01(name)
+    assert typestore.bag_typestore(schemas) is store  # cached
+
+
+@pytest.mark.parametrize(
+    "schemas",
+    [
+        (),
+        (("sensor_msgs/msg/Imu", "ros2idl", "module sensor_msgs { };"),),
+        (("sensor_msgs/msg/Imu", "ros2msg", ""),),
+        (("sensor_msgs/msg/Imu", "ros2msg", "this is not a message definition ]["),),
+        (("sensor_msgs/msg/Imu", "ros2msg", "std_msgs/Header header\nfloat64 x"),),  # no Header
+    ],
+)
+def test_bag_typestore_falls_back_to_the_full_store(
+    schemas: tuple[tuple[str, str, str], ...],
+) -> None:
+    assert typestore.bag_typestore(schemas) is typestore.get_typestore()

@@ -13,6 +13,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
+from tire_estimation.core import yamlio
 from tire_estimation.errors import TireEstimationError
 
 EXIT_ERROR = 2
@@ -20,12 +21,11 @@ EXIT_ERROR = 2
 
 def _parse_option(text: str) -> tuple[str, Any]:
     """``key=value`` with the value parsed as YAML (numbers, booleans, lists)."""
-    import yaml
 
     if "=" not in text:
         raise argparse.ArgumentTypeError(f"expected key=value, got {text!r}")
     key, raw = text.split("=", 1)
-    return key.strip(), yaml.safe_load(raw)
+    return key.strip(), yamlio.safe_load(raw)
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:

@@ -266,20 +266,35 @@ def _generic_batch(store: Typestore, msgtype: str, raw: bytes, index: int) -> Ba
 
 
 def decode(
-    store: Typestore, msgtype: str, raws: Sequence[bytes | memoryview], *, fast: bool = True
+    store: Typestore,
+    msgtype: str,
+    raws: Sequence[bytes | memoryview] | NDArray[np.uint8],
+    *,
+    fast: bool = True,
 ) -> list[Batch]:
     """Decode serialized messages into batches (together they cover every input index once).
 
-    With ``fast`` (default) messages are grouped by length and layout and decoded with NumPy;
-    messages without a usable layout, and all messages when ``fast`` is False, are decoded by
-    ``rosbags`` one by one.
+    ``raws``: one bytes-like object per message, or an ``(M, length)`` uint8 array of M messages
+    of one length. With ``fast`` (default) messages are grouped by length and layout and decoded
+    with NumPy; messages without a usable layout, and all messages when ``fast`` is False, are
+    decoded by ``rosbags`` one by one.
 
     Raises:
         BagError: a message that ``rosbags`` cannot deserialize either.
     """
+    if isinstance(raws, np.ndarray):
+        if raws.ndim != 2 or raws.dtype != np.uint8:
+            raise ValueError(f"raws must be an (M, length) uint8 array, got {raws.dtype} "
+                             f"{raws.shape}")  # fmt: skip
+        if not fast:
+            return [_generic_batch(store, msgtype, r.tobytes(), i) for i, r in enumerate(raws)]
+        batches: list[Batch] = []
+        if raws.shape[0]:
+            _decode_group(store, msgtype, np.arange(raws.shape[0]), raws, batches)
+        return batches
     if not fast:
         return [_generic_batch(store, msgtype, bytes(r), i) for i, r in enumerate(raws)]
-    batches: list[Batch] = []
+    batches = []
     lengths = np.asarray(list(map(len, raws)), dtype=np.int64)
     unique = np.unique(lengths)
     for length in unique:
@@ -290,30 +305,37 @@ def decode(
             idx = np.flatnonzero(lengths == length)
             joined = b"".join([raws[i] for i in idx.tolist()])
         buf = np.frombuffer(joined, dtype=np.uint8).reshape(idx.size, int(length))
-        remaining = np.arange(idx.size)
-        layouts = 0
-        while remaining.size:
-            first = int(remaining[0])
-            layout: Layout | None = None
-            if layouts < MAX_LAYOUTS_PER_LENGTH:
-                try:
-                    layout = walk(store, msgtype, buf[first].tobytes())
-                except LayoutError:
-                    layout = None
-            if layout is None:
-                batches.append(
-                    _generic_batch(store, msgtype, buf[first].tobytes(), int(idx[first]))
-                )
-                remaining = remaining[1:]
-                continue
-            layouts += 1
-            sub = buf[remaining]
-            match = np.all(sub[:, layout.struct_index] == layout.struct_bytes, axis=1)
-            rows = remaining[match]
-            arrays = decode_rows(layout, sub[match])
-            batches.append(Batch(idx[rows].astype(np.int64), arrays, dict(layout.strings)))
-            remaining = remaining[~match]
+        _decode_group(store, msgtype, idx, buf, batches)
     return batches
+
+
+def _decode_group(
+    store: Typestore, msgtype: str, idx: NDArray[np.intp], buf: NDArray[np.uint8],
+    batches: list[Batch],
+) -> None:  # fmt: skip
+    """Decode messages ``buf`` (k, length) of one length, input positions ``idx``, into
+    ``batches``: one batch per layout, the generic decoder for messages without one."""
+    remaining = np.arange(idx.size)
+    layouts = 0
+    while remaining.size:
+        first = int(remaining[0])
+        layout: Layout | None = None
+        if layouts < MAX_LAYOUTS_PER_LENGTH:
+            try:
+                layout = walk(store, msgtype, buf[first].tobytes())
+            except LayoutError:
+                layout = None
+        if layout is None:
+            batches.append(_generic_batch(store, msgtype, buf[first].tobytes(), int(idx[first])))
+            remaining = remaining[1:]
+            continue
+        layouts += 1
+        sub = buf[remaining] if remaining.size < idx.size else buf
+        match = np.all(sub[:, layout.struct_index] == layout.struct_bytes, axis=1)
+        rows = remaining[match]
+        arrays = decode_rows(layout, sub[match] if not match.all() else sub)
+        batches.append(Batch(idx[rows].astype(np.int64), arrays, dict(layout.strings)))
+        remaining = remaining[~match]
 
 
 class Encoder:

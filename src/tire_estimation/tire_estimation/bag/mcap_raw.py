@@ -1,24 +1,36 @@
 """Fast raw message access to MCAP files (the storage format of contract bags).
 
-``rosbags``' reader costs about 6 µs per message in Python generator layers; this module walks
-the MCAP records directly (about 1 µs per message) and returns the serialized messages of the
-wanted topics. It is used by :mod:`tire_estimation.bag.reader` only for plain ``.mcap`` files
-(chunks uncompressed, zstd or lz4); anything else goes through ``rosbags``. Message order is the
-file order (for bags written by :mod:`tire_estimation.bag.writer`, log-time order).
+``rosbags``' reader costs about 6 µs per message in Python generator layers; this module reads
+the MCAP records directly and returns the serialized messages of the wanted topics. It is used by
+:mod:`tire_estimation.bag.reader` only for plain ``.mcap`` files (chunks uncompressed, zstd or
+lz4); anything else goes through ``rosbags``. Message order is the file order (for bags written
+by :mod:`tire_estimation.bag.writer`, log-time order).
 
 Record layout (MCAP spec): ``opcode u8, length u64, content``. A Message record's content is
-``channel_id u16, sequence u32, log_time u64, publish_time u64, data``.
+``channel_id u16, sequence u32, log_time u64, publish_time u64, data``. A MessageIndex record
+after a Chunk lists ``(log_time u64, offset u64)`` of one channel's messages in that chunk.
+
+Two ways through a chunk: where MessageIndex records follow it and agree with the bytes they
+point at (opcode, channel, log time, record bounds; checked with NumPy over all entries), the
+messages are located from the index without a Python step per message, and only the bytes no
+index entry covers (Schema and Channel records) are walked record by record; otherwise the whole
+chunk is walked (about 1 µs per message). Messages of a topic that all have one length are
+returned as one ``(M, length)`` uint8 array (:attr:`RawMessages.rows`), which
+:func:`tire_estimation.bag.cdr.decode` takes without copying each message.
 """
 
 from __future__ import annotations
 
 import struct
 import sys
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
 from lz4.frame import decompress as lz4_decompress  # type: ignore[import-untyped]
+from numpy.lib.stride_tricks import sliding_window_view
+from numpy.typing import NDArray
 
 if sys.version_info >= (3, 14):  # pragma: no cover
     from compression import zstd
@@ -30,6 +42,7 @@ OP_SCHEMA = 0x03
 OP_CHANNEL = 0x04
 OP_MESSAGE = 0x05
 OP_CHUNK = 0x06
+OP_MESSAGE_INDEX = 0x07
 OP_DATA_END = 0x0F
 OP_FOOTER = 0x02
 
@@ -40,6 +53,10 @@ _U16 = struct.Struct("<H")
 _U32 = struct.Struct("<I")
 _U64 = struct.Struct("<Q")
 _CHUNK_HEAD = struct.Struct("<QQQI")
+#: Bytes of a Message record before its data: opcode, length, channel, sequence, two times.
+_MSG_HEAD = 31
+I64 = NDArray[np.int64]
+U8 = NDArray[np.uint8]
 
 
 class McapFormatError(ValueError):
@@ -48,11 +65,51 @@ class McapFormatError(ValueError):
 
 @dataclass
 class RawMessages:
-    """Serialized messages of one topic: log times (ns) and CDR payloads, in file order."""
+    """Serialized messages of one topic, in file order.
+
+    ``log_ns``: log times (M,) int64 ns. The CDR payloads are either ``rows`` (M, length) uint8
+    when every message has the same length, or ``data`` (M bytes objects) otherwise; the other
+    one is None. ``schema``: encoding and text of the channel's Schema record (e.g.
+    ``("ros2msg", "std_msgs/Header header ...")``), empty strings when the file has none.
+    """
 
     msgtype: str
+    log_ns: I64
+    rows: U8 | None = None
+    data: list[bytes] | None = None
+    schema: tuple[str, str] = ("", "")
+
+    def __len__(self) -> int:
+        return int(self.log_ns.size)
+
+
+@dataclass
+class _Part:
+    """Payloads of one channel found in one buffer (``rows`` if of one length, else ``data``)."""
+
+    log_ns: I64
+    rows: U8 | None
+    data: list[bytes] | None
+
+
+def _part(buffer: bytes, starts: I64, lengths: I64, log_ns: I64) -> _Part:
+    """Copy the payloads at ``starts`` (``lengths`` bytes each) out of ``buffer``."""
+    width = int(lengths[0])
+    if width > 0 and np.all(lengths == width):
+        window = sliding_window_view(np.frombuffer(buffer, dtype=np.uint8), width)
+        return _Part(log_ns, window[starts], None)
+    ends = starts + lengths
+    data = [buffer[s:e] for s, e in zip(starts.tolist(), ends.tolist(), strict=True)]
+    return _Part(log_ns, None, data)
+
+
+@dataclass
+class _Loose:
+    """Messages found by the record walk, pending until their buffer is done."""
+
+    starts: list[int] = field(default_factory=list)
+    lengths: list[int] = field(default_factory=list)
     log_ns: list[int] = field(default_factory=list)
-    data: list[bytes] = field(default_factory=list)
 
 
 def _string(buf: bytes | memoryview, pos: int) -> tuple[str, int]:
@@ -63,7 +120,7 @@ def _string(buf: bytes | memoryview, pos: int) -> tuple[str, int]:
 
 def _decompress(compression: str, data: bytes, size: int) -> bytes:
     if compression == "":
-        return data
+        return bytes(data)
     if compression == "zstd":
         out = zstd.decompress(data)
     elif compression == "lz4":
@@ -75,13 +132,22 @@ def _decompress(compression: str, data: bytes, size: int) -> bytes:
     return out
 
 
+def _field(heads: U8, start: int, dtype: str) -> NDArray[np.generic]:
+    """Column ``dtype`` at byte ``start`` of every row of ``heads`` (k, _MSG_HEAD) uint8."""
+    width = np.dtype(dtype).itemsize
+    return np.ascontiguousarray(heads[:, start : start + width]).view(dtype)[:, 0]
+
+
 class _Scanner:
     def __init__(self, topics: set[str]) -> None:
         self.topics = topics
-        self.schemas: dict[int, str] = {}
+        self.schemas: dict[int, tuple[str, str, str]] = {}  # id -> name, encoding, text
         self.channel_topic: dict[int, str] = {}
-        self.wanted: dict[int, RawMessages] = {}
-        self.out: dict[str, RawMessages] = {}
+        self.wanted: dict[int, str] = {}
+        self.msgtypes: dict[str, tuple[str, str, str]] = {}
+        self.buffer = b""
+        self.parts: dict[str, list[_Part]] = {}
+        self.loose: dict[int, _Loose] = {}
 
     def _channel(self, buf: bytes, pos: int) -> None:
         (cid,) = _U16.unpack_from(buf, pos)
@@ -91,14 +157,42 @@ class _Scanner:
             self.channel_topic.setdefault(cid, topic)
             return
         self.channel_topic[cid] = topic
-        msgtype = self.schemas.get(sid, "")
-        raw = self.out.setdefault(topic, RawMessages(msgtype))
-        self.wanted[cid] = raw
+        self.msgtypes.setdefault(topic, self.schemas.get(sid, ("", "", "")))
+        self.parts.setdefault(topic, [])
+        self.wanted[cid] = topic
 
     def _schema(self, buf: bytes, pos: int) -> None:
         (sid,) = _U16.unpack_from(buf, pos)
-        name, _ = _string(buf, pos + 2)
-        self.schemas[sid] = name
+        name, p = _string(buf, pos + 2)
+        encoding, p = _string(buf, p)
+        (n,) = _U32.unpack_from(buf, p)
+        try:
+            text = bytes(buf[p + 4 : p + 4 + n]).decode()
+        except UnicodeDecodeError:  # not a text schema: the message type name is enough
+            text = ""
+        self.schemas[sid] = (name, encoding, text)
+
+    def _flush(self, extra: dict[int, tuple[I64, I64, I64]] | None = None) -> None:
+        """Close the current buffer: its walked messages (merged in file order with the
+        indexed ones of ``extra``, channel -> starts, lengths, log times) become parts."""
+        extra = extra or {}
+        for cid in set(self.loose) | set(extra):
+            loose = self.loose.get(cid, _Loose())
+            starts = np.asarray(loose.starts, dtype=np.int64)
+            lengths = np.asarray(loose.lengths, dtype=np.int64)
+            logs = np.asarray(loose.log_ns, dtype=np.int64)
+            if cid in extra:
+                s, n, t = extra[cid]
+                starts, lengths, logs = (
+                    np.concatenate([s, starts]),
+                    np.concatenate([n, lengths]),
+                    np.concatenate([t, logs]),
+                )
+                order = np.argsort(starts, kind="stable")
+                starts, lengths, logs = starts[order], lengths[order], logs[order]
+            if starts.size:
+                self.parts[self.wanted[cid]].append(_part(self.buffer, starts, lengths, logs))
+        self.loose = {}
 
     def records(self, buf: bytes, start: int, end: int, top: bool) -> None:
         """Walk the records of ``buf[start:end]`` (top level or a decompressed chunk)."""
@@ -109,15 +203,16 @@ class _Scanner:
         while pos < end:
             if pos + 9 > end:
                 raise McapFormatError("truncated record header")
-            if buf[pos] == OP_MESSAGE and pos + 31 <= end:
+            if buf[pos] == OP_MESSAGE and pos + _MSG_HEAD <= end:
                 _, length, cid, log_ns = msg_unpack(buf, pos)
                 nxt = pos + 9 + length
-                if nxt > end or length < 22:
+                if nxt > end or length < _MSG_HEAD - 9:
                     raise McapFormatError("message record exceeds the data")
-                raw = wanted.get(cid)
-                if raw is not None:
-                    raw.log_ns.append(log_ns)
-                    raw.data.append(buf[pos + 31 : nxt])
+                if cid in wanted:
+                    loose = self.loose.setdefault(cid, _Loose())
+                    loose.starts.append(pos + _MSG_HEAD)
+                    loose.lengths.append(nxt - pos - _MSG_HEAD)
+                    loose.log_ns.append(log_ns)
                 pos = nxt
                 continue
             op, length = rec_unpack(buf, pos)
@@ -128,14 +223,7 @@ class _Scanner:
             if op == OP_MESSAGE:
                 raise McapFormatError("truncated message record")
             elif op == OP_CHUNK and top:
-                _, _, size, _ = _CHUNK_HEAD.unpack_from(buf, body)
-                compression, p = _string(buf, body + 28)
-                (clen,) = _U64.unpack_from(buf, p)
-                p += 8
-                if p + clen > nxt:
-                    raise McapFormatError("chunk data exceeds its record")
-                inner = _decompress(compression, buf[p : p + clen], size)
-                self.records(inner, 0, len(inner), top=False)
+                nxt = self._chunk(buf, body, nxt, end)
             elif op == OP_SCHEMA:
                 self._schema(buf, body)
             elif op == OP_CHANNEL:
@@ -145,6 +233,110 @@ class _Scanner:
             pos = nxt
         if top:
             raise McapFormatError("no DataEnd record (file truncated?)")
+
+    def _chunk(self, buf: bytes, body: int, nxt: int, end: int) -> int:
+        """Read the chunk whose content starts at ``body`` and the MessageIndex records after
+        it; returns the position after those records."""
+        _, _, size, _ = _CHUNK_HEAD.unpack_from(buf, body)
+        compression, p = _string(buf, body + 28)
+        (clen,) = _U64.unpack_from(buf, p)
+        p += 8
+        if p + clen > nxt:
+            raise McapFormatError("chunk data exceeds its record")
+        inner = _decompress(compression, buf[p : p + clen], size)
+        index: list[tuple[int, bytes]] = []
+        pos = nxt
+        while pos + 9 <= end and buf[pos] == OP_MESSAGE_INDEX:
+            (length,) = _U64.unpack_from(buf, pos + 1)
+            if pos + 9 + length > end or length < 6:
+                raise McapFormatError("message index record exceeds the data")
+            (cid,) = _U16.unpack_from(buf, pos + 9)
+            (n,) = _U32.unpack_from(buf, pos + 11)
+            if 6 + n > length or n % 16:
+                raise McapFormatError("malformed message index record")
+            index.append((cid, buf[pos + 15 : pos + 15 + n]))
+            pos += 9 + length
+        self._flush()  # messages walked so far belong to the enclosing buffer
+        self.buffer = inner
+        if not (index and self._indexed(inner, index)):
+            self.records(inner, 0, len(inner), top=False)
+            self._flush()
+        self.buffer = buf  # back in the enclosing (top-level) buffer
+        return pos
+
+    def _indexed(self, inner: bytes, index: list[tuple[int, bytes]]) -> bool:
+        """Locate the chunk's messages from its MessageIndex records; walk only the bytes
+        between them. False (nothing done) if the index disagrees with the chunk's bytes."""
+        arr = np.frombuffer(inner, dtype=np.uint8)
+        size = arr.size
+        tables = [np.frombuffer(rec, dtype="<u8").reshape(-1, 2) for _, rec in index]
+        if size < _MSG_HEAD or not any(t.size for t in tables):
+            return False
+        cids = np.concatenate([np.full(len(t), c, dtype=np.int64) for (c, _), t in
+                               zip(index, tables, strict=True)])  # fmt: skip
+        both = np.concatenate(tables)
+        if np.any(both[:, 1] > size - _MSG_HEAD):
+            return False
+        offsets = both[:, 1].astype(np.int64)
+        logs = both[:, 0]
+        # the Message record header at each offset: opcode, length, channel, sequence, log time
+        heads = sliding_window_view(arr, _MSG_HEAD)[offsets]
+        lengths = _field(heads, 1, "<u8")
+        if (
+            np.any(heads[:, 0] != OP_MESSAGE)
+            or np.any(lengths < _MSG_HEAD - 9)
+            or np.any(lengths > size)
+            or np.any(_field(heads, 9, "<u2") != cids)
+            or np.any(_field(heads, 15, "<u8") != logs)
+        ):
+            return False
+        ends = offsets + 9 + lengths.astype(np.int64)
+        order = np.argsort(offsets, kind="stable")
+        s_sorted, e_sorted = offsets[order], ends[order]
+        if e_sorted[-1] > size or np.any(e_sorted[:-1] > s_sorted[1:]):
+            return False
+        # bytes no index entry covers: Schema / Channel records, unindexed messages
+        gap_start = np.concatenate([[0], e_sorted])
+        gap_end = np.concatenate([s_sorted, [size]])
+        for a, b in zip(gap_start.tolist(), gap_end.tolist(), strict=True):
+            if b > a:
+                self.records(inner, a, b, top=False)
+        extra: dict[int, tuple[I64, I64, I64]] = {}
+        for cid in np.unique(cids).tolist():
+            if cid in self.wanted:
+                sel = cids == cid
+                extra[cid] = (
+                    offsets[sel] + _MSG_HEAD,
+                    ends[sel] - offsets[sel] - _MSG_HEAD,
+                    logs[sel].astype(np.int64),
+                )
+        self._flush(extra)
+        return True
+
+    def result(self) -> dict[str, RawMessages]:
+        """The messages per wanted topic present in the file."""
+        self._flush()
+        out: dict[str, RawMessages] = {}
+        for topic, parts in self.parts.items():
+            name, encoding, text = self.msgtypes[topic]
+            out[topic] = assemble(name, parts)
+            out[topic].schema = (encoding, text)
+        return out
+
+
+def assemble(msgtype: str, parts: Sequence[_Part]) -> RawMessages:
+    """Join ``parts`` (in order) into :class:`RawMessages`: ``rows`` if every payload has one
+    length, else ``data``."""
+    if not parts:
+        return RawMessages(msgtype, np.zeros(0, dtype=np.int64), data=[])
+    log_ns = np.concatenate([p.log_ns for p in parts])
+    widths = {p.rows.shape[1] if p.rows is not None else -1 for p in parts}
+    if len(widths) == 1 and -1 not in widths:
+        return RawMessages(msgtype, log_ns, rows=np.concatenate([p.rows for p in parts]))
+    data: list[bytes] = []
+    for p in parts:
+        data.extend(p.data if p.data is not None else [r.tobytes() for r in p.rows])
+    return RawMessages(msgtype, log_ns, data=data)
 
 
 def read_mcap(path: Path, topics: Iterable[str]) -> dict[str, RawMessages]:
@@ -158,8 +350,9 @@ def read_mcap(path: Path, topics: Iterable[str]) -> dict[str, RawMessages]:
     if not data.startswith(MAGIC) or not data.endswith(MAGIC):
         raise McapFormatError(f"{path} is not a complete MCAP file (magic bytes missing)")
     scanner = _Scanner(set(topics))
+    scanner.buffer = data
     try:
         scanner.records(data, len(MAGIC), len(data) - len(MAGIC), top=True)
+        return scanner.result()
     except (struct.error, UnicodeDecodeError, zstd.ZstdError, RuntimeError) as exc:
         raise McapFormatError(f"{path}: {exc}") from exc
-    return scanner.out

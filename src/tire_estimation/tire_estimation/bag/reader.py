@@ -10,7 +10,7 @@ stamps (ns), sorted; samples with a repeated stamp are dropped (noted in :attr:`
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -22,9 +22,10 @@ from rosbags.rosbag2 import Reader
 
 from tire_estimation.bag import topics as tp
 from tire_estimation.bag.cdr import Batch, decode
-from tire_estimation.bag.mcap_raw import McapFormatError, read_mcap
-from tire_estimation.bag.typestore import get_typestore
+from tire_estimation.bag.mcap_raw import McapFormatError, RawMessages, read_mcap
+from tire_estimation.bag.typestore import bag_typestore
 from tire_estimation.bag.writer import CUSTOM_EVENTS, CUSTOM_VEHICLE, SIM_CONFIG_FILE, VEHICLE_FILE
+from tire_estimation.core import yamlio
 from tire_estimation.core.vehicle import VehicleParams, load_vehicle_yaml
 from tire_estimation.core.wheels import STEERING_JOINT, WHEELS
 from tire_estimation.errors import BagError, VehicleConfigError
@@ -125,11 +126,26 @@ class BagData:
 
 @dataclass
 class RawTopic:
-    """Undecoded messages of one topic, in bag (log-time) order."""
+    """Undecoded messages of one topic, in bag (log-time) order.
+
+    The payloads are ``data`` (one bytes object per message) or, when ``rows`` is set, the
+    ``(M, length)`` uint8 array of messages that all have one length (``data`` then empty).
+    """
 
     msgtype: str
-    log_ns: list[int] = field(default_factory=list)
+    log_ns: I64 = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     data: list[bytes] = field(default_factory=list)
+    rows: NDArray[np.uint8] | None = None
+    #: encoding and text of the topic's schema in the bag, if the reader saw one
+    schema: tuple[str, str] = ("", "")
+
+    @property
+    def payloads(self) -> Sequence[bytes] | NDArray[np.uint8]:
+        """The serialized messages, as :func:`tire_estimation.bag.cdr.decode` takes them."""
+        return self.rows if self.rows is not None else self.data
+
+    def __len__(self) -> int:
+        return len(self.rows) if self.rows is not None else len(self.data)
 
 
 # --------------------------------------------------------------------------- raw access
@@ -174,16 +190,25 @@ def mcap_files(path: Path) -> list[Path] | None:
 def read_raw_fast(path: Path, files: list[Path], topics: Iterable[str]) -> dict[str, RawTopic]:
     """Like :func:`read_raw` but walking the MCAP files directly (see :mod:`.mcap_raw`)."""
     wanted = tuple(topics)
-    out: dict[str, RawTopic] = {}
+    found: dict[str, list[RawMessages]] = {}
     for file in files:
         try:
             part = read_mcap(file, wanted)
         except (McapFormatError, OSError) as exc:
             raise _bag_error(path, exc) from exc
         for topic, msgs in part.items():
-            raw = out.setdefault(topic, RawTopic(msgs.msgtype))
-            raw.log_ns.extend(msgs.log_ns)
-            raw.data.extend(msgs.data)
+            found.setdefault(topic, []).append(msgs)
+    out: dict[str, RawTopic] = {}
+    for topic, parts in found.items():
+        raw = out[topic] = RawTopic(
+            parts[0].msgtype, np.concatenate([m.log_ns for m in parts]), schema=parts[0].schema
+        )
+        widths = {m.rows.shape[1] if m.rows is not None else -1 for m in parts}
+        if len(widths) == 1 and -1 not in widths:
+            raw.rows = np.concatenate([m.rows for m in parts if m.rows is not None])
+            continue
+        for m in parts:
+            raw.data.extend(m.data if m.data is not None else [r.tobytes() for r in m.rows])
     return out
 
 
@@ -196,14 +221,17 @@ def read_raw(reader: Reader, path: Path, topics: Iterable[str]) -> dict[str, Raw
         out.setdefault(conn.topic, RawTopic(conn.msgtype))
     if not conns:
         return out
-    by_id = {id(c): out[c.topic] for c in conns}
+    logs: dict[str, list[int]] = {topic: [] for topic in out}
+    by_id = {id(c): (logs[c.topic], out[c.topic].data) for c in conns}
     try:
         for conn, log_ns, data in reader.messages(connections=conns):
-            raw = by_id[id(conn)]
-            raw.log_ns.append(log_ns)
-            raw.data.append(data)
+            topic_logs, topic_data = by_id[id(conn)]
+            topic_logs.append(log_ns)
+            topic_data.append(data)
     except Exception as exc:  # ReaderError, zstd errors, struct.error, EOF on truncated files
         raise _bag_error(path, exc) from exc
+    for topic, raw in out.items():
+        raw.log_ns = np.asarray(logs[topic], dtype=np.int64)
     return out
 
 
@@ -431,7 +459,7 @@ def find_vehicle(path: Path, custom: dict[str, str]) -> VehicleParams:
             return load_vehicle_yaml(candidate)
     if CUSTOM_VEHICLE in custom:
         try:
-            data = yaml.safe_load(custom[CUSTOM_VEHICLE])
+            data = yamlio.safe_load(custom[CUSTOM_VEHICLE])
         except yaml.YAMLError as exc:
             raise VehicleConfigError(CUSTOM_VEHICLE, custom[CUSTOM_VEHICLE], str(exc)) from exc
         if not isinstance(data, dict) or "vehicle" not in data:
@@ -448,7 +476,7 @@ def _sim_config(path: Path, custom: dict[str, str]) -> tuple[dict[str, Any], tup
     cfg_path = _bag_dir(path) / SIM_CONFIG_FILE
     if cfg_path.is_file():
         try:
-            loaded = yaml.safe_load(cfg_path.read_text())
+            loaded = yamlio.safe_load(cfg_path.read_text())
         except yaml.YAMLError as exc:
             raise BagError(f"{cfg_path} is not valid YAML: {exc}") from exc
         config = loaded if isinstance(loaded, dict) else {}
@@ -475,7 +503,7 @@ READ_TOPICS = tp.INPUT_TOPICS + tp.TRUTH_TOPICS + tp.REFERENCE_TOPICS
 def read_bag(
     path: Path | str,
     *,
-    topics: Iterable[str] | None = None,
+    topics: Iterable[str] | Callable[[Mapping[str, TopicInfo]], Iterable[str]] | None = None,
     require: Iterable[str] = (),
     fast: bool = True,
 ) -> BagData:
@@ -484,7 +512,9 @@ def read_bag(
     Args:
         path: bag directory (or a single ``.mcap`` / ``.db3`` file).
         topics: contract topics to decode (default: all inputs, truth and reference); others
-            are listed in :attr:`BagData.topics` but not decoded.
+            are listed in :attr:`BagData.topics` but not decoded. A function instead is called
+            with the bag's topics (name -> type and count) and returns the topics to decode,
+            so that a caller decodes only what it will use.
         require: topics that must be present (BagError naming the first missing one).
         fast: decode with the bulk NumPy decoder (False: ``rosbags`` message by message).
 
@@ -494,16 +524,19 @@ def read_bag(
         VehicleConfigError: the vehicle description is malformed or absurd.
     """
     path = Path(path)
-    selected = tuple(READ_TOPICS if topics is None else topics)
-    unknown = [t for t in selected if t not in tp.TOPIC_TYPES or t not in READ_TOPICS]
-    if unknown:
-        raise BagError(f"read_bag cannot decode topic {unknown[0]}")
+    if topics is not None and not callable(topics):
+        _check_readable(tuple(topics))
     reader = open_reader(path)
     try:
         infos = {
             name: TopicInfo(info.msgtype or "", int(info.msgcount))
             for name, info in reader.topics.items()
         }
+        if topics is None:
+            selected: tuple[str, ...] = READ_TOPICS
+        else:
+            selected = tuple(topics(infos) if callable(topics) else topics)
+            _check_readable(selected)
         for topic in require:
             if topic not in infos or infos[topic].count == 0:
                 raise BagError(f"bag {path} has no messages on required topic {topic}")
@@ -543,15 +576,23 @@ def read_bag(
     )
 
 
+def _check_readable(selected: tuple[str, ...]) -> None:
+    unknown = [t for t in selected if t not in tp.TOPIC_TYPES or t not in READ_TOPICS]
+    if unknown:
+        raise BagError(f"read_bag cannot decode topic {unknown[0]}")
+
+
 def decode_topics(raw: dict[str, RawTopic], *, fast: bool = True) -> dict[str, Any]:
     """Decode raw topics into the stream fields of :class:`BagData` (plus ``notes``)."""
-    store = get_typestore()
+    store = bag_typestore(
+        tuple(sorted({(rt.msgtype, *rt.schema) for rt in raw.values() if len(rt)}))
+    )
     notes: list[str] = []
     batches: dict[str, tuple[list[Batch], int]] = {}
     for topic, rt in raw.items():
-        if rt.data:
+        if len(rt):
             try:
-                batches[topic] = (decode(store, rt.msgtype, rt.data, fast=fast), len(rt.data))
+                batches[topic] = (decode(store, rt.msgtype, rt.payloads, fast=fast), len(rt))
             except BagError as exc:
                 raise BagError(f"topic {topic}: {exc}") from exc
 

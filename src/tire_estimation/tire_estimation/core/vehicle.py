@@ -15,6 +15,7 @@ from typing import Any
 
 import yaml
 
+from tire_estimation.core import yamlio
 from tire_estimation.core.validation import require_finite, require_range
 from tire_estimation.errors import VehicleConfigError
 
@@ -159,7 +160,7 @@ def load_vehicle_yaml(path: str | Path) -> VehicleParams:
     """Read ``vehicle.yaml``; raise :class:`VehicleConfigError` naming what is wrong."""
     path = Path(path)
     try:
-        data = yaml.safe_load(path.read_text())
+        data = yamlio.safe_load(path.read_text())
     except FileNotFoundError as exc:
         raise VehicleConfigError("vehicle.yaml", str(path), "file not found") from exc
     except yaml.YAMLError as exc:

@@ -38,6 +38,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from tire_estimation.core import yamlio
 from tire_estimation.errors import ConfigError, TireEstimationError
 
 F64 = NDArray[np.float64]
@@ -1379,12 +1380,11 @@ def _estimator_options(items: Sequence[tuple[str, Any]] | None) -> dict[str, Any
 
 
 def _key_value(text: str) -> tuple[str, Any]:
-    import yaml
 
     if "=" not in text:
         raise argparse.ArgumentTypeError(f"expected key=value, got {text!r}")
     key, raw = text.split("=", 1)
-    return key.strip(), yaml.safe_load(raw)
+    return key.strip(), yamlio.safe_load(raw)
 
 
 def _float_list(text: str) -> tuple[float, ...]:

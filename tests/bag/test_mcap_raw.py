@@ -1,0 +1,123 @@
+"""mcap_raw: the MessageIndex path agrees with the record walk; a bad index falls back."""
+
+from __future__ import annotations
+
+import struct
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tire_estimation.bag import mcap_raw
+from tire_estimation.bag import topics as tp
+from tire_estimation.bag.mcap_raw import RawMessages, read_mcap
+
+TOPICS = tuple(tp.TOPIC_TYPES)
+
+
+def _mcap(bag: Path) -> Path:
+    return bag / f"{bag.name}.mcap"
+
+
+def _payloads(msgs: RawMessages) -> list[bytes]:
+    if msgs.rows is not None:
+        return [r.tobytes() for r in msgs.rows]
+    assert msgs.data is not None
+    return list(msgs.data)
+
+
+def _assert_same(a: dict[str, RawMessages], b: dict[str, RawMessages]) -> None:
+    assert a.keys() == b.keys()
+    for topic in a:
+        assert a[topic].msgtype == b[topic].msgtype, topic
+        assert a[topic].schema == b[topic].schema, topic
+        np.testing.assert_array_equal(a[topic].log_ns, b[topic].log_ns, err_msg=topic)
+        assert _payloads(a[topic]) == _payloads(b[topic]), topic
+
+
+def _walked(path: Path, monkeypatch: pytest.MonkeyPatch) -> dict[str, RawMessages]:
+    with monkeypatch.context() as m:
+        m.setattr(mcap_raw._Scanner, "_indexed", lambda self, inner, index: False)
+        return read_mcap(path, TOPICS)
+
+
+def _index_records(content: bytes) -> list[int]:
+    """Positions of the top-level MessageIndex records of an MCAP file."""
+    pos, found = len(mcap_raw.MAGIC), []
+    while pos < len(content) - len(mcap_raw.MAGIC):
+        op, length = struct.unpack_from("<BQ", content, pos)
+        if op == mcap_raw.OP_MESSAGE_INDEX:
+            found.append(pos)
+        if op == mcap_raw.OP_DATA_END:
+            break
+        pos += 9 + length
+    return found
+
+
+def test_index_path_equals_record_walk(bag: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    path = _mcap(bag)
+    assert _index_records(path.read_bytes()), "the writer's bags carry MessageIndex records"
+    fast = read_mcap(path, TOPICS)
+    _assert_same(fast, _walked(path, monkeypatch))
+    assert fast[tp.WHEEL_SPEEDS].rows is not None  # one length per topic: a 2-D array
+    assert len(fast[tp.WHEEL_SPEEDS]) == fast[tp.WHEEL_SPEEDS].rows.shape[0] > 100
+    assert fast[tp.IMU_DATA].schema[0] == "ros2msg"
+    assert "geometry_msgs/Quaternion orientation" in fast[tp.IMU_DATA].schema[1]
+
+
+def test_index_path_is_used(bag: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    used: list[bool] = []
+    original = mcap_raw._Scanner._indexed
+
+    def spy(self: mcap_raw._Scanner, inner: bytes, index: list[tuple[int, bytes]]) -> bool:
+        used.append(original(self, inner, index))
+        return used[-1]
+
+    monkeypatch.setattr(mcap_raw._Scanner, "_indexed", spy)
+    read_mcap(_mcap(bag), TOPICS)
+    assert used and all(used)
+
+
+@pytest.mark.parametrize("delta", [1, -1, 10**6])
+def test_wrong_index_offset_falls_back_to_the_walk(
+    bag: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, delta: int
+) -> None:
+    content = bytearray(_mcap(bag).read_bytes())
+    first = _index_records(bytes(content))[0]
+    # record: opcode, length u64, channel u16, byte length u32, then (log_time, offset) pairs
+    at = first + 15 + 8
+    (offset,) = struct.unpack_from("<Q", content, at)
+    struct.pack_into("<Q", content, at, max(offset + delta, 0))
+    bad = tmp_path / "bad_index.mcap"
+    bad.write_bytes(bytes(content))
+    used: list[bool] = []
+    original = mcap_raw._Scanner._indexed
+
+    def spy(self: mcap_raw._Scanner, inner: bytes, index: list[tuple[int, bytes]]) -> bool:
+        used.append(original(self, inner, index))
+        return used[-1]
+
+    with monkeypatch.context() as m:
+        m.setattr(mcap_raw._Scanner, "_indexed", spy)
+        got = read_mcap(bad, TOPICS)
+    assert used[0] is False and all(used[1:])  # only the chunk with the bad entry is walked
+    _assert_same(got, read_mcap(_mcap(bag), TOPICS))
+
+
+def test_without_index_records_the_walk_reads_everything(bag: Path, tmp_path: Path) -> None:
+    content = _mcap(bag).read_bytes()
+    out, last = bytearray(), 0
+    for pos in _index_records(content):
+        (length,) = struct.unpack_from("<Q", content, pos + 1)
+        out += content[last:pos]
+        last = pos + 9 + length
+    out += content[last:]
+    stripped = tmp_path / "no_index.mcap"
+    stripped.write_bytes(bytes(out))
+    assert not _index_records(bytes(out))
+    _assert_same(read_mcap(stripped, TOPICS), read_mcap(_mcap(bag), TOPICS))
+
+
+def test_topics_not_asked_for_are_not_returned(bag: Path) -> None:
+    got = read_mcap(_mcap(bag), [tp.IMU_DATA, "/not/in/the/bag"])
+    assert list(got) == [tp.IMU_DATA]
