@@ -31,11 +31,13 @@ import numpy as np
 import pytest
 
 from tire_estimation.core.config import RadiusEstimatorConfig
+from tire_estimation.core.geodesy import LocalTangentPlane
 from tire_estimation.core.radius_estimator import RadiusEstimator
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.evaluation import residuals as rs
 from tire_estimation.evaluation.runner import RadiusTrace, run_radius_estimator
 from tire_estimation.sim import SensorConfig, SimResult, simulate
+from tire_estimation.sim.streams import GnssStream, WheelSpeedStream
 
 DRIVE = {"scenario": "robustness", "seed": 251, "minutes": 2.0}
 CONFIG: dict[str, Any] = {
@@ -167,6 +169,53 @@ def test_profile_scan_finds_parabola_minimum() -> None:
     assert len(f) == 4
 
 
+class _PoseTrace:
+    """A trace stand-in for :func:`residuals.speed_dependence_fit`: heading at the fixes."""
+
+    def __init__(self, t_ns: np.ndarray, yaw: np.ndarray, origin: tuple[float, ...]) -> None:
+        self.t_ns, self.yaw, self.origin_lla = t_ns, yaw, origin
+        self.innov_t_ns = t_ns
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        zeros = np.zeros(self.t_ns.size)
+        return {
+            "t_ns": self.t_ns,
+            "pose": np.column_stack([zeros, zeros, self.yaw]),
+            "accepted": np.ones(self.t_ns.size, dtype=bool),
+            "rear_brake_decel_m_s2": zeros,
+        }
+
+
+@pytest.mark.parametrize("k", [0.0, 4e-6])
+def test_speed_dependence_fit_on_synthetic_odometry(k: float) -> None:
+    """Known path (speed 16-24 m/s, constant yaw rate), rear wheels turning at
+    v / (r0 + k v^2), fixes with 1 m white noise at 10 Hz: the direct fit recovers k and r0
+    within three of its standard errors, and the standard error is that of the noise."""
+    rng = np.random.default_rng(7)
+    r_nom, dr = 0.3, 0.5e-3
+    t = np.arange(0.0, 120.0, 0.01)
+    t_ns = np.round(t * 1e9).astype(np.int64)
+    v = 20.0 + 4.0 * np.sin(2.0 * np.pi * t / 40.0)
+    yaw = 0.02 * t
+    omega = v / (r_nom + dr + k * v**2)
+    step = 0.5 * (v[1:] + v[:-1]) * 0.01
+    east = np.concatenate([[0.0], np.cumsum(step * np.cos(0.5 * (yaw[1:] + yaw[:-1])))])
+    north = np.concatenate([[0.0], np.cumsum(step * np.sin(0.5 * (yaw[1:] + yaw[:-1])))])
+    fix = slice(0, None, 10)
+    origin = (48.0, 11.0, 500.0)
+    noise = rng.normal(0.0, 1.0, (t[fix].size, 2))
+    lat, lon, alt = LocalTangentPlane(*origin).to_lla(
+        east[fix] + noise[:, 0], north[fix] + noise[:, 1], np.zeros(t[fix].size)
+    )
+    gnss = GnssStream(t_ns[fix], lat, lon, alt, np.tile(np.eye(3), (t[fix].size, 1, 1)))
+    wheels = WheelSpeedStream(t_ns, np.column_stack([omega] * 4))
+    fit = rs.speed_dependence_fit(_PoseTrace(t_ns[fix], yaw[fix], origin), wheels, gnss, r_nom)
+    assert fit["estimate"] == pytest.approx(k, abs=3.0 * fit["std"])
+    assert fit["radius_offset_m"] == pytest.approx(dr, abs=3.0 * fit["radius_offset_std_m"])
+    assert fit["residual_rms_m"] == pytest.approx(1.0, rel=0.1)
+    assert 1e-7 < fit["std"] < 1e-6
+
+
 class _FakeTrace:
     """A re-run stand-in for :func:`residuals.rank_effects`: fixes over 120 s, one value."""
 
@@ -266,10 +315,14 @@ def test_undeclared_effect_is_found_sized_and_closed(effect: str) -> None:
     if effect not in KNOWN_D_FAILURES:
         assert after <= 2.0 * clean, (after, clean)
     elif effect == "radius_speed_dependence":
-        # not met (documented in docs/closing_the_loop.md): the radius error needs k within
-        # about 8 % (0.37 / 0.13 / 0.19 / 0.45 mm at k = 3.5 / 4 / 4.5 / 5e-6), finer than the
-        # NLL profile resolves on this drive (1.0875 / 1.0915 / 1.0886 / 1.0977 over seeds 0-1);
-        # what holds: switching the effect on more than halves the error
+        # not met as a property (docs/closing_the_loop.md): the radius error needs k >= about
+        # 3.75e-6 (0.266 / 0.230 / 0.209 / 0.154 / 0.127 mm at k = 3.54 / 3.6 / 3.7 / 3.8 /
+        # 4e-6 against 2 x 0.098 mm), but this drive's GNSS noise puts the data's best k lower:
+        # the direct fit (no Monte-Carlo noise) gives 3.47e-6 +- 0.37e-6 (its noise-free value
+        # 4.05e-6), the profile 3.15-3.82e-6 over filter-seed pairs. What holds: the profile
+        # agrees with the direct fit, and switching the effect on more than halves the error
+        fit = _speed_fit(effect)
+        assert abs(est - fit["estimate"]) < 2.0 * fit["std"], (est, fit)
         before = _mean_error(effect, "", 0.0, truth_drive)
         assert after < 0.5 * before, (after, before)
     after_runs = tuple(_run(effect, effect, est, seed) for seed in RANK_SEEDS)
@@ -281,6 +334,35 @@ def test_undeclared_effect_is_found_sized_and_closed(effect: str) -> None:
         grade = _run(effect, effect, est).arrays()["road_grade_rad"]
         amplitude = float(np.sqrt(2.0 * np.mean(grade**2)))
         assert amplitude == pytest.approx(GRADE_AMPLITUDE_RAD, rel=0.3)
+
+
+def _speed_fit(drive: str, seed: int = 0) -> dict[str, float]:
+    """:func:`residuals.speed_dependence_fit` on ``drive`` (estimator run without the effect,
+    filter ``seed``; the fit uses only its heading and braking deceleration)."""
+    sim = _sim(drive)
+    return rs.speed_dependence_fit(
+        _run(drive, seed=seed),
+        sim.wheel_speeds,
+        sim.gnss,
+        VehicleParams().nominal_tire_radius_m,
+        rear_brake_slip_s2_per_m=CONFIG["rear_brake_slip_s2_per_m"],
+    )
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("drive", ["radius_speed_dependence", ""])
+def test_speed_dependence_direct_fit(drive: str) -> None:
+    """The direct batch fit of k (fixes on the rear-wheel odometry, r0 constant): significant
+    and within 30 % on the drive with k = 4e-6 (3.47e-6 +- 0.37e-6), not significant on the
+    clean drive (-0.53e-6, t = -1.5); the same for another filter seed's heading."""
+    fit = _speed_fit(drive)
+    if drive:
+        assert fit["t"] >= rs.SCORE_THRESHOLD, fit
+        assert fit["estimate"] == pytest.approx(INJECTED[drive], rel=0.3)
+    else:
+        assert abs(fit["t"]) < rs.SCORE_THRESHOLD, fit
+    other = _speed_fit(drive, seed=1)
+    assert other["estimate"] == pytest.approx(fit["estimate"], abs=0.2 * fit["std"])
 
 
 @pytest.mark.slow

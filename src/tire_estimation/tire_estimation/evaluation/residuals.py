@@ -31,6 +31,8 @@ filter absorbs part of a slowly varying residual into its position states):
 * ``radius_speed_dependence`` (``r = r0 + k v^2``): a speed error ``v k v^2 / r0`` integrates
   into an along-track drift -> along-track on speed^2 beyond speed; the regression gives no
   reliable size (the filter absorbs the drift), so ``estimate`` is from the profile scan only.
+  :func:`speed_dependence_fit` sizes it directly (batch least squares of the fixes on the
+  rear-wheel odometry with ``r0`` constant, no re-runs), with a standard error.
 * ``radius_load_dependence`` (``r_i = r0_i + c dFz_i``, lateral load transfer
   ``dFz = -+ m a_y h lf / (l_T L)`` on the rear left / right): the left-right radius difference
   ``2 c dFz`` gives a yaw-rate error ``omega 2 c dFz / l_T`` proportional to ``v a_y``, which
@@ -71,7 +73,10 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import stats
 
+from tire_estimation.core.geodesy import LocalTangentPlane
+from tire_estimation.core.radius_model import RL, RR
 from tire_estimation.evaluation.metrics import innovation_tests, ljung_box
+from tire_estimation.sim.streams import GnssStream, WheelSpeedStream
 
 F64 = NDArray[np.float64]
 
@@ -436,6 +441,167 @@ def profile_scan(
         if a2 > 0:
             return float(np.clip(-a1 / (2 * a2), x[0], x[2])), f
     return vals[k], f
+
+
+#: knot spacing of the heading correction of :func:`speed_dependence_fit`, s (the estimator's
+#: heading error varies over the filter's time constant, tens of seconds)
+SPEED_FIT_KNOT_S = 5.0
+
+
+def _interp_columns(t: F64, tp: F64, fp: F64) -> F64:
+    """``np.interp`` of every column of ``fp`` (M, C) from ``tp`` (M,) to ``t`` (any shape)."""
+    idx = np.clip(np.searchsorted(tp, t, side="right") - 1, 0, tp.size - 2)
+    w = np.clip((t - tp[idx]) / (tp[idx + 1] - tp[idx]), 0.0, 1.0)[..., None]
+    return (1.0 - w) * fp[idx] + w * fp[idx + 1]
+
+
+def _cumtrapz(t: F64, f: F64) -> F64:
+    """Cumulative trapezoid integral of ``f`` (M, C) over ``t`` (M,), 0 at ``t[0]``."""
+    inc = 0.5 * (f[1:] + f[:-1]) * np.diff(t)[:, None]
+    return np.vstack([np.zeros((1, f.shape[1])), np.cumsum(inc, axis=0)])
+
+
+def speed_dependence_fit(
+    trace: Any,
+    wheel_speeds: WheelSpeedStream,
+    gnss: GnssStream,
+    nominal_radius_m: float,
+    rear_brake_slip_s2_per_m: float = 0.0,
+    antenna_xy_m: tuple[float, float] = (0.0, 0.0),
+    knot_s: float = SPEED_FIT_KNOT_S,
+    skip_s: float = 10.0,
+) -> dict[str, float]:
+    """Direct estimate of ``k`` of ``r = r0 + k v^2`` from the fixes and the rear wheel speeds.
+
+    Batch least squares over the whole run (``trace`` of the estimator run *without* the
+    effect: its heading, braking deceleration and ENU origin are used) with a constant ``r0``,
+    so that every fix constrains the distance travelled since the start; the particle filter
+    lets its radii random-walk and forgets, which is why its likelihood profile is flat in
+    ``k``. Model (first order in the small terms, rear axle = ``base_link``)::
+
+        v_w   = r_nom (w_rl + w_rr) / 2 / (1 - k_b b)       (declared rear brake slip)
+        v     = w (r0 + k v^2) ~ v_w (1 + dr / r_nom + k v_w^2 / r_nom),  dr = r0 - r_nom
+        psi   = psi_hat + dpsi(t),  dpsi(t) = sum_j theta_j phi_j(t)   (hat functions, knots
+                every ``knot_s``: the estimator's slowly varying heading error)
+        y_i   = fix_i - R(psi_hat_i) a - P0(t_i)
+              = c + dr P1(t_i) + k P2(t_i) + sum_j theta_j Q_j(t_i) + e_i,
+        P0 = int v_w u,  P1 = int v_w u / r_nom,  P2 = int v_w^3 u / r_nom,
+        Q_j = int phi_j v_w J u,   u = (cos psi_hat, sin psi_hat),  J u = (-sin, cos)
+
+    (integrals from ``skip_s`` after the first trace sample; ``c`` the start position). A second
+    pass takes ``v^2`` in ``P2 = int v_w v^2 u / r_nom`` from the first solution. The fixes the
+    estimator rejected are left out; the GNSS error is taken as white (ordinary least squares,
+    standard errors from the residual variance). The other switchable effects are taken as off
+    (except the antenna offset ``antenna_xy_m`` and the rear brake slip).
+
+    Returns ``estimate`` (k, m/(m/s)^2), ``std``, ``t`` = estimate / std, ``radius_offset_m``
+    (dr) and ``radius_offset_std_m``, ``residual_rms_m`` (per axis) and ``n_fixes``.
+    """
+    a = trace.arrays()
+    t_tr = a["t_ns"]
+    if t_tr.size < 3 or trace.origin_lla is None:
+        return {"estimate": 0.0, "std": float("inf"), "t": 0.0, "n_fixes": 0.0}
+    t0 = int(t_tr[0]) + round(skip_s * 1e9)
+    t1 = int(t_tr[-1])
+    tr_s = (t_tr - t0) * 1e-9
+    yaw = np.unwrap(a["pose"][:, 2])
+    # wheel samples of the fit interval, s from t0
+    keep_w = (wheel_speeds.t_ns >= t0) & (wheel_speeds.t_ns <= t1)
+    tw = (wheel_speeds.t_ns[keep_w] - t0) * 1e-9
+    om = wheel_speeds.wheel_speed_rad_s[keep_w]
+    v_w = 0.5 * nominal_radius_m * (om[:, RL] + om[:, RR])
+    decel = a.get("rear_brake_decel_m_s2")
+    if rear_brake_slip_s2_per_m and decel is not None and decel.shape == t_tr.shape:
+        # braked rear wheel: w r = v (1 - k_b b)  ->  v = v_w / (1 - k_b b)
+        kappa = np.maximum(-0.5, -rear_brake_slip_s2_per_m * np.interp(tw, tr_s, decel))
+        v_w = v_w / (1.0 + kappa)
+    psi = np.interp(tw, tr_s, yaw)
+    u = np.column_stack([np.cos(psi), np.sin(psi)])
+    ju = np.column_stack([-u[:, 1], u[:, 0]])
+    # fixes inside the interval that the estimator accepted, in its ENU frame
+    rejected = np.asarray(trace.innov_t_ns, dtype=np.int64)[~a["accepted"]]
+    keep_g = (gnss.t_ns >= t0) & (gnss.t_ns <= t1) & ~np.isin(gnss.t_ns, rejected)
+    if keep_g.sum() < 20 or tw.size < 3:
+        return {"estimate": 0.0, "std": float("inf"), "t": 0.0, "n_fixes": float(keep_g.sum())}
+    ltp = LocalTangentPlane(*trace.origin_lla)
+    e, n, _u = ltp.to_enu(gnss.lat_deg[keep_g], gnss.lon_deg[keep_g], gnss.alt_m[keep_g])
+    tg = (gnss.t_ns[keep_g] - t0) * 1e-9
+    psi_g = np.interp(tg, tr_s, yaw)
+    ax, ay = antenna_xy_m
+    # fix = p + R(psi) a
+    fix = np.column_stack(
+        [
+            np.asarray(e) - (np.cos(psi_g) * ax - np.sin(psi_g) * ay),
+            np.asarray(n) - (np.sin(psi_g) * ax + np.cos(psi_g) * ay),
+        ]
+    )
+    # cumulative integrals, columns [P0 (2), P1 (2), G0 (2), G1 (2)] with G0 = int v_w J u,
+    # G1 = int s v_w J u for the hat-function columns Q_j
+    f = np.hstack(
+        [
+            v_w[:, None] * u,
+            (v_w / nominal_radius_m)[:, None] * u,
+            v_w[:, None] * ju,
+            (tw * v_w)[:, None] * ju,
+        ]
+    )
+    cum = _cumtrapz(tw, f)
+    c_g = _interp_columns(tg, tw, cum)  # (N, 8) at the fixes
+    cum_g = cum[:, 4:8]
+    # hat functions phi_j(s) = 1 - |s - tau_j| / h, knots tau_j = j h covering [0, tw[-1]];
+    # Q_j(t) = [(G1(c1) - G1(tau_{j-1})) - tau_{j-1} (G0(c1) - G0(tau_{j-1}))
+    #          + tau_{j+1} (G0(c2) - G0(tau_j)) - (G1(c2) - G1(tau_j))] / h
+    # with c1 = clip(t, tau_{j-1}, tau_j), c2 = clip(t, tau_j, tau_{j+1}) (G = 0 before 0)
+    h = float(knot_s)
+    tau = h * np.arange(int(np.ceil(tw[-1] / h)) + 1)
+    c1 = np.clip(tg[:, None], tau - h, tau)
+    c2 = np.clip(tg[:, None], tau, tau + h)
+
+    def g_at(t: F64) -> tuple[F64, F64]:
+        gg = _interp_columns(t, tw, cum_g)
+        return gg[..., 0:2], gg[..., 2:4]
+
+    g0_1, g1_1 = g_at(c1)
+    g0_a, g1_a = g_at(np.broadcast_to(tau - h, c1.shape))
+    g0_2, g1_2 = g_at(c2)
+    g0_b, g1_b = g_at(np.broadcast_to(tau, c1.shape))
+    q = (
+        (g1_1 - g1_a)
+        - (tau - h)[None, :, None] * (g0_1 - g0_a)
+        + (tau + h)[None, :, None] * (g0_2 - g0_b)
+        - (g1_2 - g1_b)
+    ) / h  # (N, knots, 2)
+    n_fix = tg.size
+    # stacked rows [east_i; north_i]: columns c_e, c_n, dr, k, theta_j
+    x = np.zeros((n_fix, 2, 4 + tau.size))
+    x[:, 0, 0] = 1.0
+    x[:, 1, 1] = 1.0
+    x[:, :, 2] = c_g[:, 2:4]
+    x[:, :, 4:] = np.transpose(q, (0, 2, 1))
+    y = (fix - c_g[:, 0:2]).reshape(-1)
+    v2 = v_w**2
+    for _ in range(2):
+        # P2 = int v_w v^2 u / r_nom with v^2 from the previous solution (first pass: v_w^2;
+        # second: v = v_w (1 + dr / r_nom + k v_w^2 / r_nom), removes the first-order bias)
+        p2 = _interp_columns(tg, tw, _cumtrapz(tw, (v_w * v2 / nominal_radius_m)[:, None] * u))
+        x[:, :, 3] = p2
+        xm = x.reshape(2 * n_fix, -1)
+        beta, *_ = np.linalg.lstsq(xm, y, rcond=None)
+        v2 = (v_w * (1.0 + (beta[2] + beta[3] * v_w**2) / nominal_radius_m)) ** 2
+    res = y - xm @ beta
+    s2 = float(res @ res) / max(y.size - xm.shape[1], 1)
+    cov = s2 * np.linalg.pinv(xm.T @ xm)
+    std = float(np.sqrt(cov[3, 3]))
+    k = float(beta[3])
+    return {
+        "estimate": k,
+        "std": std,
+        "t": k / std if std > 0 else 0.0,
+        "radius_offset_m": float(beta[2]),
+        "radius_offset_std_m": float(np.sqrt(cov[2, 2])),
+        "residual_rms_m": float(np.sqrt(s2)),
+        "n_fixes": float(n_fix),
+    }
 
 
 def chi2_mean_bounds(n: int, dof: int = 2, p: float = 0.95) -> tuple[float, float]:
