@@ -1,5 +1,5 @@
 """Benchmarks (``make bench``): filter step time (radius MPF, stiffness MPF), replay real-time
-factor, node latency.
+factor, node latency over DDS and the node's own callback time (in-process, no DDS).
 
 Not part of the tests: numbers depend on the machine and its load. Results are printed as JSON
 (and written to ``--out`` if given); docs/results.md quotes them with the command.
@@ -194,6 +194,59 @@ def node_latency(seconds: float = 20.0, n_particles: int = 500) -> dict[str, Any
             "p99_ms": float(np.quantile(arr, 0.99)), "max_ms": float(arr.max())}  # fmt: skip
 
 
+def node_callback_time(
+    seconds: float = 30.0, n_particles: int = 500, skip_s: float = 3.0
+) -> dict[str, Any]:
+    """The node's own share of the latency: wall time of ``estimator_node``'s wheel-speed
+    callback (plus the GNSS callback at every 10th sample), called in-process with messages as
+    in :func:`node_latency` (100 Hz / 10 Hz, odometry published after every sample), without
+    DDS between publisher and node. ``skip_s`` of header time at the start are not counted."""
+    import rclpy
+    from sensor_msgs.msg import JointState, NavSatFix
+
+    from tire_estimation.nodes.estimator_node import EstimatorNode
+
+    rclpy.init(args=["--ros-args", "-p", "persistence_file:=''", "-p",
+                     "odometry_publish_period_s:=0.0", "-p",
+                     f"radius.n_particles:={n_particles}", "--log-level", "warn"])  # fmt: skip
+    try:
+        node = EstimatorNode()
+        ltp = LocalTangentPlane(58.4, 15.6, 100.0)
+        speed = 25.0
+        omega = speed / node.vehicle.nominal_tire_radius_m
+        wheel = JointState(name=["wheel_fl", "wheel_fr", "wheel_rl", "wheel_rr"])
+        fix = NavSatFix()
+        fix.position_covariance = [2.25, 0, 0, 0, 2.25, 0, 0, 0, 4.0]
+        fix.position_covariance_type = NavSatFix.COVARIANCE_TYPE_DIAGONAL_KNOWN
+        t0 = time.time_ns()
+        wall: list[float] = []
+        fix_phase: list[bool] = []
+        for k in range(int(seconds * 100)):
+            wheel.header.stamp.sec, wheel.header.stamp.nanosec = divmod(
+                t0 + k * 10_000_000, 1_000_000_000
+            )
+            wheel.velocity = [omega] * 4
+            if k % 10 == 0:
+                la, lo, al = ltp.to_lla(speed * k * 0.01, 0.0, 0.0)
+                fix.header.stamp = wheel.header.stamp
+                fix.latitude, fix.longitude, fix.altitude = float(la), float(lo), float(al)
+            start = time.perf_counter()
+            node._on_wheels(wheel)
+            if k % 10 == 0:
+                node._on_gnss(fix)
+            wall.append(time.perf_counter() - start)
+            fix_phase.append(k % 10 == 0)
+        node.destroy_node()
+    finally:
+        rclpy.shutdown()
+    skip = int(skip_s * 100)
+    ms = np.asarray(wall[skip:]) * 1e3
+    fixes = np.asarray(fix_phase[skip:])
+    return {"samples": int(ms.size), "p50_ms": float(np.median(ms)),
+            "p99_ms": float(np.quantile(ms, 0.99)), "max_ms": float(ms.max()),
+            "with_fix_p50_ms": float(np.median(ms[fixes]))}  # fmt: skip
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run all benchmarks and print JSON."""
     parser = argparse.ArgumentParser(description="tire_estimation benchmarks")
@@ -215,6 +268,7 @@ def main(argv: list[str] | None = None) -> int:
     results["stiffness_step_time"] = {str(n): stiffness_step_time_ms(n) for n in args.particles}
     results["replay"] = {str(n): replay_rtf(n, args.replay_bag) for n in args.particles}
     if not args.skip_node:
+        results["node_callback"] = node_callback_time()
         results["node_latency"] = node_latency(args.latency_seconds)
     text = json.dumps(results, indent=1)
     print(text)
