@@ -121,3 +121,31 @@ def test_without_index_records_the_walk_reads_everything(bag: Path, tmp_path: Pa
 def test_topics_not_asked_for_are_not_returned(bag: Path) -> None:
     got = read_mcap(_mcap(bag), [tp.IMU_DATA, "/not/in/the/bag"])
     assert list(got) == [tp.IMU_DATA]
+
+
+def test_channel_missing_from_the_index_is_found_by_the_walk(
+    bag: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Index records for some channels only: the others' messages lie in the gaps between the
+    indexed ones; the walk of the gaps finds them, in file order with the indexed ones."""
+    content = _mcap(bag).read_bytes()
+    out, last = bytearray(), 0
+    for pos in _index_records(content)[::3]:  # drop every third index record
+        (length,) = struct.unpack_from("<Q", content, pos + 1)
+        out += content[last:pos]
+        last = pos + 9 + length
+    out += content[last:]
+    partial = tmp_path / "partial_index.mcap"
+    partial.write_bytes(bytes(out))
+    used: list[bool] = []
+    original = mcap_raw._Scanner._indexed
+
+    def spy(self: mcap_raw._Scanner, inner: bytes, index: list[tuple[int, bytes]]) -> bool:
+        used.append(original(self, inner, index))
+        return used[-1]
+
+    with monkeypatch.context() as m:
+        m.setattr(mcap_raw._Scanner, "_indexed", spy)
+        got = read_mcap(partial, TOPICS)
+    assert used and all(used)  # the index path ran on every chunk
+    _assert_same(got, read_mcap(_mcap(bag), TOPICS))
