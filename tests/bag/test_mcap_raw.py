@@ -41,6 +41,22 @@ def _walked(path: Path, monkeypatch: pytest.MonkeyPatch) -> dict[str, RawMessage
         return read_mcap(path, TOPICS)
 
 
+def _read_recording_index_use(
+    path: Path, monkeypatch: pytest.MonkeyPatch
+) -> tuple[dict[str, RawMessages], list[bool]]:
+    """read_mcap, with the result of every ``_indexed`` call (True: the index path was taken)."""
+    used: list[bool] = []
+    original = mcap_raw._Scanner._indexed
+
+    def spy(self: mcap_raw._Scanner, inner: bytes, index: list[tuple[int, bytes]]) -> bool:
+        used.append(original(self, inner, index))
+        return used[-1]
+
+    with monkeypatch.context() as m:
+        m.setattr(mcap_raw._Scanner, "_indexed", spy)
+        return read_mcap(path, TOPICS), used
+
+
 def _index_records(content: bytes) -> list[int]:
     """Positions of the top-level MessageIndex records of an MCAP file."""
     pos, found = len(mcap_raw.MAGIC), []
@@ -52,6 +68,19 @@ def _index_records(content: bytes) -> list[int]:
             break
         pos += 9 + length
     return found
+
+
+def _without_index_records(bag: Path, dst: Path, step: int = 1) -> bytes:
+    """Write the bag's MCAP file to ``dst`` without every ``step``-th MessageIndex record."""
+    content = _mcap(bag).read_bytes()
+    out, last = bytearray(), 0
+    for pos in _index_records(content)[::step]:
+        (length,) = struct.unpack_from("<Q", content, pos + 1)
+        out += content[last:pos]
+        last = pos + 9 + length
+    out += content[last:]
+    dst.write_bytes(bytes(out))
+    return bytes(out)
 
 
 def test_index_path_equals_record_walk(bag: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -66,15 +95,7 @@ def test_index_path_equals_record_walk(bag: Path, monkeypatch: pytest.MonkeyPatc
 
 
 def test_index_path_is_used(bag: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    used: list[bool] = []
-    original = mcap_raw._Scanner._indexed
-
-    def spy(self: mcap_raw._Scanner, inner: bytes, index: list[tuple[int, bytes]]) -> bool:
-        used.append(original(self, inner, index))
-        return used[-1]
-
-    monkeypatch.setattr(mcap_raw._Scanner, "_indexed", spy)
-    read_mcap(_mcap(bag), TOPICS)
+    _, used = _read_recording_index_use(_mcap(bag), monkeypatch)
     assert used and all(used)
 
 
@@ -90,31 +111,14 @@ def test_wrong_index_offset_falls_back_to_the_walk(
     struct.pack_into("<Q", content, at, max(offset + delta, 0))
     bad = tmp_path / "bad_index.mcap"
     bad.write_bytes(bytes(content))
-    used: list[bool] = []
-    original = mcap_raw._Scanner._indexed
-
-    def spy(self: mcap_raw._Scanner, inner: bytes, index: list[tuple[int, bytes]]) -> bool:
-        used.append(original(self, inner, index))
-        return used[-1]
-
-    with monkeypatch.context() as m:
-        m.setattr(mcap_raw._Scanner, "_indexed", spy)
-        got = read_mcap(bad, TOPICS)
+    got, used = _read_recording_index_use(bad, monkeypatch)
     assert used[0] is False and all(used[1:])  # only the chunk with the bad entry is walked
     _assert_same(got, read_mcap(_mcap(bag), TOPICS))
 
 
 def test_without_index_records_the_walk_reads_everything(bag: Path, tmp_path: Path) -> None:
-    content = _mcap(bag).read_bytes()
-    out, last = bytearray(), 0
-    for pos in _index_records(content):
-        (length,) = struct.unpack_from("<Q", content, pos + 1)
-        out += content[last:pos]
-        last = pos + 9 + length
-    out += content[last:]
     stripped = tmp_path / "no_index.mcap"
-    stripped.write_bytes(bytes(out))
-    assert not _index_records(bytes(out))
+    assert not _index_records(_without_index_records(bag, stripped))
     _assert_same(read_mcap(stripped, TOPICS), read_mcap(_mcap(bag), TOPICS))
 
 
@@ -128,24 +132,20 @@ def test_channel_missing_from_the_index_is_found_by_the_walk(
 ) -> None:
     """Index records for some channels only: the others' messages lie in the gaps between the
     indexed ones; the walk of the gaps finds them, in file order with the indexed ones."""
-    content = _mcap(bag).read_bytes()
-    out, last = bytearray(), 0
-    for pos in _index_records(content)[::3]:  # drop every third index record
-        (length,) = struct.unpack_from("<Q", content, pos + 1)
-        out += content[last:pos]
-        last = pos + 9 + length
-    out += content[last:]
     partial = tmp_path / "partial_index.mcap"
-    partial.write_bytes(bytes(out))
-    used: list[bool] = []
-    original = mcap_raw._Scanner._indexed
-
-    def spy(self: mcap_raw._Scanner, inner: bytes, index: list[tuple[int, bytes]]) -> bool:
-        used.append(original(self, inner, index))
-        return used[-1]
-
-    with monkeypatch.context() as m:
-        m.setattr(mcap_raw._Scanner, "_indexed", spy)
-        got = read_mcap(partial, TOPICS)
+    _without_index_records(bag, partial, step=3)  # drop every third index record
+    got, used = _read_recording_index_use(partial, monkeypatch)
     assert used and all(used)  # the index path ran on every chunk
     _assert_same(got, read_mcap(_mcap(bag), TOPICS))
+
+
+def test_several_files_are_joined_in_order(bag: Path) -> None:
+    from tire_estimation.bag.reader import read_raw_fast
+
+    one = read_raw_fast(bag, [_mcap(bag)], TOPICS)
+    two = read_raw_fast(bag, [_mcap(bag), _mcap(bag)], TOPICS)
+    for topic, raw in one.items():
+        assert raw.rows is not None and two[topic].rows is not None, topic
+        np.testing.assert_array_equal(two[topic].rows, np.concatenate([raw.rows, raw.rows]))
+        np.testing.assert_array_equal(two[topic].log_ns, np.tile(raw.log_ns, 2))
+        assert two[topic].schema == raw.schema

@@ -324,9 +324,9 @@ class _Scanner:
         return out
 
 
-def assemble(msgtype: str, parts: Sequence[_Part]) -> RawMessages:
-    """Join ``parts`` (in order) into :class:`RawMessages`: ``rows`` if every payload has one
-    length, else ``data``."""
+def assemble(msgtype: str, parts: Sequence[_Part | RawMessages]) -> RawMessages:
+    """Join ``parts`` (in order: the per-chunk parts of one file, or the messages of several
+    files) into :class:`RawMessages`: ``rows`` if every payload has one length, else ``data``."""
     if not parts:
         return RawMessages(msgtype, np.zeros(0, dtype=np.int64), data=[])
     log_ns = np.concatenate([p.log_ns for p in parts])

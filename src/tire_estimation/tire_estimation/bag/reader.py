@@ -22,7 +22,7 @@ from rosbags.rosbag2 import Reader
 
 from tire_estimation.bag import topics as tp
 from tire_estimation.bag.cdr import Batch, decode
-from tire_estimation.bag.mcap_raw import McapFormatError, RawMessages, read_mcap
+from tire_estimation.bag.mcap_raw import McapFormatError, RawMessages, assemble, read_mcap
 from tire_estimation.bag.typestore import bag_typestore
 from tire_estimation.bag.writer import CUSTOM_EVENTS, CUSTOM_VEHICLE, SIM_CONFIG_FILE, VEHICLE_FILE
 from tire_estimation.core import yamlio
@@ -200,15 +200,10 @@ def read_raw_fast(path: Path, files: list[Path], topics: Iterable[str]) -> dict[
             found.setdefault(topic, []).append(msgs)
     out: dict[str, RawTopic] = {}
     for topic, parts in found.items():
-        raw = out[topic] = RawTopic(
-            parts[0].msgtype, np.concatenate([m.log_ns for m in parts]), schema=parts[0].schema
+        msgs = parts[0] if len(parts) == 1 else assemble(parts[0].msgtype, parts)
+        out[topic] = RawTopic(
+            parts[0].msgtype, msgs.log_ns, msgs.data or [], msgs.rows, schema=parts[0].schema
         )
-        widths = {m.rows.shape[1] if m.rows is not None else -1 for m in parts}
-        if len(widths) == 1 and -1 not in widths:
-            raw.rows = np.concatenate([m.rows for m in parts if m.rows is not None])
-            continue
-        for m in parts:
-            raw.data.extend(m.data if m.data is not None else [r.tobytes() for r in m.rows])
     return out
 
 
