@@ -39,3 +39,30 @@ def test_truth_odometry_only_for_lateral_estimators(
     chosen = replay_topics(infos, stiffness)
     assert (tp.TRUTH_ODOMETRY in chosen) is wanted
     assert {tp.WHEEL_SPEEDS, tp.GNSS_FIX, tp.TRUTH_FIX, tp.REFERENCE_ODOMETRY} <= set(chosen)
+
+
+def test_replay_feeds_the_gnss_velocity_when_switched_on(tmp_path) -> None:
+    """A simulated bag with /gnss/velocity: decoded by the replay, used only with
+    ``gnss_velocity_enabled`` (the radii then differ), and the MPF's estimate stays close."""
+    import numpy as np
+
+    from tire_estimation.bag.writer import write_sim_bag
+    from tire_estimation.core.config import RadiusEstimatorConfig
+    from tire_estimation.replay import run_replay
+    from tire_estimation.sim import SensorConfig, simulate
+
+    sim = simulate(
+        "ece_r64", seed=2, minutes=2.0, deflation_fraction=0.0,
+        sensors=SensorConfig(gnss_velocity_enabled=True),
+    )  # fmt: skip
+    bag = write_sim_bag(sim, tmp_path / "bag")
+    radii, errors = {}, {}
+    for on in (False, True):
+        cfg = RadiusEstimatorConfig(n_particles=200, gnss_velocity_enabled=on)
+        m = run_replay(
+            bag, tmp_path / f"out_{on}", config=cfg, plots=False, progress=False, stiffness=False
+        ).metrics
+        radii[on] = np.array(list(m["radii"]["final_radius_error_m"].values()))
+        errors[on] = np.array(list(m["radii"]["final_error_vs_truth_m"].values()))
+    assert not np.array_equal(radii[False], radii[True])
+    assert np.all(np.abs(errors[True]) < 0.5e-3), errors

@@ -132,3 +132,26 @@ def test_gnss_bias_fraction_equals_the_fixed_size_for_a_constant_covariance():
         np.testing.assert_allclose(frac.x, fixed.x, atol=1e-12)
         np.testing.assert_allclose(frac.p, fixed.p, atol=1e-12)
     assert abs(frac.x[5]) > 0.05  # the bias states did move
+
+
+def test_velocity_jacobian_matches_finite_differences():
+    """H of the Doppler velocity (beyond the paper) against central differences of h."""
+    model = RadiusMotionModel(0.31, 1.55, 2.7)
+    kf = AugKf(model, np.array([1e-3, -1e-3]), 2e-3, 1e-3, 2e-5, 0.01, 0.002)
+    kf.x[:3] = [10.0, -4.0, 0.7]
+    lever, ws = np.array([1.5, 0.4]), (70.0, 72.0)
+    r = np.eye(2) * 0.01
+
+    def h(x):
+        kf.x = x.copy()
+        upd, _ = kf.velocity_innovation(np.zeros(2), r, lever, 0.2, ws)
+        return -upd.innovation_m
+
+    x0 = kf.x.copy()
+    _, hj = kf.velocity_innovation(np.zeros(2), r, lever, 0.2, ws)
+    num = np.zeros_like(hj)
+    for j, step in ((2, 1e-6), (3, 1e-7), (4, 1e-7)):
+        e = np.zeros(5)
+        e[j] = step
+        num[:, j] = (h(x0 + e) - h(x0 - e)) / (2 * step)
+    np.testing.assert_allclose(hj, num, rtol=1e-6, atol=1e-9)

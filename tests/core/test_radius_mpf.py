@@ -395,3 +395,63 @@ def test_init_pose_counts_as_a_state_change_and_observing_a_covariance_does_not(
     assert f.version == v0
     f.init_pose(np.zeros(3), np.eye(3) * 0.01)
     assert f.version == v0 + 1
+
+
+def test_velocity_likelihood_is_the_gaussian_of_the_particle_mean_speed():
+    """One particle: the Doppler velocity's log-likelihood is N(y; R(psi) [v - r l_y, r l_x],
+    R + q n n' + p t t') with v of eq. (6a) at the NiW mean and p from E[Sigma] (eq. 32)."""
+    from scipy.stats import multivariate_normal
+
+    f = _bias_mpf(1, 0.0, 120.0)
+    psi = 0.4
+    f._yaw[:] = psi
+    f._mu[:, 0] = [1.0e-3, -0.5e-3]
+    w3, w4 = 80.0, 81.0
+    lever = np.array([1.2, 0.3])
+    yr, q = 0.05, 0.2**2
+    r = np.array([[0.01, 0.002], [0.002, 0.02]])
+    y = np.array([22.0, 10.5])
+    upd = f.update_velocity(y, r, lever, yr, 0.2, (w3, w4), along_var_m2_s2=1e-3)
+    v = 0.5 * (w3 * (R_NOM + 1.0e-3) + w4 * (R_NOM - 0.5e-3))
+    vb = np.array([v - yr * lever[1], yr * lever[0]])
+    c, s = np.cos(psi), np.sin(psi)
+    h = np.array([[c, -s], [s, c]]) @ vb
+    sigma = f._lam[:, :, 0] / (float(f._stats.dof) - 3.0)
+    p = np.array([w3, w4]) @ sigma @ np.array([w3, w4]) / 4.0 + 1e-3
+    t_vec, n_vec = np.array([c, s]), np.array([-s, c])
+    cov = r + q * np.outer(n_vec, n_vec) + p * np.outer(t_vec, t_vec)
+    assert upd.accepted
+    assert upd.log_likelihood == pytest.approx(multivariate_normal(h, cov).logpdf(y), abs=1e-9)
+    np.testing.assert_allclose(upd.innovation_m_s, y - h, atol=1e-12)
+    np.testing.assert_allclose(upd.innovation_cov_m2_s2, cov, rtol=1e-12)
+
+
+def test_velocity_selects_the_particles_whose_radius_explains_the_speed():
+    """Half the cloud has +2 mm on both rear radii, half 0; a velocity measured with +2 mm
+    (0.5 m/s more at 80 rad/s) moves the weight to the first half; a gated-out velocity
+    leaves the weights alone."""
+    f = _bias_mpf(200, 0.0, 120.0)
+    f._mu[:, :100] = 2e-3
+    f._mu[:, 100:] = 0.0
+    f._yaw[:] = 0.0
+    w = 80.0
+    v_true = w * (R_NOM + 2e-3)
+    r = np.eye(2) * 0.05**2
+    before = f.weights.copy()
+    far = f.update_velocity(
+        np.array([v_true + 30.0, 0.0]), r, np.zeros(2), 0.0, 0.2, (w, w), gate_nis=18.4
+    )
+    assert not far.accepted and far.nis > 18.4
+    np.testing.assert_array_equal(f.weights, before)
+    upd = f.update_velocity(np.array([v_true, 0.0]), r, np.zeros(2), 0.0, 0.2, (w, w))
+    # innovation against the cloud mean (+1 mm): 80 rad/s x 1 mm
+    assert upd.accepted and upd.innovation_m_s[0] == pytest.approx(0.08, abs=1e-9)
+    # weight ratio of the two halves: exp(-0.5 (0.16^2 / S_0 - 0 / S_2)) / sqrt(S_2 / S_0)
+    # with S = R_ee + p (heading east), p from each half's E[Sigma]
+    k = 0.25 / (float(f._stats.dof) - 3.0)
+    p = k * w * w * (f._lam[0, 0] + 2.0 * f._lam[0, 1] + f._lam[1, 1])
+    s_a, s_b = r[0, 0] + p[150], r[0, 0] + p[0]
+    ratio = np.exp(-0.5 * (v_true - w * R_NOM) ** 2 / s_a) * np.sqrt(s_b / s_a)
+    assert f.resample_count == 0  # N_eff is 200 / 1.2: no resampling at threshold 0.5
+    assert f.weights[150] / f.weights[0] == pytest.approx(ratio, rel=1e-9)
+    assert f.weights[:100].sum() > 0.85

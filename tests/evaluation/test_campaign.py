@@ -106,6 +106,24 @@ def test_calibration_cases_and_bad_arguments() -> None:
         execute_cases(cases, executor="carrier-pigeon")
 
 
+def test_calibration_sensor_overrides_reach_the_drives() -> None:
+    """``--sensor KEY=VALUE`` overrides the simulator's SensorConfig over the GNSS level; an
+    unknown field or a bad value is a CampaignError."""
+    from tire_estimation.evaluation.campaign import GNSS_LEVELS, _sensor_options
+
+    args = _parser().parse_args(
+        ["campaign", "calibration", "--out", "x", "--sensor", "gnss_velocity_enabled=true"]
+    )
+    sensors = _sensor_options(args.sensor)
+    assert sensors == {"gnss_velocity_enabled": True}
+    cases = calibration_cases(seeds=2, sensors=sensors)
+    assert all(c.sensors == {**GNSS_LEVELS["calibration"], **sensors} for c in cases)
+    with pytest.raises(CampaignError, match="gnss_velocity_xyz"):
+        _sensor_options([("gnss_velocity_xyz", True)])
+    with pytest.raises(CampaignError, match="gnss_velocity_enabled"):
+        _sensor_options([("gnss_velocity_enabled", "yes")])
+
+
 def test_braking_signal_from_speed() -> None:
     t = np.arange(0.0, 30.0, 0.1)
     v = np.where(t < 10.0, 25.0, np.maximum(25.0 - 3.0 * (t - 10.0), 10.0))  # brake 3 m/s^2

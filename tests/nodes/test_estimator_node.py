@@ -363,3 +363,49 @@ def test_stiffness_runs_on_measured_velocity_without_wheel_speeds(
     assert est.vx_m_s == pytest.approx(20.0, abs=0.5)
     assert not est.active and est.reason == "no lateral excitation"
     node.destroy_node()
+
+
+def _gnss_velocity(t_ns: int, east_m_s: float, north_m_s: float, frame: str = "map") -> Any:
+    from geometry_msgs.msg import TwistWithCovarianceStamped
+
+    msg = TwistWithCovarianceStamped()
+    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(t_ns, 1_000_000_000)
+    msg.header.frame_id = frame
+    msg.twist.twist.linear.x, msg.twist.twist.linear.y = float(east_m_s), float(north_m_s)
+    cov = [0.0] * 36
+    cov[0] = cov[7] = 0.01
+    cov[14] = 0.04
+    msg.twist.covariance = cov
+    return msg
+
+
+def test_gnss_velocity_is_subscribed_used_and_bad_ones_are_counted(
+    ros: Any, tmp_path: Path
+) -> None:
+    """``radius.gnss_velocity_enabled``: /gnss/velocity re-weights the particles; a velocity in
+    base_link axes and a NaN one are dropped and reported. Off (default): no subscription."""
+    node = _node(ros, tmp_path)
+    assert "/gnss/velocity" not in _callbacks(node)
+    node.destroy_node()
+    node = _node(ros, tmp_path, **{"radius.gnss_velocity_enabled": True})
+    cb = _callbacks(node)
+    t0 = 1_000_000_000_000
+    omega = 20.0 / 0.31
+    t_ns = t0
+    for k in range(3000):  # 30 s east at 20 m/s, fix and velocity at 10 Hz
+        t_ns = t0 + k * 10_000_000
+        cb["/vehicle/wheel_speeds"](_wheels(t_ns, [omega] * 4))
+        if k % 10 == 0:
+            cb["/gnss/fix"](_fix(t_ns, 20.0 * k * 0.01, 0.0))
+            cb["/gnss/velocity"](_gnss_velocity(t_ns, 20.0, 0.0))
+    assert node.estimator.velocity_updates > 100
+    cb["/gnss/velocity"](_gnss_velocity(t_ns + 1_000_000, 20.0, 0.0, frame="base_link"))
+    cb["/gnss/velocity"](_gnss_velocity(t_ns + 2_000_000, math.nan, 0.0))
+    cb["/vehicle/wheel_speeds"](_wheels(t_ns + 10_000_000, [omega] * 4))
+    values = _diag_values(node)
+    assert values["dropped.gnss_velocity:wrong_frame"] == "1"
+    assert values["dropped.core.gnss_velocity_nan"] == "1"
+    assert int(values["received.gnss_velocity"]) == 302
+    est = node.estimator.estimate()
+    assert np.all(np.abs(est.radius_error_m) < 0.5e-3), est.radius_error_m
+    node.destroy_node()

@@ -272,6 +272,7 @@ def replay_topics(infos: Mapping[str, TopicInfo], run_stiffness: bool) -> tuple[
         topics.STEERING,
         topics.IMU_DATA,
         topics.GNSS_FIX,
+        topics.GNSS_VELOCITY,
         topics.VEHICLE_VELOCITY,
         topics.TRUTH_FIX,
         topics.TRUTH_WHEEL_RADII,

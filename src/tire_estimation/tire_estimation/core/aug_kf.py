@@ -85,6 +85,8 @@ class AugKf:
         self.yaw_q = yaw_noise_rad_sqrt_s**2
         self.speed_m_s = 0.0
         self.yaw_rate_rad_s = 0.0
+        #: rear wheel speeds (rl, rr) of the last prediction, rad/s
+        self.rear_wheel_speed_rad_s = (0.0, 0.0)
         self._f = np.eye(self.nx)
         self._g = np.zeros((self.nx, 2))
 
@@ -184,6 +186,7 @@ class AugKf:
         self.p = p
         self.speed_m_s = v
         self.yaw_rate_rad_s = yr
+        self.rear_wheel_speed_rad_s = (w3, w4)
 
     def innovation(
         self, y_m: F64, r_m2: F64, lever_arm_m: F64, extrapolate_s: float = 0.0
@@ -207,6 +210,60 @@ class AugKf:
         hj[1, 2] = ax * c - ay * s
         innov = np.asarray(y_m, dtype=float) - h
         s_mat = hj @ self.p @ hj.T + r_m2
+        nis = float(innov @ np.linalg.solve(s_mat, innov))
+        return AugKfUpdate(innov, s_mat, nis), hj
+
+    def velocity_innovation(
+        self,
+        v_m_s: F64,
+        r_m2_s2: F64,
+        lever_arm_m: F64,
+        lateral_std_m_s: float,
+        rear_wheel_speed_rad_s: tuple[float, float] | None = None,
+        along_var_m2_s2: float = 0.0,
+    ) -> tuple[AugKfUpdate, F64]:
+        """Innovation and Jacobian ``H`` (2, nx) of a GNSS Doppler velocity (beyond the paper;
+        the model of :meth:`RadiusMPF.update_velocity`): the antenna moves with
+        ``R(psi) [v(delta) - r(delta) l_y, u + r(delta) l_x]``, v and r of eq. (6) with the
+        rear wheel speeds ``(w3, w4)`` at the velocity's time (default: those of the last
+        prediction), ``u ~ N(0, sigma_u^2)`` the unmodelled lateral velocity. The noise adds
+        the fast radius variation ``w`` (eq. 11c) of that speed along the heading:
+        ``R + sigma_u^2 n n' + (var(w) (w3^2 + w4^2) / 4 + along_var) t t'`` (t, n: along /
+        across)."""
+        w3, w4 = (
+            self.rear_wheel_speed_rad_s
+            if rear_wheel_speed_rad_s is None
+            else (float(rear_wheel_speed_rad_s[0]), float(rear_wheel_speed_rad_s[1]))
+        )
+        m = self.model
+        r, lt = m.nominal_radius_m, m.track_width_m
+        psi, d3, d4 = float(self.x[2]), float(self.x[3]), float(self.x[4])
+        c, s = math.cos(psi), math.sin(psi)
+        lx, ly = float(lever_arm_m[0]), float(lever_arm_m[1])
+        # eq. (6a), (6b) with the current radius errors
+        v = 0.5 * (w3 * (r + d3) + w4 * (r + d4))
+        yr = (w4 * (r + d4) - w3 * (r + d3)) / lt
+        vbx = v - yr * ly
+        vby = yr * lx
+        h = np.array([c * vbx - s * vby, s * vbx + c * vby])
+        # derivatives of (vbx, vby) with respect to d3, d4
+        bx3, bx4 = 0.5 * w3 + ly * w3 / lt, 0.5 * w4 - ly * w4 / lt
+        by3, by4 = -lx * w3 / lt, lx * w4 / lt
+        hj = np.zeros((2, self.nx))
+        hj[0, 2] = -s * vbx - c * vby
+        hj[1, 2] = c * vbx - s * vby
+        hj[0, 3], hj[1, 3] = c * bx3 - s * by3, s * bx3 + c * by3
+        hj[0, 4], hj[1, 4] = c * bx4 - s * by4, s * bx4 + c * by4
+        t_vec = np.array([c, s])
+        n_vec = np.array([-s, c])
+        w_speed_var = self.w_var * (w3 * w3 + w4 * w4) / 4.0 + float(along_var_m2_s2)
+        noise = (
+            np.asarray(r_m2_s2, dtype=float)
+            + float(lateral_std_m_s) ** 2 * np.outer(n_vec, n_vec)
+            + w_speed_var * np.outer(t_vec, t_vec)
+        )
+        innov = np.asarray(v_m_s, dtype=float)[:2] - h
+        s_mat = hj @ self.p @ hj.T + noise
         nis = float(innov @ np.linalg.solve(s_mat, innov))
         return AugKfUpdate(innov, s_mat, nis), hj
 

@@ -71,6 +71,19 @@ class RadiusEstimatorConfig:
             re-initialized from GNSS (a genuine relocation). Default 5.
         gnss_max_gap_s: a fix arriving more than this after the last accepted one
             re-initializes the pose, s. Default 30.
+        gnss_velocity_enabled: use the receiver's Doppler velocity (``/gnss/velocity``, ENU)
+            when it is published: a likelihood for each particle's speed and heading (beyond
+            the paper; :meth:`RadiusMPF.update_velocity`). Default false.
+        gnss_velocity_default_std_m_s: std of each horizontal velocity component used when a
+            velocity has no covariance, m/s. Default 0.1.
+        gnss_velocity_lateral_std_m_s: std of the lateral velocity of ``base_link`` that the
+            kinematic model sets to zero (rear-axle sideslip), added across the heading, m/s.
+            Default 0.2.
+        gnss_velocity_latency_s: compensated latency of the GNSS velocity (receivers often
+            filter it more than the position): a velocity stamped ``t`` describes ``t -
+            gnss_velocity_latency_s``, s. In [-1, 1]; default 0.
+        gnss_velocity_latency_std_s: uncertainty of that latency: the speed's variance grows by
+            ``(a std)^2`` at the acceleration ``a`` of the wheel speeds, s. Default 0.1.
         max_gap_s: a wheel-speed gap longer than this re-initializes the pose prediction (the
             learned radii are kept), s. Default 2.
         init_min_distance_m: distance between the two GNSS fixes that initialize the heading,
@@ -164,6 +177,11 @@ class RadiusEstimatorConfig:
     gnss_gate_probability: float = 0.9999
     gnss_max_rejections: int = 5
     gnss_max_gap_s: float = 30.0
+    gnss_velocity_enabled: bool = False
+    gnss_velocity_default_std_m_s: float = 0.1
+    gnss_velocity_lateral_std_m_s: float = 0.2
+    gnss_velocity_latency_s: float = 0.0
+    gnss_velocity_latency_std_s: float = 0.1
     max_gap_s: float = 2.0
     init_min_distance_m: float = 10.0
     min_speed_m_s: float = 7.0
@@ -214,6 +232,18 @@ class RadiusEstimatorConfig:
         require_range("gnss_gate_probability", self.gnss_gate_probability, 0.5, 1.0 - 1e-15)
         require_int_range("gnss_max_rejections", self.gnss_max_rejections, 1, 1000)
         require_positive("gnss_max_gap_s", self.gnss_max_gap_s)
+        if not isinstance(self.gnss_velocity_enabled, bool):
+            raise ConfigError(
+                "gnss_velocity_enabled", self.gnss_velocity_enabled, "must be a bool"
+            )
+        require_range(
+            "gnss_velocity_default_std_m_s", self.gnss_velocity_default_std_m_s, 1e-4, 100.0
+        )
+        require_range(
+            "gnss_velocity_lateral_std_m_s", self.gnss_velocity_lateral_std_m_s, 0.0, 100.0
+        )
+        require_range("gnss_velocity_latency_s", self.gnss_velocity_latency_s, -1.0, 1.0)
+        require_range("gnss_velocity_latency_std_s", self.gnss_velocity_latency_std_s, 0.0, 1.0)
         require_positive("max_gap_s", self.max_gap_s)
         require_positive("init_min_distance_m", self.init_min_distance_m)
         require_non_negative("min_speed_m_s", self.min_speed_m_s)

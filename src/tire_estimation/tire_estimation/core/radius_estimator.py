@@ -63,6 +63,28 @@ class GnssUpdate:
 
 
 @dataclass(frozen=True)
+class GnssVelocityUpdate:
+    """Outcome of one GNSS Doppler velocity (:meth:`RadiusEstimator.on_gnss_velocity`).
+
+    Attributes:
+        t_ns: stamp of the velocity.
+        innovation_m_s: (east, north) measurement minus prediction, m/s (zeros when not
+            computed).
+        innovation_cov_m2_s2: its covariance (2, 2), m^2/s^2.
+        nis: normalized innovation squared (0 when not computed).
+        accepted: the velocity re-weighted the particles.
+        reason: short explanation (``updated``, ``paused``, ``outlier``, ``disabled``, ...).
+    """
+
+    t_ns: int
+    innovation_m_s: F64
+    innovation_cov_m2_s2: F64
+    nis: float
+    accepted: bool
+    reason: str
+
+
+@dataclass(frozen=True)
 class BaselineEstimate:
     """AUG-KF estimate (same meaning as in :class:`RadiusEstimate`)."""
 
@@ -117,6 +139,9 @@ class RadiusEstimate:
     road_grade_rad: float = 0.0
     rear_brake_decel_m_s2: float = 0.0
 
+
+#: wheel samples kept to align a GNSS velocity with the wheel speeds (2.56 s at 100 Hz)
+SPEED_HISTORY = 256
 
 #: at most this many GNSS altitudes are kept for the grade fit (100 s at 10 Hz)
 GRADE_MAX_POINTS = 1000
@@ -288,7 +313,13 @@ class RadiusEstimator:
             self.kf.reset_radii()
         self._front = self._front_prior()
         self._ltp: Any = None
-        self._streams = {k: _Stream() for k in ("wheel", "steering", "imu", "gnss")}
+        self._streams = {
+            k: _Stream() for k in ("wheel", "steering", "imu", "gnss", "gnss_velocity")
+        }
+        #: (stamp, rl, rr wheel speed) of the recent wheel samples, for the GNSS velocity
+        self._speed_hist: deque[tuple[int, float, float]] = deque(maxlen=SPEED_HISTORY)
+        #: GNSS velocities that re-weighted the particles
+        self.velocity_updates = 0
         self._prev_ws: F64 | None = None
         self._t_pose_ns: int | None = None
         self._pose_ok = False
@@ -479,6 +510,8 @@ class RadiusEstimator:
             mr = 0.5 * float(ws[RL] + ws[RR])
             ws = ws - eps * np.array([mf, mf, mr, mr])
         stream.last_t_ns = t_ns
+        if self.config.gnss_velocity_enabled:
+            self._speed_hist.append((t_ns, float(ws[RL]), float(ws[RR])))
         prev = self._prev_ws
         self._prev_ws = ws
         if last is None or prev is None:
@@ -681,8 +714,10 @@ class RadiusEstimator:
         self._grade_fix(float(u))
         return self.on_gnss_enu(t_ns, y, r)
 
-    def _gnss_cov(self, cov: Any) -> F64:
-        sd = self.config.gnss_default_std_m
+    def _gnss_cov(self, cov: Any, default_std: float | None = None) -> F64:
+        """(2, 2) horizontal block of a (3, 3) or (2, 2) covariance; all zero or None: the
+        default std (``gnss_default_std_m`` unless given)."""
+        sd = self.config.gnss_default_std_m if default_std is None else default_std
         if cov is None:
             return np.eye(2) * sd**2
         c = np.asarray(cov, dtype=float)
@@ -762,6 +797,84 @@ class RadiusEstimator:
                 self.kf.update(upd, hj, learn=learn)
         self._set_cache(self.mpf.estimate())
         return GnssUpdate(t_ns, pred.innovation_m, pred.innovation_cov_m2, pred.nis, True, reason)
+
+    def on_gnss_velocity(
+        self, t_ns: int, velocity_enu_m_s: Any, velocity_covariance_m2_s2: Any = None
+    ) -> GnssVelocityUpdate:
+        """GNSS Doppler velocity of the antenna in ENU (3,) or (2,) m/s with an optional (3, 3)
+        or (2, 2) covariance (beyond the paper; used with ``gnss_velocity_enabled``).
+
+        Applied while the radii are being learned (like a fix's re-weighting); while paused,
+        initializing or with ``gnss_velocity_enabled`` false it is validated and skipped. The
+        velocity is taken to describe the antenna at ``t - gnss_velocity_latency_s`` and is
+        compared with the rear wheel speeds of that time."""
+        c = self.config
+        zeros2, eye2 = np.zeros(2), np.zeros((2, 2))
+        stamp = int(t_ns) if _is_int(t_ns) else 0
+        try:
+            self._check_order("gnss_velocity", t_ns)
+            v = np.asarray(velocity_enu_m_s, dtype=float).ravel()
+            if v.size not in (2, 3):
+                raise InputError("wrong_length", f"gnss velocity must have 3 values, got {v.size}")
+            _finite("gnss_velocity", *v.tolist())
+            if float(np.hypot(v[0], v[1])) > 150.0:
+                raise InputError("out_of_range", f"gnss velocity above 150 m/s: {v.tolist()}")
+            r = self._gnss_cov(velocity_covariance_m2_s2, c.gnss_velocity_default_std_m_s)
+        except (InputError, TypeError, ValueError) as exc:
+            kind = exc.kind if isinstance(exc, InputError) else "bad_value"
+            self._drop(f"gnss_velocity_{kind}")
+            return GnssVelocityUpdate(stamp, zeros2, eye2, 0.0, False, kind)
+        t_ns = int(t_ns)
+        self._streams["gnss_velocity"].last_t_ns = t_ns
+        if not c.gnss_velocity_enabled:
+            return GnssVelocityUpdate(t_ns, zeros2, r, 0.0, False, "disabled")
+        if not self._pose_ok or self._prev_ws is None or len(self._speed_hist) < 2:
+            return GnssVelocityUpdate(t_ns, zeros2, r, 0.0, False, "initializing")
+        if self._t_pose_ns is None or abs(t_ns - self._t_pose_ns) * 1e-9 > 0.5:
+            self._drop("gnss_velocity_stale")
+            return GnssVelocityUpdate(t_ns, zeros2, r, 0.0, False, "stale (no wheel speeds)")
+        if not self._active:
+            return GnssVelocityUpdate(t_ns, zeros2, r, 0.0, False, f"paused ({self._reason})")
+        # the velocity describes the wheels' time t - latency + offset: rear wheel speeds there
+        # (linear interpolation of the recent samples, held at the ends)
+        hist = self._speed_hist
+        target = t_ns + round((c.wheel_speed_time_offset_s - c.gnss_velocity_latency_s) * 1e9)
+        n_h = len(hist)
+        ts = np.fromiter((h[0] for h in hist), dtype=np.int64, count=n_h)
+        rel = (ts - ts[-1]) * 1e-9
+        x = (target - int(ts[-1])) * 1e-9
+        w3s = np.fromiter((h[1] for h in hist), float, n_h)
+        w4s = np.fromiter((h[2] for h in hist), float, n_h)
+        w3 = float(np.interp(x, rel, w3s))
+        w4 = float(np.interp(x, rel, w4s))
+        # acceleration of the wheel speed over the 0.2 s before the target: an error of the
+        # latency by std s adds (a s)^2 to the speed's variance
+        k0 = float(np.interp(x - 0.2, rel, w3s + w4s))
+        span = min(0.2, x - float(rel[0]))
+        accel = (w3 + w4 - k0) * 0.5 * self.model.nominal_radius_m / span if span > 0 else 0.0
+        along_var = (accel * c.gnss_velocity_latency_std_s) ** 2
+        _, yaw_rate = self._speed_yaw_rate(np.array([0.0, 0.0, w3, w4]))
+        upd = self.mpf.update_velocity(
+            v[:2], r, self.lever_arm_m, yaw_rate, c.gnss_velocity_lateral_std_m_s, (w3, w4),
+            along_var_m2_s2=along_var, gate_nis=self._gate,
+        )  # fmt: skip
+        if not upd.accepted:
+            self._drop("gnss_velocity_outlier")
+            return GnssVelocityUpdate(
+                t_ns, upd.innovation_m_s, upd.innovation_cov_m2_s2, upd.nis, False, "outlier"
+            )
+        self.velocity_updates += 1
+        if self.kf is not None:
+            kupd, hj = self.kf.velocity_innovation(
+                v[:2], r, self.lever_arm_m, c.gnss_velocity_lateral_std_m_s, (w3, w4), along_var
+            )
+            if kupd.nis <= self._gate * 4.0:
+                self.kf.update(kupd, hj, learn=True)
+        self._calibration()
+        self._set_cache(self.mpf.estimate())
+        return GnssVelocityUpdate(
+            t_ns, upd.innovation_m_s, upd.innovation_cov_m2_s2, upd.nis, True, "updated"
+        )
 
     def _calibration(self) -> None:
         c = self.config

@@ -62,6 +62,25 @@ class FixPrediction:
 
 
 @dataclass(frozen=True)
+class VelocityUpdate:
+    """Outcome of a GNSS velocity update (:meth:`RadiusMPF.update_velocity`).
+
+    Attributes:
+        innovation_m_s: measured minus the weighted mean predicted velocity (east, north), m/s.
+        innovation_cov_m2_s2: cloud spread of the prediction plus the noise (2, 2), m^2/s^2.
+        nis: normalized innovation squared.
+        log_likelihood: log of the weighted mean likelihood (``-inf`` when not applied).
+        accepted: the weights were updated (false: gated out).
+    """
+
+    innovation_m_s: F64
+    innovation_cov_m2_s2: F64
+    nis: float
+    log_likelihood: float
+    accepted: bool
+
+
+@dataclass(frozen=True)
 class MpfEstimate:
     """Weighted summary of the MPF.
 
@@ -488,6 +507,102 @@ class RadiusMPF:
         if n_eff < self.resample_threshold * self.n:
             self.resample()
         return log_norm
+
+    @_mutates
+    def update_velocity(
+        self,
+        v_m_s: F64,
+        r_m2_s2: F64,
+        lever_arm_m: F64,
+        yaw_rate_rad_s: float,
+        lateral_std_m_s: float,
+        rear_wheel_speed_rad_s: tuple[float, float],
+        along_var_m2_s2: float = 0.0,
+        gate_nis: float = math.inf,
+    ) -> VelocityUpdate:
+        """Weight update with a GNSS Doppler velocity (beyond the paper), then normalize and
+        resample when ``N_eff < threshold N``.
+
+        ``v_m_s`` (2,) measured east/north velocity of the antenna, ``r_m2_s2`` (2, 2) its
+        covariance; ``lever_arm_m`` (2,) antenna (x, y) in ``base_link``; ``yaw_rate_rad_s`` the
+        (common) yaw rate for the lever-arm term; ``rear_wheel_speed_rad_s`` (w3, w4) the rear
+        wheel speeds at the velocity's time; ``along_var_m2_s2`` extra variance of the speed
+        (e.g. from an uncertain latency while accelerating).
+
+        Model (rigid body; ``base_link`` moves with ``[v, u]`` in its own axes): the antenna
+        moves with ``R(psi) [v - r l_y, u + r l_x]``; ``u ~ N(0, sigma_u^2)`` is the lateral
+        velocity of the rear axle that the kinematic model sets to zero. The speed is eq. (6a)
+        with the particle's radius error drawn from its NiW predictive at the velocity's
+        instant and integrated out: ``v ~ N((w3 (r + mu_3) + w4 (r + mu_4)) / 2, p_i)``,
+        ``p_i = [w3, w4] Sigma_i [w3, w4]' / 4``, ``Sigma_i = Lambda_i / (nu - d - 1)`` (Ozkan et
+        al. eq. 32; the per-sample radius variation is mostly wheel-speed noise, which the true
+        speed does not carry, so the velocity weighs the particles' means, not their last draw).
+        Each particle's likelihood is ``N(y; h_i, R + sigma_u^2 n_i n_i' + p_i t_i t_i')`` with
+        ``t_i = [cos psi_i, sin psi_i]``, ``n_i = [-sin psi_i, cos psi_i]``.
+
+        With ``NIS > gate_nis`` (innovation of the weighted mean against the cloud's spread plus
+        the noise) nothing is changed and ``accepted`` is false.
+        """
+        self._flush()
+        yaw = self._yaw
+        c = np.cos(yaw)
+        s = np.sin(yaw)
+        w3, w4 = float(rear_wheel_speed_rad_s[0]), float(rear_wheel_speed_rad_s[1])
+        r_nom = self.model.nominal_radius_m
+        mu, lam = self._mu, self._lam
+        # eq. (6a) with the NiW means: v_i = (w3 (r + mu_3) + w4 (r + mu_4)) / 2
+        v = 0.5 * (w3 * (r_nom + mu[0]) + w4 * (r_nom + mu[1]))
+        # its variance from E[Sigma | stats_i] = Lambda_i / (nu - d - 1) (Ozkan et al. eq. 32)
+        k_sigma = 0.25 / (float(self._stats.dof) - self.D - 1.0)
+        p = k_sigma * (w3 * w3 * lam[0, 0] + 2.0 * w3 * w4 * lam[0, 1] + w4 * w4 * lam[1, 1])
+        p += float(along_var_m2_s2)
+        lx, ly = float(lever_arm_m[0]), float(lever_arm_m[1])
+        # antenna velocity in base_link axes [v - r l_y, r l_x], rotated to ENU by R(psi)
+        vbx = v - yaw_rate_rad_s * ly
+        vby = yaw_rate_rad_s * lx
+        h0 = c * vbx - s * vby
+        h1 = s * vbx + c * vby
+        d0 = float(v_m_s[0]) - h0
+        d1 = float(v_m_s[1]) - h1
+        q = float(lateral_std_m_s) ** 2
+        r00, r01, r11 = float(r_m2_s2[0, 0]), float(r_m2_s2[0, 1]), float(r_m2_s2[1, 1])
+        # S_i = R + q n n' + p t t' (2x2 per particle) and its closed-form inverse
+        a00 = r00 + q * s * s + p * c * c
+        a01 = r01 - q * s * c + p * c * s
+        a11 = r11 + q * c * c + p * s * s
+        det = a00 * a11 - a01 * a01
+        maha = (a11 * d0 * d0 - 2.0 * a01 * d0 * d1 + a00 * d1 * d1) / det
+        w = self.weights
+        # innovation of the cloud: weighted mean and spread of h plus the mean noise
+        m0 = float(w @ h0)
+        m1 = float(w @ h1)
+        e0 = h0 - m0
+        e1 = h1 - m1
+        s00 = float(w @ (e0 * e0 + a00))
+        s01 = float(w @ (e0 * e1 + a01))
+        s11 = float(w @ (e1 * e1 + a11))
+        s_mat = np.array([[s00, s01], [s01, s11]])
+        i0 = float(v_m_s[0]) - m0
+        i1 = float(v_m_s[1]) - m1
+        det_s = s00 * s11 - s01 * s01
+        nis = (s11 * i0 * i0 - 2.0 * s01 * i0 * i1 + s00 * i1 * i1) / det_s
+        innov = np.array([i0, i1])
+        if not (det_s > 0.0 and nis <= gate_nis):
+            return VelocityUpdate(innov, s_mat, nis, -math.inf, False)
+        # log w_i + log N(y; h_i, S_i)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            logw = np.log(w) - 0.5 * (maha + np.log(det)) - math.log(2.0 * math.pi)
+        logw[~np.isfinite(logw)] = -np.inf
+        top = float(np.max(logw))
+        if not math.isfinite(top):
+            w[:] = 1.0 / self.n
+            return VelocityUpdate(innov, s_mat, nis, -math.inf, True)
+        lik = np.exp(logw - top)
+        total = float(lik.sum())
+        w[:] = lik / total
+        if ess(w) < self.resample_threshold * self.n:
+            self.resample()
+        return VelocityUpdate(innov, s_mat, nis, top + math.log(total), True)
 
     @_mutates
     def resample(self) -> None:

@@ -532,8 +532,10 @@ def calibration_cases(
     first_seed: int = 0,
     gnss: str = "calibration",
     estimator: dict[str, Any] | None = None,
+    sensors: dict[str, Any] | None = None,
 ) -> list[CaseSpec]:
-    """``seeds`` no-deflation ``ece_r64`` drives of ``minutes`` (issue-3 accuracy study)."""
+    """``seeds`` no-deflation ``ece_r64`` drives of ``minutes`` (issue-3 accuracy study);
+    ``sensors`` overrides :class:`SensorConfig` fields over the GNSS level's."""
     if seeds < 1:
         raise CampaignError(f"seeds={seeds!r}: must be >= 1")
     _check_positive("minutes", minutes, 0.5)
@@ -547,7 +549,7 @@ def calibration_cases(
             seed=first_seed + i,
             minutes=float(minutes),
             options={"deflation_fraction": 0.0},
-            sensors=dict(GNSS_LEVELS[gnss]),
+            sensors={**GNSS_LEVELS[gnss], **(sensors or {})},
             labels={"gnss": gnss},
             estimator=dict(estimator or {}),
         )
@@ -1170,12 +1172,13 @@ def run_calibration_study(
     overwrite: bool = False,
     estimator: dict[str, Any] | None = None,
     progress: Callable[[dict[str, Any], int, int], None] | None = None,
+    sensors: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Issue-3 study: ``summary.json``, ``cases.csv``, ``calibration_errors.png`` in ``out``."""
     if not 0.0 < at_min <= minutes:
         raise CampaignError(f"at_min={at_min!r}: must be within (0, minutes={minutes}]")
     out_dir = _prepare_out(out, overwrite)
-    cases = calibration_cases(seeds, minutes, first_seed, gnss, estimator)
+    cases = calibration_cases(seeds, minutes, first_seed, gnss, estimator, sensors)
     t0 = time.perf_counter()
     rows = execute_cases(
         cases, executor, n_workers, scheduler, threads, progress, accuracy_at_s=60.0 * at_min
@@ -1188,6 +1191,7 @@ def run_calibration_study(
         "at_min": at_min,
         "gnss": {gnss: GNSS_LEVELS[gnss]},
         "estimator_overrides": estimator or {},
+        "sensor_overrides": sensors or {},
         "executor": executor,
         "n_workers": n_workers,
     }
@@ -1379,6 +1383,19 @@ def _estimator_options(items: Sequence[tuple[str, Any]] | None) -> dict[str, Any
     return d
 
 
+def _sensor_options(items: Sequence[tuple[str, Any]] | None) -> dict[str, Any]:
+    from tire_estimation.sim import SensorConfig
+
+    d = dict(items or [])
+    try:
+        SensorConfig(**d)
+    except TypeError as exc:
+        raise CampaignError(f"--sensor: {exc}") from exc
+    except ConfigError as exc:
+        raise CampaignError(f"--sensor {exc}") from exc
+    return d
+
+
 def _key_value(text: str) -> tuple[str, Any]:
 
     if "=" not in text:
@@ -1444,6 +1461,7 @@ def _cmd_calibration(args: argparse.Namespace) -> int:
         overwrite=args.overwrite,
         estimator=_estimator_options(args.estimator),
         progress=_print_progress,
+        sensors=_sensor_options(args.sensor),
     )
     for m in ("mpf", "aug_kf"):
         s = summary[m]
@@ -1551,6 +1569,14 @@ def add_campaign_parser(subparsers: Any) -> argparse.ArgumentParser:
         choices=tuple(GNSS_LEVELS),
         default="calibration",
         help="GNSS level (default: calibration, 1.5 m total per axis)",
+    )
+    cal.add_argument(
+        "--sensor",
+        action="append",
+        type=_key_value,
+        metavar="KEY=VALUE",
+        help="SensorConfig override of the simulated drives, e.g. gnss_velocity_enabled=true "
+        "(repeatable)",
     )
     _add_exec_args(cal)
     cal.set_defaults(func=_cmd_calibration)

@@ -139,6 +139,10 @@ def run_radius_estimator(
     i_t = imu.t_ns.tolist() if imu is not None else []
     i_w = imu.angular_velocity_rad_s if imu is not None else None
     i_a = imu.linear_acceleration_m_s2 if imu is not None else None
+    # the Doppler velocity of a fix (same stamp; NaN rows: none) follows its fix
+    g_vel, g_vcov = gnss.velocity_enu_m_s, gnss.velocity_covariance_m2_s2
+    use_vel = g_vel is not None and estimator.config.gnss_velocity_enabled
+    g_has_vel = np.isfinite(g_vel[:, 0]).tolist() if use_vel and g_vel is not None else []
     for n, (sid, row) in enumerate(zip(streams.tolist(), rows.tolist(), strict=True)):
         if sid == WHEEL:
             estimator.on_wheel_speeds(w_t[row], w_v[row])
@@ -148,6 +152,10 @@ def run_radius_estimator(
             estimator.on_imu(i_t[row], i_w[row], i_a[row])  # type: ignore[index]
         else:
             upd = estimator.on_gnss_fix(g_t[row], lat[row], lon[row], alt[row], g_cov[row])
+            if g_has_vel and g_has_vel[row]:
+                estimator.on_gnss_velocity(
+                    g_t[row], g_vel[row], None if g_vcov is None else g_vcov[row]
+                )
             _record(trace, estimator, upd, g_t[row])
         if progress is not None and n % 10_000 == 0:
             progress(n)

@@ -108,6 +108,23 @@ def velocity_from_msg(msg: Any) -> tuple[int, float]:
     return t_ns, vx
 
 
+def gnss_velocity_from_msg(msg: Any) -> tuple[int, np.ndarray, np.ndarray | None]:
+    """TwistWithCovarianceStamped of ``/gnss/velocity`` (ENU, contract) -> (t_ns, velocity
+    (3,) m/s, covariance (3, 3) m^2/s^2 or None when all zero).
+
+    The frame id is not an axis convention for GNSS drivers (many put the antenna's frame
+    there while reporting ENU); only ``base_link`` (body axes) is refused with ``wrong_frame``.
+    Values are checked by the estimator.
+    """
+    t_ns = stamp_ns(msg.header)
+    if str(msg.header.frame_id) == "base_link":
+        raise InputError("wrong_frame", "/gnss/velocity must be in ENU, got base_link")
+    lin = msg.twist.twist.linear
+    v = np.array([float(lin.x), float(lin.y), float(lin.z)])
+    cov = np.asarray(msg.twist.covariance, dtype=float).reshape(6, 6)[:3, :3]
+    return t_ns, v, (None if not np.any(cov) else cov.copy())
+
+
 def gnss_from_msg(msg: Any) -> tuple[int, float, float, float, np.ndarray | None]:
     """NavSatFix -> (t_ns, lat deg, lon deg, alt m, ENU covariance (3, 3) m^2 or None).
 

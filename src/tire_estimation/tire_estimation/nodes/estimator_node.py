@@ -2,7 +2,8 @@
 
 Subscribes (contract v1): ``/vehicle/wheel_speeds``, ``/vehicle/steering``, ``/imu/data``,
 ``/gnss/fix`` and, when present, ``/vehicle/tire_forces`` and ``/vehicle/velocity``
-(project-defined: measured vx for vehicles without wheel speeds). Publishes
+(project-defined: measured vx for vehicles without wheel speeds), and ``/gnss/velocity`` (the
+receiver's Doppler velocity) with the parameter ``radius.gnss_velocity_enabled``. Publishes
 ``/tire_estimation/odometry`` and ``/tire_estimation/tire_radii`` (tire-radius MPF,
 :class:`~tire_estimation.core.radius_estimator.RadiusEstimator`),
 ``/tire_estimation/tire_stiffness`` (stiffness MPF,
@@ -84,6 +85,10 @@ _PLANAR = (0, 1, 5)
 _TWIST_COV = np.diag([0.01, 0.01, 0.01, 1e6, 1e6, 1e-4]).reshape(36)
 
 
+#: input streams reported on /diagnostics (rate and count)
+INPUT_STREAMS = ("wheel_speeds", "steering", "imu", "gnss_fix", "gnss_velocity", "tire_forces")
+
+
 def _yaw_to_quaternion(yaw_rad: float) -> tuple[float, float, float, float]:
     """(x, y, z, w) of a rotation about z by ``yaw_rad``."""
     return 0.0, 0.0, math.sin(0.5 * yaw_rad), math.cos(0.5 * yaw_rad)
@@ -152,6 +157,13 @@ class EstimatorNode(Node):
         self.create_subscription(
             NavSatFix, "/gnss/fix", self._guard("gnss_fix", self._on_gnss), sensor_qos
         )
+        if self.config.gnss_velocity_enabled:
+            self.create_subscription(
+                TwistWithCovarianceStamped,
+                "/gnss/velocity",
+                self._guard("gnss_velocity", self._on_gnss_velocity),
+                sensor_qos,
+            )
         if self.stiffness is not None:
             self.create_subscription(
                 TwistWithCovarianceStamped,
@@ -272,6 +284,10 @@ class EstimatorNode(Node):
         t_ns, lat, lon, alt, cov = conv.gnss_from_msg(msg)
         self._dispatch(t_ns, "gnss_fix", (lat, lon, alt, cov))
 
+    def _on_gnss_velocity(self, msg: TwistWithCovarianceStamped) -> None:
+        t_ns, vel, cov = conv.gnss_velocity_from_msg(msg)
+        self._dispatch(t_ns, "gnss_velocity", (vel, cov))
+
     def _on_velocity(self, msg: TwistWithCovarianceStamped) -> None:
         t_ns, vx = conv.velocity_from_msg(msg)
         self._dispatch(t_ns, "velocity", vx)
@@ -304,6 +320,8 @@ class EstimatorNode(Node):
                 if stiffness is not None:
                     stiffness.on_imu(t, value[0], value[1])
                     self._publish_stiffness(stiffness, t)
+            elif k == "gnss_velocity":
+                self.estimator.on_gnss_velocity(t, value[0], value[1])
             elif k == "velocity":
                 if stiffness is not None:
                     stiffness.on_velocity(t, value)
@@ -474,7 +492,7 @@ class EstimatorNode(Node):
             "particles": str(self.config.n_particles),
             "persistence": self._persist_note,
         }
-        for stream in ("wheel_speeds", "steering", "imu", "gnss_fix", "tire_forces"):
+        for stream in INPUT_STREAMS:
             values[f"rate_hz.{stream}"] = f"{self._input_rates_hz.get(stream, 0.0):.1f}"
             values[f"received.{stream}"] = str(self.received.get(stream, 0))
         for key, count in sorted(self.dropped.items()):
