@@ -108,3 +108,40 @@ def test_rank_effects_fills_the_ranking_of_every_switchable_effect(
     assert scores == sorted(scores, reverse=True) and all(s >= 0.0 for s in scores)
     assert isinstance(res["consistent"], bool)
     assert "likelihood_ratio_ok" in res["tests"]
+
+
+def test_rank_seeds_profiles_the_mean_likelihood_of_several_filter_seeds(
+    lane_change_bag: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from tire_estimation.bag.reader import read_bag
+    from tire_estimation.core.config import RadiusEstimatorConfig
+    from tire_estimation.core.radius_estimator import RadiusEstimator
+    from tire_estimation.evaluation.residuals import neg_log_likelihood
+    from tire_estimation.evaluation.runner import run_radius_estimator
+
+    config = tmp_path / "cfg.yaml"
+    config.write_text(yaml.safe_dump({"radius": {"n_particles": 100, "seed": 3}}))
+    out = tmp_path / "report"
+    argv = ["replay", str(lane_change_bag), "--out", str(out), "--config", str(config)]
+    argv += ["--no-plots", "--no-progress", "--no-stiffness"]
+    assert main([*argv, "--rank-effects", "--rank-seeds", "2"]) == 0
+    res = json.loads((out / "metrics.json").read_text())["residuals"]
+    assert res["tests"]["rank_seeds"] == [3, 4]
+    # the base point of every profile is the mean NLL of the base model's runs with seeds 3, 4
+    bag = read_bag(lane_change_bag)
+    assert bag.wheel_speeds is not None and bag.gnss is not None
+    nll = []
+    for seed in (3, 4):
+        cfg = RadiusEstimatorConfig(n_particles=100, seed=seed)
+        est = RadiusEstimator(cfg, bag.vehicle, np.random.default_rng(seed))
+        tr = run_radius_estimator(est, bag.wheel_speeds, bag.gnss, bag.steering, bag.imu)
+        nll.append(neg_log_likelihood(tr))
+    assert abs(nll[0] - nll[1]) > 1e-6  # the seeds give different runs on this short drive
+    for effect in res["ranked_effects"]:
+        assert effect["nll_profile"]["0.0"] == pytest.approx(np.mean(nll), rel=1e-12)
+    capsys.readouterr()
+    # an invalid count and a count without the ranking are one-line errors naming the field
+    assert main([*argv, "--rank-effects", "--rank-seeds", "0"]) == 2
+    assert "rank_seeds=0" in capsys.readouterr().err
+    assert main([*argv, "--rank-seeds", "2"]) == 2
+    assert "rank_seeds=2" in capsys.readouterr().err

@@ -85,6 +85,7 @@ def _cmd_replay(args: argparse.Namespace) -> int:
         progress=not args.no_progress,
         stiffness=False if args.no_stiffness else None,
         rank_effects=args.rank_effects,
+        rank_seeds=args.rank_seeds,
     )
     print(report.summary())
     return 0
@@ -138,6 +139,14 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="rank and size the switchable unmodelled effects by re-running the radius MPF "
         "with each switched on (profile likelihood; about 20 re-runs of the bag)",
+    )
+    rep.add_argument(
+        "--rank-seeds",
+        type=int,
+        default=1,
+        metavar="N",
+        help="with --rank-effects: run the base model and every re-run with N filter seeds "
+        "(seed .. seed+N-1) and profile their mean likelihood (N times the re-runs; default 1)",
     )
     rep.add_argument(
         "--no-stiffness",

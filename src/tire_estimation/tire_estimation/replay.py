@@ -293,6 +293,7 @@ def run_replay(
     progress: bool = True,
     stiffness: bool | None = None,
     rank_effects: bool = False,
+    rank_seeds: int = 1,
 ) -> ReplayReport:
     """Replay ``bag_path`` through the estimators; write ``out_dir/metrics.json`` + PNGs.
 
@@ -305,7 +306,14 @@ def run_replay(
     ``rank_effects`` completes the residual analysis with the profile likelihood of every
     switchable effect (:func:`~tire_estimation.evaluation.residuals.assess`: the radius MPF is
     re-run over the bag with each effect switched on over its grid, about 20 re-runs).
+    ``rank_seeds`` > 1 runs the base model and every re-run with the filter seeds ``seed`` ..
+    ``seed + rank_seeds - 1`` and profiles their mean NLL (``rank_seeds`` times the re-runs):
+    on a short bag a single particle-filter run's likelihood depends on its seed.
     """
+    if not isinstance(rank_seeds, int) or isinstance(rank_seeds, bool) or rank_seeds < 1:
+        raise ConfigError("rank_seeds", rank_seeds, "must be an integer >= 1")
+    if rank_seeds > 1 and not rank_effects:
+        raise ConfigError("rank_seeds", rank_seeds, "needs rank_effects (--rank-effects)")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     stale = out / "metrics.json"
@@ -393,7 +401,7 @@ def run_replay(
         )
     residual_report = None
     if rank_effects and trace.innov_t_ns:
-        residual_report = _assess_effects(bag, cfg, trace)
+        residual_report = _assess_effects(bag, cfg, trace, rank_seeds)
     t_run = time.perf_counter()
     metrics = build_metrics(bag, trace, cfg, lateral, imu_lateral, residual_report)
     metrics["wall_s"] = time.perf_counter() - wall0
@@ -534,23 +542,35 @@ def _lateral_metrics(bag: BagData, lateral: LateralTrace | None) -> dict[str, An
 
 
 def _assess_effects(
-    bag: BagData, cfg: RadiusEstimatorConfig, trace: RadiusTrace
+    bag: BagData, cfg: RadiusEstimatorConfig, trace: RadiusTrace, n_seeds: int = 1
 ) -> dict[str, Any]:
-    """Residual analysis with the profile-likelihood ranking of the switchable effects."""
+    """Residual analysis with the profile-likelihood ranking of the switchable effects.
+
+    The base model and every re-run use the ``n_seeds`` filter seeds from ``cfg.seed`` on
+    (``trace`` is the base run of ``cfg.seed``); the profile is their mean NLL.
+    """
     from tire_estimation.evaluation import residuals
 
     assert bag.wheel_speeds is not None and bag.gnss is not None
+    seeds = [cfg.seed + k for k in range(n_seeds)]
 
-    def rerun(effect: str, value: float) -> RadiusTrace:
-        values = cfg.to_dict()
-        values[residuals.CONFIG_FIELDS[effect]] = value
+    def run(values: dict[str, Any], seed: int) -> RadiusTrace:
         est = RadiusEstimator(
-            RadiusEstimatorConfig.from_dict(values), bag.vehicle, np.random.default_rng(cfg.seed)
+            RadiusEstimatorConfig.from_dict({**values, "seed": seed}),
+            bag.vehicle,
+            np.random.default_rng(seed),
         )
         assert bag.wheel_speeds is not None and bag.gnss is not None
         return run_radius_estimator(est, bag.wheel_speeds, bag.gnss, bag.steering, bag.imu)
 
-    return residuals.assess(trace, rerun)
+    def rerun(effect: str, value: float) -> list[RadiusTrace]:
+        values = {**cfg.to_dict(), residuals.CONFIG_FIELDS[effect]: value}
+        return [run(values, seed) for seed in seeds]
+
+    base = [trace] + [run(cfg.to_dict(), seed) for seed in seeds[1:]]
+    report = residuals.assess(base, rerun)
+    report["tests"]["rank_seeds"] = seeds
+    return report
 
 
 def _imu_lateral_reference(
