@@ -236,13 +236,13 @@ class AugKf:
             else (float(rear_wheel_speed_rad_s[0]), float(rear_wheel_speed_rad_s[1]))
         )
         m = self.model
-        r, lt = m.nominal_radius_m, m.track_width_m
-        psi, d3, d4 = float(self.x[2]), float(self.x[3]), float(self.x[4])
+        lt = m.track_width_m
+        psi = float(self.x[2])
         c, s = math.cos(psi), math.sin(psi)
         lx, ly = float(lever_arm_m[0]), float(lever_arm_m[1])
         # eq. (6a), (6b) with the current radius errors
-        v = 0.5 * (w3 * (r + d3) + w4 * (r + d4))
-        yr = (w4 * (r + d4) - w3 * (r + d3)) / lt
+        v_a, yr_a = m.speed_yaw_rate(np.array([0.0, 0.0, w3, w4]), self.x[3:5])
+        v, yr = float(v_a), float(yr_a)
         vbx = v - yr * ly
         vby = yr * lx
         h = np.array([c * vbx - s * vby, s * vbx + c * vby])

@@ -548,10 +548,9 @@ class RadiusMPF:
         c = np.cos(yaw)
         s = np.sin(yaw)
         w3, w4 = float(rear_wheel_speed_rad_s[0]), float(rear_wheel_speed_rad_s[1])
-        r_nom = self.model.nominal_radius_m
-        mu, lam = self._mu, self._lam
+        lam = self._lam
         # eq. (6a) with the NiW means: v_i = (w3 (r + mu_3) + w4 (r + mu_4)) / 2
-        v = 0.5 * (w3 * (r_nom + mu[0]) + w4 * (r_nom + mu[1]))
+        v, _ = self.model.speed_yaw_rate(np.array([0.0, 0.0, w3, w4]), self._mu.T)
         # its variance from E[Sigma | stats_i] = Lambda_i / (nu - d - 1) (Ozkan et al. eq. 32)
         k_sigma = 0.25 / (float(self._stats.dof) - self.D - 1.0)
         p = k_sigma * (w3 * w3 * lam[0, 0] + 2.0 * w3 * w4 * lam[0, 1] + w4 * w4 * lam[1, 1])
