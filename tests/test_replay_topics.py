@@ -56,7 +56,7 @@ def test_replay_feeds_the_gnss_velocity_when_switched_on(tmp_path) -> None:
         sensors=SensorConfig(gnss_velocity_enabled=True),
     )  # fmt: skip
     bag = write_sim_bag(sim, tmp_path / "bag")
-    radii, errors = {}, {}
+    radii, errors, vel = {}, {}, {}
     for on in (False, True):
         cfg = RadiusEstimatorConfig(n_particles=200, gnss_velocity_enabled=on)
         m = run_replay(
@@ -64,5 +64,9 @@ def test_replay_feeds_the_gnss_velocity_when_switched_on(tmp_path) -> None:
         ).metrics
         radii[on] = np.array(list(m["radii"]["final_radius_error_m"].values()))
         errors[on] = np.array(list(m["radii"]["final_error_vs_truth_m"].values()))
+        vel[on] = m["gnss_velocity"]
     assert not np.array_equal(radii[False], radii[True])
     assert np.all(np.abs(errors[True]) < 0.5e-3), errors
+    # the report says how many velocities were used and with which latency
+    assert vel[False] is None
+    assert vel[True]["updates"] > 100 and vel[True]["latency_s"] == 0.0

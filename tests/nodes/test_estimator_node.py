@@ -406,6 +406,7 @@ def test_gnss_velocity_is_subscribed_used_and_bad_ones_are_counted(
     assert values["dropped.gnss_velocity:wrong_frame"] == "1"
     assert values["dropped.core.gnss_velocity_nan"] == "1"
     assert int(values["received.gnss_velocity"]) == 302
+    assert int(values["gnss_velocity.updates"]) == node.estimator.velocity_updates > 100
     est = node.estimator.estimate()
     assert np.all(np.abs(est.radius_error_m) < 0.5e-3), est.radius_error_m
     node.destroy_node()

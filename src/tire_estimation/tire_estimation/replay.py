@@ -507,6 +507,7 @@ def build_metrics(
         "residuals": residual_report,
         "dropped_samples": trace.dropped,
         "resample_count": trace.resample_count,
+        "gnss_velocity": trace.gnss_velocity,
         "events": [
             {"t_s": e.t_s, "kind": e.kind, **{k: v for k, v in e.detail.items()}}
             for e in bag.events

@@ -61,6 +61,9 @@ class RadiusTrace:
     dropped: dict[str, int] = field(default_factory=dict)
     resample_count: int = 0
     origin_lla: tuple[float, float, float] | None = None
+    #: GNSS velocities that re-weighted the particles and the compensated velocity latency, s
+    #: (None when the estimator does not use the velocity)
+    gnss_velocity: dict[str, float] | None = None
 
     def arrays(self) -> dict[str, NDArray[Any]]:
         """The lists stacked into arrays (empty arrays when nothing was recorded)."""
@@ -160,6 +163,11 @@ def run_radius_estimator(
         if progress is not None and n % 10_000 == 0:
             progress(n)
     trace.dropped = dict(estimator.stats)
+    if use_vel:
+        trace.gnss_velocity = {
+            "updates": estimator.velocity_updates,
+            "latency_s": estimator.config.gnss_velocity_latency_s,
+        }
     ltp = getattr(estimator, "_ltp", None)
     if ltp is not None:
         trace.origin_lla = (ltp.origin_lat_deg, ltp.origin_lon_deg, ltp.origin_alt_m)

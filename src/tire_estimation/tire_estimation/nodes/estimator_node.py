@@ -492,6 +492,9 @@ class EstimatorNode(Node):
             "particles": str(self.config.n_particles),
             "persistence": self._persist_note,
         }
+        if self.config.gnss_velocity_enabled:
+            # velocities received minus these: dropped, gated, or while paused / initializing
+            values["gnss_velocity.updates"] = str(int(self.estimator.velocity_updates))
         for stream in INPUT_STREAMS:
             values[f"rate_hz.{stream}"] = f"{self._input_rates_hz.get(stream, 0.0):.1f}"
             values[f"received.{stream}"] = str(self.received.get(stream, 0))
