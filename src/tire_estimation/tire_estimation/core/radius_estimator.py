@@ -248,6 +248,8 @@ class RadiusEstimator:
         self.vehicle = vehicle
         self.rng = rng
         self.model = RadiusMotionModel.from_vehicle(vehicle)
+        self._nominal_radius_m = self.model.nominal_radius_m
+        self._track_width_m = self.model.track_width_m
         # antenna (x, y) in base_link: the vehicle description plus the calibrated correction
         ant = vehicle.gnss_antenna_position_m
         self.lever_arm_m = np.array(
@@ -321,6 +323,7 @@ class RadiusEstimator:
         #: GNSS velocities that re-weighted the particles
         self.velocity_updates = 0
         self._prev_ws: F64 | None = None
+        self._prev_rear: tuple[float, float] = (0.0, 0.0)
         self._t_pose_ns: int | None = None
         self._pose_ok = False
         self._init = _Init()
@@ -497,9 +500,10 @@ class RadiusEstimator:
             kappa = max(-0.5, -self.config.rear_brake_slip_s2_per_m * b)
             ws = ws.copy()
             ws[RL:] /= 1.0 + kappa
+        w3, w4 = ws[RL:].tolist()
         if last is not None and (t_ns - last) * 1e-9 <= self.config.max_gap_s:
             # slope distance rolled by the rear wheels (nominal radius) for the grade fit
-            rolled = 0.5 * self.model.nominal_radius_m * float(abs(ws[RL]) + abs(ws[RR]))
+            rolled = 0.5 * self.model.nominal_radius_m * (abs(w3) + abs(w4))
             self._distance_m += (t_ns - last) * 1e-9 * rolled
         if self.config.road_grade_correction_gain and self._grade_rad:
             # the wheels roll along the slope, the pose and GNSS are horizontal:
@@ -509,11 +513,14 @@ class RadiusEstimator:
             mf = 0.5 * float(ws[FL] + ws[FR])
             mr = 0.5 * float(ws[RL] + ws[RR])
             ws = ws - eps * np.array([mf, mf, mr, mr])
+            w3, w4 = ws[RL:].tolist()
         stream.last_t_ns = t_ns
         if self.config.gnss_velocity_enabled:
-            self._speed_hist.append((t_ns, float(ws[RL]), float(ws[RR])))
+            self._speed_hist.append((t_ns, w3, w4))
         prev = self._prev_ws
+        prev_rear = self._prev_rear
         self._prev_ws = ws
+        self._prev_rear = (w3, w4)
         if last is None or prev is None:
             self._t_pose_ns = t_ns
             return
@@ -524,7 +531,7 @@ class RadiusEstimator:
             self._t_pose_ns = t_ns
             self._prev_v = None
             return
-        self._step(dt, t_ns, prev, ws)
+        self._step(dt, t_ns, prev, prev_rear, w3, w4)
 
     def _load_scale(self, t_ns: int, ws: F64) -> F64:
         """Per-wheel speed factor ``1 + c dFz_i / r_nominal`` of the load-dependent radius."""
@@ -581,19 +588,26 @@ class RadiusEstimator:
 
     def _speed_yaw_rate(self, ws: F64) -> tuple[float, float]:
         """Eq. (6) with the learned mean rear radius errors, in Python floats."""
+        return self._rear_speed_yaw_rate(float(ws[RL]), float(ws[RR]))
+
+    def _rear_speed_yaw_rate(self, w3: float, w4: float) -> tuple[float, float]:
+        """Eq. (6) from the rear wheel speeds (rad/s) with the learned mean radius errors."""
         d3, d4 = self._radius_mean
-        w3, w4 = float(ws[RL]), float(ws[RR])
-        r, lt = self.model.nominal_radius_m, self.model.track_width_m
+        r, lt = self._nominal_radius_m, self._track_width_m
         # eq. (6a) v = r (w3 + w4) / 2 + (w3 d3 + w4 d4) / 2
         v = 0.5 * (w3 * (r + d3) + w4 * (r + d4))
         # eq. (6b) yaw_rate = (w4 (r + d4) - w3 (r + d3)) / l_T
         return v, (w4 * (r + d4) - w3 * (r + d3)) / lt
 
-    def _gates(self, t_ns: int, dt: float, ws: F64) -> tuple[bool, str, float, float, F64 | None]:
+    def _gates(
+        self, t_ns: int, dt: float, w3: float, w4: float
+    ) -> tuple[bool, str, float, float, float | None]:
+        """Gates of the newest sample (rear wheel speeds ``w3``, ``w4``, rad/s): learn or pause
+        and why, the accelerations used (m/s^2), the steer angle for eq. (31a) or None."""
         c = self.config
         # speed and yaw rate with the learned radii (eq. 6): the virtual yaw rate (eq. 4b) is
         # off by ~0.05 rad/s per mm of left-right radius difference (eq. 9b)
-        v, yr = self._speed_yaw_rate(ws)
+        v, yr = self._rear_speed_yaw_rate(w3, w4)
         if self._prev_v is not None and dt > 0:
             a = (v - self._prev_v) / dt
             k = dt / (c.accel_filter_time_constant_s + dt)
@@ -622,10 +636,19 @@ class RadiusEstimator:
             return False, "lateral acceleration", ax, ay, steer
         return True, "estimating", ax, ay, steer
 
-    def _step(self, dt: float, t_ns: int, ws: F64, ws_new: F64) -> None:
-        """Propagate over ``dt`` with the speeds ``ws`` of the interval start (eq. 3, zero-order
-        hold); the gates use the newest sample ``ws_new``."""
-        active, reason, ax, _ay, steer = self._gates(t_ns, dt, ws_new)
+    def _step(
+        self,
+        dt: float,
+        t_ns: int,
+        ws: F64,
+        rear: tuple[float, float],
+        w3_new: float,
+        w4_new: float,
+    ) -> None:
+        """Propagate over ``dt`` with the speeds ``ws`` (4,) of the interval start, ``rear`` its
+        rear wheels as floats (eq. 3, zero-order hold); the gates use the newest sample's rear
+        wheel speeds ``w3_new``, ``w4_new``."""
+        active, reason, ax, _ay, steer = self._gates(t_ns, dt, w3_new, w4_new)
         steer_for_front = steer if steer is not None else (self._steer[1] if self._steer else 0.0)
         if not self._pose_ok:
             # dead-reckon in the body frame of the anchor fix (two-fix heading initialization)
@@ -640,7 +663,7 @@ class RadiusEstimator:
             self._reason = "waiting for GNSS"
             self._t_pose_ns = t_ns
             return
-        self.mpf.predict(dt, ws, learn=active, steer_angle_rad=steer)
+        self.mpf.predict_rear(dt, rear[0], rear[1], active, steer)
         if self.kf is not None:
             self.kf.predict(dt, ws, learn=active, steer_angle_rad=steer)
         self._t_pose_ns = t_ns
@@ -1100,8 +1123,9 @@ def _finite_or_zero(x: Any) -> float:
 
 def _sanitize(a: Any, fill: float = 0.0) -> F64:
     out = np.array(a, dtype=float)
-    total = float(out.sum())
-    if total - total == 0.0:  # every element finite (an overflowing sum is checked below)
+    # every element finite (the sum of Python floats of these few elements is cheaper than
+    # NumPy's reductions; an overflowing sum is checked below)
+    if math.isfinite(sum(out.ravel().tolist())):
         return out
     if np.isfinite(out).all():
         return out

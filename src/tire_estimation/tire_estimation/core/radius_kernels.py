@@ -414,14 +414,28 @@ def moments(
     mean of the NiW scales (2, 2).
     """
     n = east.shape[0]
+    two_pi = 2.0 * math.pi
+    inv_two_pi = 1.0 / two_pi
+    # circular mean atan2(sum w sin(psi), sum w cos(psi)), taken relative to the first
+    # particle's heading: psi_i = ref + d_i, so it is ref + atan2(sum w sin d, sum w cos d);
+    # for |d| < 0.05 rad (the whole cloud, usually) cos d and sin d are their Taylor series to
+    # d^6 / d^5 (truncation below 1e-15 / 2e-13), otherwise exact
+    ref = yaw[0]
     sc = 0.0
     ss = 0.0
     for i in range(n):
-        sc += weights[i] * math.cos(yaw[i])
-        ss += weights[i] * math.sin(yaw[i])
-    yaw_c = math.atan2(ss, sc)
-    two_pi = 2.0 * math.pi
-    inv_two_pi = 1.0 / two_pi
+        d = yaw[i] - ref
+        d -= two_pi * math.floor(d * inv_two_pi + 0.5)
+        if abs(d) < 0.05:
+            d2 = d * d
+            cd = 1.0 - d2 * (0.5 - d2 * (1.0 / 24.0 - d2 * (1.0 / 720.0)))
+            sd = d * (1.0 - d2 * (1.0 / 6.0 - d2 * (1.0 / 120.0)))
+        else:
+            cd = math.cos(d)
+            sd = math.sin(d)
+        sc += weights[i] * cd
+        ss += weights[i] * sd
+    yaw_c = ref + math.atan2(ss, sc)
     x = np.zeros(3)
     m = np.zeros(2)
     lw = np.zeros((2, 2))

@@ -316,16 +316,34 @@ class RadiusMPF:
         The sample is queued; the queue is processed as one block (see :meth:`_flush`) before
         anything reads the state, so callers always see the propagated filter.
         """
+        self.predict_rear(
+            float(dt_s),
+            float(wheel_speed_rad_s[RL]),
+            float(wheel_speed_rad_s[RR]),
+            learn,
+            None if steer_angle_rad is None else float(steer_angle_rad),
+        )
+
+    def predict_rear(
+        self,
+        dt_s: float,
+        rear_left_rad_s: float,
+        rear_right_rad_s: float,
+        learn: bool = True,
+        steer_angle_rad: float | None = None,
+    ) -> None:
+        """:meth:`predict` with the rear wheel speeds (rad/s) as Python floats (the only wheels
+        the model uses; the estimator's per-sample path)."""
         self.version += 1  # as @_mutates does (inline: this runs at every wheel-speed sample)
         self.jitter_dt_s += dt_s
         self.bias_dt_s += dt_s
         self._pending.append(
             (
-                float(dt_s),
-                float(wheel_speed_rad_s[RL]),
-                float(wheel_speed_rad_s[RR]),
+                dt_s,
+                rear_left_rad_s,
+                rear_right_rad_s,
                 1.0 if learn else 0.0,
-                math.nan if steer_angle_rad is None else float(steer_angle_rad),
+                math.nan if steer_angle_rad is None else steer_angle_rad,
             )
         )
         if len(self._pending) >= self.block_size:
