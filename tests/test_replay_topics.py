@@ -70,3 +70,22 @@ def test_replay_feeds_the_gnss_velocity_when_switched_on(tmp_path) -> None:
     # the report says how many velocities were used and with which latency
     assert vel[False] is None
     assert vel[True]["updates"] > 100 and vel[True]["latency_s"] == 0.0
+    assert vel[True]["innovations"] >= vel[True]["updates"]
+    assert 0.5 < vel[True]["mean_nis"] < 3.0
+
+
+def test_summary_prints_slow_real_time_factors_with_two_digits(tmp_path) -> None:
+    """A replay slower than real time (e.g. with --rank-effects) must not print "0x"."""
+    from tire_estimation.replay import ReplayReport
+
+    def first_line(rtf: float) -> str:
+        metrics = {
+            "bag": "b", "duration_s": 60.0, "wall_s": 60.0 / rtf, "realtime_factor": rtf,
+            "radii": {"final_radius_error_m": {}, "final_radius_error_std_m": {}},
+            "position": {"rmse_m": None}, "residuals": {"consistent": None},
+        }  # fmt: skip
+        return ReplayReport(tmp_path, metrics).summary().splitlines()[0]
+
+    assert first_line(0.37).endswith("0.37x real time)")
+    assert first_line(3.04).endswith("3x real time)")
+    assert first_line(212.4).endswith("212x real time)")

@@ -155,3 +155,19 @@ def test_velocity_jacobian_matches_finite_differences():
         e[j] = step
         num[:, j] = (h(x0 + e) - h(x0 - e)) / (2 * step)
     np.testing.assert_allclose(hj, num, rtol=1e-6, atol=1e-9)
+
+
+def test_velocity_heading_offset_equals_a_rotated_heading():
+    """``heading_offset_rad``: the prediction and Jacobian are those of the heading psi +
+    offset (the velocity's time)."""
+    model = RadiusMotionModel(0.31, 1.55, 2.7)
+    kf = AugKf(model, np.array([1e-3, -1e-3]), 2e-3, 1e-3, 2e-5, 0.01, 0.002)
+    kf.x[:3] = [10.0, -4.0, 0.7]
+    lever, ws, r = np.array([1.5, 0.4]), (70.0, 72.0), np.eye(2) * 0.01
+    y = np.array([15.0, 14.0])
+    upd, hj = kf.velocity_innovation(y, r, lever, 0.2, ws, heading_offset_rad=-0.03)
+    kf.x[2] = 0.67
+    ref, hj_ref = kf.velocity_innovation(y, r, lever, 0.2, ws)
+    np.testing.assert_allclose(upd.innovation_m, ref.innovation_m, rtol=1e-12)
+    np.testing.assert_allclose(upd.innovation_cov_m2, ref.innovation_cov_m2, rtol=1e-12)
+    np.testing.assert_allclose(hj, hj_ref, rtol=1e-12)

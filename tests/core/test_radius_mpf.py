@@ -426,6 +426,34 @@ def test_velocity_likelihood_is_the_gaussian_of_the_particle_mean_speed():
     np.testing.assert_allclose(upd.innovation_cov_m2_s2, cov, rtol=1e-12)
 
 
+def test_velocity_heading_offset_rotates_each_particle_heading():
+    """``heading_offset_rad`` (the heading at the velocity's time, -r tau): the likelihood is
+    that of the particle heading psi + offset; same with the AUG-KF's innovation."""
+    from scipy.stats import multivariate_normal
+
+    f = _bias_mpf(1, 0.0, 120.0)
+    f._yaw[:] = 0.4
+    f._mu[:, 0] = 0.0
+    w = 80.0
+    r = np.eye(2) * 0.01
+    v = w * R_NOM
+    y = v * np.array([np.cos(0.35), np.sin(0.35)])  # the heading 0.05 rad earlier
+    upd = f.update_velocity(y, r, np.zeros(2), 0.0, 0.2, (w, w), heading_offset_rad=-0.05)
+    sigma = f._lam[:, :, 0] / (float(f._stats.dof) - 3.0)
+    p = np.array([w, w]) @ sigma @ np.array([w, w]) / 4.0
+    t_vec, n_vec = np.array([np.cos(0.35), np.sin(0.35)]), np.array([-np.sin(0.35), np.cos(0.35)])
+    cov = r + 0.04 * np.outer(n_vec, n_vec) + p * np.outer(t_vec, t_vec)
+    assert upd.log_likelihood == pytest.approx(multivariate_normal(y, cov).logpdf(y), abs=1e-9)
+    np.testing.assert_allclose(upd.innovation_m_s, 0.0, atol=1e-12)
+    # without the offset the 0.05 rad show as a cross-track innovation of v 0.05
+    g = _bias_mpf(1, 0.0, 120.0)
+    g._yaw[:] = 0.4
+    g._mu[:, 0] = 0.0
+    off = g.update_velocity(y, r, np.zeros(2), 0.0, 0.2, (w, w))
+    cross = -np.sin(0.4) * off.innovation_m_s[0] + np.cos(0.4) * off.innovation_m_s[1]
+    assert cross == pytest.approx(-v * np.sin(0.05), rel=1e-9)
+
+
 def test_velocity_selects_the_particles_whose_radius_explains_the_speed():
     """Half the cloud has +2 mm on both rear radii, half 0; a velocity measured with +2 mm
     (0.5 m/s more at 80 rad/s) moves the weight to the first half; a gated-out velocity

@@ -163,6 +163,38 @@ def _mean_error(drive: str, effect: str, value: float, truth_drive: str) -> floa
     return float(np.sqrt(np.mean(np.square(errs))))
 
 
+def test_nll_adds_the_velocity_innovations_per_fix() -> None:
+    """With GNSS velocity innovations in the trace, the NLL per fix is the sum of the fixes' and
+    the velocities' 0.5 (NIS + log det S) after the skip (a gated velocity's NIS capped at the
+    gate), divided by the fixes."""
+    tr = RadiusTrace()
+    s_pos = np.diag([2.0, 3.0])
+    s_vel = np.diag([0.01, 0.04])
+    for k in range(30):  # 1 Hz, the first 10 s skipped
+        t = k * 10**9
+        tr.innov_t_ns.append(t)
+        tr.innov_m.append(np.zeros(2))
+        tr.innov_cov_m2.append(s_pos)
+        tr.nis.append(1.0 + 0.1 * k)
+        tr.accepted.append(True)
+        tr.vel_t_ns.append(t)
+        tr.vel_innov_m_s.append(np.zeros(2))
+        tr.vel_innov_cov_m2_s2.append(s_vel)
+        # every other one gated: it counts with its NIS capped at the gate
+        tr.vel_nis.append(2.0 if k % 2 == 0 else 100.0)
+        tr.vel_accepted.append(k % 2 == 0)
+    pos = np.mean([0.5 * (1.0 + 0.1 * k + np.log(6.0)) for k in range(10, 30)])
+    vel = 10 * 0.5 * (2.0 + np.log(0.0004)) + 10 * 0.5 * (rs.VELOCITY_NIS_CAP + np.log(0.0004))
+    vel /= 20
+    assert pytest.approx(18.42, abs=0.01) == rs.VELOCITY_NIS_CAP
+    assert rs.neg_log_likelihood(tr) == pytest.approx(pos + vel, rel=1e-12)
+    plain = RadiusTrace(
+        innov_t_ns=tr.innov_t_ns, innov_m=tr.innov_m, innov_cov_m2=tr.innov_cov_m2,
+        nis=tr.nis, accepted=tr.accepted,
+    )  # fmt: skip
+    assert rs.neg_log_likelihood(plain) == pytest.approx(pos, rel=1e-12)
+
+
 def test_profile_scan_finds_parabola_minimum() -> None:
     est, f = rs.profile_scan(lambda x: (x - 0.13) ** 2, (0.0, 0.1, 0.2, 0.3))
     assert est == pytest.approx(0.13, abs=1e-9)
@@ -253,6 +285,40 @@ def test_assess_adds_the_likelihood_ratio_to_the_consistency_verdict(
     res = rs.assess(base, lambda _e, v: _FakeTrace(v), {"gnss_latency": (0.0, 0.1, 0.2, 0.3)})
     assert res["tests"]["likelihood_ratio_ok"] is True
     assert res["ranked_effects"][0]["score"] == 0.0
+
+
+def test_rank_effects_scores_against_the_current_value_of_an_effect() -> None:
+    """An effect the base model already has at ``current``: that point of the profile is the
+    base NLL (added to the grid, not re-run), the score is measured from it, not from 0."""
+
+    def profile(v: float) -> float:
+        return 0.9 + 5.0 * (v - 0.13) ** 2  # minimum at 0.13
+
+    reruns: list[float] = []
+
+    def rerun(_effect: str, v: float) -> _FakeTrace:
+        reruns.append(v)
+        return _FakeTrace(v)
+
+    def nll(trace: Any) -> float:
+        return profile(trace.value) if isinstance(trace, _FakeTrace) else 0.9
+
+    grid = {"gnss_velocity_latency": (0.0, 0.1, 0.2, 0.3)}
+    orig = rs.neg_log_likelihood
+    try:
+        rs.neg_log_likelihood = lambda tr, skip_s=10.0: nll(tr)  # type: ignore[assignment]
+        (eff,) = rs.rank_effects(
+            rerun, grid, baseline_nll=0.9, current={"gnss_velocity_latency": 0.13}
+        )
+        assert 0.13 not in reruns and "0.13" in eff["nll_profile"]
+        assert eff["score"] == 0.0 and eff["estimate"] == pytest.approx(0.13, abs=1e-9)
+        # the same profile judged from a base model without the effect (current 0)
+        reruns.clear()
+        (eff0,) = rs.rank_effects(rerun, grid, baseline_nll=profile(0.0))
+        assert 0.0 not in reruns and eff0["estimate"] == pytest.approx(0.13, abs=1e-9)
+        assert eff0["score"] == pytest.approx(2 * 120 * (profile(0.0) - 0.9))
+    finally:
+        rs.neg_log_likelihood = orig  # type: ignore[assignment]
 
 
 @pytest.mark.parametrize("sign", [1.0, -1.0])
@@ -396,3 +462,61 @@ def test_gyro_bias_is_not_attributed() -> None:
     assert _mean_error("gyro_bias", "", 0.0, "gyro_bias") == pytest.approx(
         _mean_error("", "", 0.0, ""), rel=0.05
     )
+
+
+@cache
+def _velocity_sim(latency_s: float) -> SimResult:
+    """The test drive with the receiver's Doppler velocity, ``latency_s`` late."""
+    sensors = SensorConfig(
+        gnss_gm_std_m=0.1,
+        tire_force_enabled=False,
+        gnss_velocity_enabled=True,
+        gnss_velocity_latency_s=latency_s,
+    )
+    return simulate(**DRIVE, sensors=sensors, vehicle=VehicleParams())
+
+
+@cache
+def _velocity_run(latency_s: float, effect: str, value: float, seed: int) -> RadiusTrace:
+    sim = _velocity_sim(latency_s)
+    overrides = {rs.CONFIG_FIELDS[effect]: value} if effect else {}
+    cfg = RadiusEstimatorConfig(**CONFIG, gnss_velocity_enabled=True, **overrides)
+    est = RadiusEstimator(cfg, VehicleParams(), np.random.default_rng(seed))
+    return run_radius_estimator(est, sim.wheel_speeds, sim.gnss, sim.steering, sim.imu)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("latency_s", [0.2, 0.0])
+def test_gnss_velocity_latency_is_found_from_the_velocity_innovations(latency_s: float) -> None:
+    """A Doppler velocity 0.2 s late (simulator injector): the profile of the joint NLL of the
+    fixes and velocities ranks ``gnss_velocity_latency`` first, significant, sized within 30 %,
+    and the run is inconsistent; the position latency is not blamed. Without the injection
+    nothing is significant. (Measured: 0.174 s, score 187; clean: scores 0.)"""
+    grids = {
+        "gnss_velocity_latency": rs.DEFAULT_GRIDS["gnss_velocity_latency"],
+        "gnss_latency": GRIDS["gnss_latency"],
+    }
+
+    def runs(effect: str, value: float) -> tuple[RadiusTrace, ...]:
+        return tuple(_velocity_run(latency_s, effect, value, seed) for seed in RANK_SEEDS)
+
+    base = runs("", 0.0)
+    assert all(len(tr.vel_t_ns) > 1000 for tr in base)  # the velocities are in the NLL
+    res = rs.assess(base, runs, grids)
+    ranked = {e["effect"]: e for e in res["ranked_effects"]}
+    if latency_s:
+        assert res["consistent"] is False
+        assert res["ranked_effects"][0]["effect"] == "gnss_velocity_latency"
+        assert ranked["gnss_velocity_latency"]["score"] >= rs.SCORE_THRESHOLD
+        assert ranked["gnss_velocity_latency"]["estimate"] == pytest.approx(latency_s, rel=0.3)
+        # compensated, the fixes stay consistent: the velocity is compared with each particle's
+        # heading at the velocity's time (with the current heading 25-93 of the 1200 fixes of
+        # these runs were gated as outliers, mean NIS 3.2-5.9)
+        for seed in RANK_SEEDS:
+            tr = _velocity_run(latency_s, "gnss_velocity_latency", latency_s, seed)
+            assert tr.dropped.get("gnss_outlier", 0) == 0, tr.dropped
+            assert np.mean(np.asarray(tr.nis)[np.asarray(tr.accepted)]) < 2.3
+    else:
+        assert res["tests"]["likelihood_ratio_ok"] is True
+        assert ranked["gnss_velocity_latency"]["score"] < rs.SCORE_THRESHOLD
+    assert ranked["gnss_latency"]["score"] < rs.SCORE_THRESHOLD

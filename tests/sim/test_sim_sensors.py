@@ -181,6 +181,27 @@ def test_gnss_doppler_velocity_optional() -> None:
     np.testing.assert_array_equal(plain.gnss.lat_deg, res.gnss.lat_deg)
 
 
+def test_gnss_velocity_latency_is_injected_apart_from_the_position_latency() -> None:
+    """A velocity stamped t describes the antenna at t - gnss_velocity_latency_s, whatever the
+    fix's latency; its noise draws are unchanged by the latency."""
+    sensors = {"gnss_velocity_enabled": True, "gnss_velocity_noise_std_m_s": 0.0}
+    res = simulate(
+        "ece_r64",
+        seed=2,
+        minutes=1.0,
+        sensors=SensorConfig(**sensors, gnss_latency_s=0.1, gnss_velocity_latency_s=0.3),
+    )
+    v = res.gnss.velocity_enu_m_s
+    assert v is not None
+    speed = np.hypot(v[:, 0], v[:, 1])
+    t_truth = res.truth.t_ns
+    truth_speed = np.hypot(res.truth.velocity_m_s[:, 0], res.truth.velocity_m_s[:, 1])
+    # the antenna is at base_link here: the measured speed is the truth 0.3 s before the stamp
+    for lag_s, close in ((0.3, True), (0.1, False), (0.0, False)):
+        ref = np.interp(res.gnss.t_ns - int(lag_s * 1e9), t_truth, truth_speed)
+        assert bool(np.max(np.abs(speed - ref)) < 1e-6) is close, lag_s
+
+
 def test_imu_at_rest_shows_gravity_and_configured_bias(city_short: SimResult) -> None:
     imu = city_short.imu
     t = rel_s(imu.t_ns)

@@ -115,9 +115,12 @@ class ReplayReport:
         """A few human-readable lines for the terminal."""
         m = self.metrics
         r = m["radii"]
+        rtf = float(m["realtime_factor"])
+        # two significant digits below 10x (a --rank-effects run is slower than real time)
+        rtf_text = f"{rtf:.0f}x" if rtf >= 10.0 else f"{rtf:.2g}x"
         lines = [
             f"replayed {m['bag']} ({m['duration_s']:.0f} s of data in {m['wall_s']:.1f} s, "
-            f"{m['realtime_factor']:.0f}x real time)"
+            f"{rtf_text} real time)"
         ]
         truth = r.get("rmse_vs_truth_m") or {}
         final_truth = r.get("final_error_vs_truth_m") or {}
@@ -569,7 +572,14 @@ def _assess_effects(
         return [run(values, seed) for seed in seeds]
 
     base = [trace] + [run(cfg.to_dict(), seed) for seed in seeds[1:]]
-    report = residuals.assess(base, rerun)
+    grids = dict(residuals.DEFAULT_GRIDS)
+    if not trace.vel_t_ns:
+        # the velocity latency is a candidate only when the run used the GNSS velocity
+        grids.pop("gnss_velocity_latency")
+    values = cfg.to_dict()
+    # the value each candidate has in the configured model (its grid point of the base runs)
+    current = {eff: float(values[field]) for eff, field in residuals.CONFIG_FIELDS.items()}
+    report = residuals.assess(base, rerun, grids, current=current)
     report["tests"]["rank_seeds"] = seeds
     return report
 

@@ -221,6 +221,7 @@ class AugKf:
         lateral_std_m_s: float,
         rear_wheel_speed_rad_s: tuple[float, float] | None = None,
         along_var_m2_s2: float = 0.0,
+        heading_offset_rad: float = 0.0,
     ) -> tuple[AugKfUpdate, F64]:
         """Innovation and Jacobian ``H`` (2, nx) of a GNSS Doppler velocity (beyond the paper;
         the model of :meth:`RadiusMPF.update_velocity`): the antenna moves with
@@ -229,7 +230,8 @@ class AugKf:
         prediction), ``u ~ N(0, sigma_u^2)`` the unmodelled lateral velocity. The noise adds
         the fast radius variation ``w`` (eq. 11c) of that speed along the heading:
         ``R + sigma_u^2 n n' + (var(w) (w3^2 + w4^2) / 4 + along_var) t t'`` (t, n: along /
-        across)."""
+        across). ``heading_offset_rad`` is added to the heading to get the one at the
+        velocity's time (``-r tau`` for a velocity ``tau`` seconds before the pose)."""
         w3, w4 = (
             self.rear_wheel_speed_rad_s
             if rear_wheel_speed_rad_s is None
@@ -237,7 +239,7 @@ class AugKf:
         )
         m = self.model
         lt = m.track_width_m
-        psi = float(self.x[2])
+        psi = float(self.x[2]) + float(heading_offset_rad)
         c, s = math.cos(psi), math.sin(psi)
         lx, ly = float(lever_arm_m[0]), float(lever_arm_m[1])
         # eq. (6a), (6b) with the current radius errors

@@ -876,10 +876,13 @@ class RadiusEstimator:
         span = min(0.2, x - float(rel[0]))
         accel = (w3 + w4 - k0) * 0.5 * self.model.nominal_radius_m / span if span > 0 else 0.0
         along_var = (accel * c.gnss_velocity_latency_std_s) ** 2
-        _, yaw_rate = self._speed_yaw_rate(np.array([0.0, 0.0, w3, w4]))
+        _, yaw_rate = self._rear_speed_yaw_rate(w3, w4)
+        # the heading at the velocity's time: the pose is at t_pose, the velocity describes
+        # the target time (rotation by the yaw rate over the difference)
+        dpsi = -yaw_rate * (self._t_pose_ns - target) * 1e-9
         upd = self.mpf.update_velocity(
             v[:2], r, self.lever_arm_m, yaw_rate, c.gnss_velocity_lateral_std_m_s, (w3, w4),
-            along_var_m2_s2=along_var, gate_nis=self._gate,
+            along_var_m2_s2=along_var, gate_nis=self._gate, heading_offset_rad=dpsi,
         )  # fmt: skip
         if not upd.accepted:
             self._drop("gnss_velocity_outlier")
@@ -889,8 +892,9 @@ class RadiusEstimator:
         self.velocity_updates += 1
         if self.kf is not None:
             kupd, hj = self.kf.velocity_innovation(
-                v[:2], r, self.lever_arm_m, c.gnss_velocity_lateral_std_m_s, (w3, w4), along_var
-            )
+                v[:2], r, self.lever_arm_m, c.gnss_velocity_lateral_std_m_s, (w3, w4), along_var,
+                heading_offset_rad=dpsi,
+            )  # fmt: skip
             if kupd.nis <= self._gate * 4.0:
                 self.kf.update(kupd, hj, learn=True)
         self._calibration()

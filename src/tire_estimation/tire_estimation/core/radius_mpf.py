@@ -537,6 +537,7 @@ class RadiusMPF:
         rear_wheel_speed_rad_s: tuple[float, float],
         along_var_m2_s2: float = 0.0,
         gate_nis: float = math.inf,
+        heading_offset_rad: float = 0.0,
     ) -> VelocityUpdate:
         """Weight update with a GNSS Doppler velocity (beyond the paper), then normalize and
         resample when ``N_eff < threshold N``.
@@ -545,7 +546,9 @@ class RadiusMPF:
         covariance; ``lever_arm_m`` (2,) antenna (x, y) in ``base_link``; ``yaw_rate_rad_s`` the
         (common) yaw rate for the lever-arm term; ``rear_wheel_speed_rad_s`` (w3, w4) the rear
         wheel speeds at the velocity's time; ``along_var_m2_s2`` extra variance of the speed
-        (e.g. from an uncertain latency while accelerating).
+        (e.g. from an uncertain latency while accelerating); ``heading_offset_rad`` is added to
+        each particle's heading to get the heading at the velocity's time (a velocity that
+        describes ``tau`` seconds before the pose: ``-r tau``).
 
         Model (rigid body; ``base_link`` moves with ``[v, u]`` in its own axes): the antenna
         moves with ``R(psi) [v - r l_y, u + r l_x]``; ``u ~ N(0, sigma_u^2)`` is the lateral
@@ -562,7 +565,8 @@ class RadiusMPF:
         the noise) nothing is changed and ``accepted`` is false.
         """
         self._flush()
-        yaw = self._yaw
+        # each particle's heading at the velocity's time
+        yaw = self._yaw + float(heading_offset_rad) if heading_offset_rad else self._yaw
         c = np.cos(yaw)
         s = np.sin(yaw)
         w3, w4 = float(rear_wheel_speed_rad_s[0]), float(rear_wheel_speed_rad_s[1])

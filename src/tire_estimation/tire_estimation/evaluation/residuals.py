@@ -65,7 +65,7 @@ feeds its acceleration gates and the load transfer), so a gyro bias cannot enter
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -141,6 +141,12 @@ EFFECTS: tuple[Effect, ...] = (
         "s^2/m",
         "speed*brake_decel",
         "along-track drift = +v k b (braked rear wheels turn slower)",
+    ),
+    Effect(
+        "gnss_velocity_latency",
+        "s",
+        "longitudinal_acceleration",
+        "along-track velocity innovation = -acceleration x velocity latency",
     ),
 )
 
@@ -403,9 +409,20 @@ def _runs(trace: Any) -> list[Any]:
     return list(trace) if isinstance(trace, (list, tuple)) else [trace]
 
 
+#: NIS a gated GNSS velocity adds to the NLL: the estimator's default gate, chi-square(2) at
+#: ``gnss_gate_probability`` 0.9999
+VELOCITY_NIS_CAP = float(stats.chi2.ppf(0.9999, 2))
+
+
 def neg_log_likelihood(trace: Any, skip_s: float = 10.0) -> float:
     """Mean innovation negative log-likelihood ``0.5 (NIS + log det S)`` of the accepted fixes
-    after ``skip_s`` seconds (prediction-error decomposition of the likelihood).
+    after ``skip_s`` seconds (prediction-error decomposition of the likelihood), per fix.
+
+    When the run used the GNSS velocity, the NLL of its velocity innovations after ``skip_s``
+    is added (the likelihood of all measurements, still divided by the number of fixes), so
+    that an effect on the velocity (its latency) is judged by the same objective. Every
+    velocity the estimator computed an innovation for counts, gated ones with their NIS capped
+    at :data:`VELOCITY_NIS_CAP` (a model that gates more of them must not look better for it).
 
     ``trace`` may be a list/tuple of runs of the same data with independent filter seeds: the
     NLL is then their mean, which reduces the Monte-Carlo noise of the particle filter's
@@ -423,7 +440,15 @@ def neg_log_likelihood(trace: Any, skip_s: float = 10.0) -> float:
     if not ok.any():
         return float("inf")
     logdet = np.linalg.slogdet(a["innov_cov_m2"][ok])[1]
-    return float(np.mean(0.5 * (a["nis"][ok] + logdet)))
+    total = float(np.sum(0.5 * (a["nis"][ok] + logdet)))
+    tv = a["vel_t_ns"]
+    if tv.size:
+        vok = (tv - t[0]) * 1e-9 >= skip_s
+        if vok.any():
+            vdet = np.linalg.slogdet(a["vel_innov_cov_m2_s2"][vok])[1]
+            vnis = np.minimum(a["vel_nis"][vok], VELOCITY_NIS_CAP)
+            total += float(np.sum(0.5 * (vnis + vdet)))
+    return total / int(ok.sum())
 
 
 def profile_scan(
@@ -621,6 +646,7 @@ CONFIG_FIELDS: dict[str, str] = {
     "radius_load_dependence": "radius_load_coefficient_m_per_n",
     "road_grade": "road_grade_correction_gain",
     "rear_brake_slip": "rear_brake_slip_s2_per_m",
+    "gnss_velocity_latency": "gnss_velocity_latency_s",
 }
 
 #: Scan grids of the effects that the estimator can switch on (0 = not modelled).
@@ -634,6 +660,8 @@ DEFAULT_GRIDS: dict[str, tuple[float, ...]] = {
     "road_grade": (0.0, 0.5, 1.0, 1.5),
     # physical value of the simulator's default vehicle: 3.5e-3 s^2/m
     "rear_brake_slip": (0.0, 2e-3, 4e-3, 6e-3),
+    # scanned only when the run used the GNSS velocity (replay's rank_effects)
+    "gnss_velocity_latency": (0.0, 0.1, 0.2, 0.3),
 }
 
 
@@ -641,14 +669,17 @@ def rank_effects(
     rerun: Callable[[str, float], Any],
     grids: dict[str, Sequence[float]] | None = None,
     baseline_nll: float | None = None,
+    current: Mapping[str, float] | None = None,
 ) -> list[dict[str, Any]]:
     """Rank the switchable effects by their profile likelihood ratio and size them.
 
     ``rerun(effect, value)`` runs the estimator with ``effect`` switched on at ``value`` and
-    returns its trace. For each effect the mean innovation NLL is profiled over its grid
-    (:func:`profile_scan`); ``score = 2 n (NLL(0) - NLL(estimate))`` with ``n`` the number of
-    decimated (about independent) fixes: a likelihood-ratio statistic, about chi-square(1)
-    when the effect is absent. The estimate is re-run to get the NLL at the minimizer.
+    returns its trace. ``current`` holds the value each effect has in the base model (default
+    0, i.e. not modelled); it is added to the effect's grid and its NLL is ``baseline_nll``.
+    For each effect the mean innovation NLL is profiled over its grid (:func:`profile_scan`);
+    ``score = 2 n (NLL(current) - NLL(estimate))`` with ``n`` the number of decimated (about
+    independent) fixes: a likelihood-ratio statistic, about chi-square(1) when the current
+    value is right. The estimate is re-run to get the NLL at the minimizer.
     """
     grids = dict(DEFAULT_GRIDS if grids is None else grids)
     out: list[dict[str, Any]] = []
@@ -660,15 +691,18 @@ def rank_effects(
 
     for effect, grid in grids.items():
         traces: dict[float, Any] = {}
+        base = float((current or {}).get(effect, 0.0))
 
-        def objective(v: float, effect: str = effect, traces: dict[float, Any] = traces) -> float:
-            if v == 0.0 and baseline_nll is not None:
+        def objective(
+            v: float, effect: str = effect, traces: dict[float, Any] = traces, base: float = base
+        ) -> float:
+            if v == base and baseline_nll is not None:
                 return baseline_nll
             f, tr = nll(effect, v)
             traces[v] = tr
             return f
 
-        est, f = profile_scan(objective, grid)
+        est, f = profile_scan(objective, sorted({*map(float, grid), base}))
         for v, fv in f.items():
             cache[(effect, v)] = fv
         f_est = f.get(est)
@@ -679,7 +713,7 @@ def rank_effects(
         n = 60
         if any_tr is not None and len(any_tr.innov_t_ns) > 1:
             n = max(int((any_tr.innov_t_ns[-1] - any_tr.innov_t_ns[0]) * 1e-9 / DECIMATION_S), 1)
-        f0 = f.get(0.0, baseline_nll if baseline_nll is not None else f_est)
+        f0 = f.get(base, baseline_nll if baseline_nll is not None else f_est)
         score = max(0.0, 2.0 * n * (f0 - min(f_est, min(f.values()))))
         eff = _effect(effect, score, float(est))
         eff["nll_profile"] = {str(k): v for k, v in sorted(f.items())}
@@ -693,6 +727,7 @@ def assess(
     rerun: Callable[[str, float], Any],
     grids: dict[str, Sequence[float]] | None = None,
     threshold: float = SCORE_THRESHOLD,
+    current: Mapping[str, float] | None = None,
 ) -> dict[str, Any]:
     """Residual analysis of ``trace`` completed by the profile likelihood of the switchable
     effects: :func:`analyze_trace` plus :func:`rank_effects` (``rerun`` as there).
@@ -707,7 +742,7 @@ def assess(
     ``suspected_effects`` are the candidates at or above the threshold when there are any.
     """
     res = analyze_trace(_runs(trace)[0])
-    ranked = rank_effects(rerun, grids, baseline_nll=neg_log_likelihood(trace))
+    ranked = rank_effects(rerun, grids, baseline_nll=neg_log_likelihood(trace), current=current)
     significant = [e for e in ranked if e["score"] >= threshold]
     res["tests"]["likelihood_ratio_ok"] = not significant
     res["tests"]["likelihood_ratio_threshold"] = float(threshold)

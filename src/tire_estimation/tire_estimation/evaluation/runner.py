@@ -34,7 +34,10 @@ class RadiusTrace:
     Shapes: ``t_ns`` (K,); per-wheel arrays (K, W) in the order of ``wheel_names``; ``pose``
     (K, 3) [east m, north m, yaw rad] in the estimator's local ENU frame; ``pose_var`` (K, 3).
     Innovations: ``innov_t_ns`` (J,), ``innov_m`` (J, 2) [east, north], ``innov_cov_m2``
-    (J, 2, 2), ``nis`` (J,), ``accepted`` (J,).
+    (J, 2, 2), ``nis`` (J,), ``accepted`` (J,). GNSS velocity innovations of the velocities the
+    estimator computed one for (``gnss_velocity_enabled``, while learning): ``vel_t_ns`` (V,),
+    ``vel_innov_m_s`` (V, 2), ``vel_innov_cov_m2_s2`` (V, 2, 2), ``vel_nis`` (V,),
+    ``vel_accepted`` (V,).
     """
 
     wheel_names: tuple[str, ...] = ()
@@ -55,15 +58,21 @@ class RadiusTrace:
     innov_cov_m2: list[NDArray[np.float64]] = field(default_factory=list)
     nis: list[float] = field(default_factory=list)
     accepted: list[bool] = field(default_factory=list)
+    vel_t_ns: list[int] = field(default_factory=list)
+    vel_innov_m_s: list[NDArray[np.float64]] = field(default_factory=list)
+    vel_innov_cov_m2_s2: list[NDArray[np.float64]] = field(default_factory=list)
+    vel_nis: list[float] = field(default_factory=list)
+    vel_accepted: list[bool] = field(default_factory=list)
     gnss_enu_m: list[NDArray[np.float64]] = field(default_factory=list)
     road_grade_rad: list[float] = field(default_factory=list)
     rear_brake_decel_m_s2: list[float] = field(default_factory=list)
     dropped: dict[str, int] = field(default_factory=dict)
     resample_count: int = 0
     origin_lla: tuple[float, float, float] | None = None
-    #: GNSS velocities that re-weighted the particles and the compensated velocity latency, s
-    #: (None when the estimator does not use the velocity)
-    gnss_velocity: dict[str, float] | None = None
+    #: GNSS velocity summary: velocities that re-weighted the particles (``updates``), those with
+    #: an innovation (``innovations``, gated ones included), the mean NIS of the accepted ones
+    #: (2 for a consistent model) and the compensated latency, s (None: velocity not used)
+    gnss_velocity: dict[str, Any] | None = None
 
     def arrays(self) -> dict[str, NDArray[Any]]:
         """The lists stacked into arrays (empty arrays when nothing was recorded)."""
@@ -89,6 +98,11 @@ class RadiusTrace:
             "innov_cov_m2": stack(self.innov_cov_m2, (2, 2)),
             "nis": np.asarray(self.nis, dtype=float),
             "accepted": np.asarray(self.accepted, dtype=bool),
+            "vel_t_ns": np.asarray(self.vel_t_ns, dtype=np.int64),
+            "vel_innov_m_s": stack(self.vel_innov_m_s, (2,)),
+            "vel_innov_cov_m2_s2": stack(self.vel_innov_cov_m2_s2, (2, 2)),
+            "vel_nis": np.asarray(self.vel_nis, dtype=float),
+            "vel_accepted": np.asarray(self.vel_accepted, dtype=bool),
             "gnss_enu_m": stack(self.gnss_enu_m, (2,)),
             "road_grade_rad": np.asarray(self.road_grade_rad, dtype=float),
             "rear_brake_decel_m_s2": np.asarray(self.rear_brake_decel_m_s2, dtype=float),
@@ -156,16 +170,29 @@ def run_radius_estimator(
         else:
             upd = estimator.on_gnss_fix(g_t[row], lat[row], lon[row], alt[row], g_cov[row])
             if g_has_vel and g_has_vel[row]:
-                estimator.on_gnss_velocity(
+                vupd = estimator.on_gnss_velocity(
                     g_t[row], g_vel[row], None if g_vcov is None else g_vcov[row]
                 )
+                if vupd.nis > 0.0:  # an innovation was computed (learning, not dropped)
+                    trace.vel_t_ns.append(vupd.t_ns)
+                    trace.vel_innov_m_s.append(np.asarray(vupd.innovation_m_s, dtype=float))
+                    trace.vel_innov_cov_m2_s2.append(
+                        np.asarray(vupd.innovation_cov_m2_s2, dtype=float)
+                    )
+                    trace.vel_nis.append(float(vupd.nis))
+                    trace.vel_accepted.append(bool(vupd.accepted))
             _record(trace, estimator, upd, g_t[row])
         if progress is not None and n % 10_000 == 0:
             progress(n)
     trace.dropped = dict(estimator.stats)
     if use_vel:
+        nis = np.asarray(trace.vel_nis, dtype=float)
         trace.gnss_velocity = {
             "updates": estimator.velocity_updates,
+            "innovations": int(nis.size),
+            "mean_nis": float(nis[np.asarray(trace.vel_accepted, dtype=bool)].mean())
+            if estimator.velocity_updates
+            else None,
             "latency_s": estimator.config.gnss_velocity_latency_s,
         }
     ltp = getattr(estimator, "_ltp", None)

@@ -43,9 +43,10 @@ from tire_estimation.errors import ConfigError
 class SensorConfig:
     """Rates, noise and injected effects of the simulated sensors (SI units in the names).
 
-    Injected effects (``*_time_offset_s``, ``gnss_latency_s``, ``radius_*_coefficient_*``,
-    ``road_grade_*``, ``gyro_bias_rad_s``) default to zero: they model what an estimator may not
-    know. The GNSS antenna position (lever arm) is ``VehicleParams.gnss_antenna_position_m``.
+    Injected effects (``*_time_offset_s``, ``gnss_latency_s``, ``gnss_velocity_latency_s``,
+    ``radius_*_coefficient_*``, ``road_grade_*``, ``gyro_bias_rad_s``) default to zero: they
+    model what an estimator may not know. The GNSS antenna position (lever arm) is
+    ``VehicleParams.gnss_antenna_position_m``.
     """
 
     # --- ABS wheel speeds (edge timing on a tone ring) ---
@@ -91,6 +92,9 @@ class SensorConfig:
     gnss_velocity_vertical_noise_std_m_s: float = 0.1
     #: Injected: a fix stamped t describes the antenna at t - latency, s.
     gnss_latency_s: float = 0.0
+    #: Injected: a Doppler velocity stamped t (the fix's stamp) describes the antenna at
+    #: t - this, s (receivers often filter the velocity more than the position).
+    gnss_velocity_latency_s: float = 0.0
 
     # --- tyre force sensors (Tuononen 2009: optical tyre sensors on fl and rr) ---
     tire_force_enabled: bool = True
@@ -164,6 +168,7 @@ class SensorConfig:
             10.0,
         )
         require_range(p + "gnss_latency_s", self.gnss_latency_s, 0.0, 2.0)
+        require_range(p + "gnss_velocity_latency_s", self.gnss_velocity_latency_s, 0.0, 2.0)
         _require_bool(p + "tire_force_enabled", self.tire_force_enabled)
         require_range(p + "tire_force_rate_hz", self.tire_force_rate_hz, 1.0, 2000.0)
         if not isinstance(self.tire_force_wheels, tuple) or any(

@@ -226,9 +226,11 @@ def gnss(
     rng: np.random.Generator,
     start_ns: int,
 ) -> GnssStream:
-    """Antenna fixes: truth + white noise + first-order Gauss-Markov error, in WGS-84.
+    """Antenna fixes: truth + white noise + first-order Gauss-Markov error, in WGS-84, and
+    optionally the Doppler velocity (truth + white noise) with the same stamps.
 
-    A fix stamped t describes the antenna at t - latency (injected latency).
+    A fix stamped t describes the antenna at t - ``gnss_latency_s``, its velocity at
+    t - ``gnss_velocity_latency_s`` (injected latencies).
     """
     period_s = 1.0 / cfg.gnss_rate_hz
     latency = cfg.gnss_latency_s
@@ -249,6 +251,8 @@ def gnss(
     vel_noise = rng.standard_normal((m, 3))
     vel_meas = vel_cov = None
     if cfg.gnss_velocity_enabled:
+        # the velocity describes the antenna at t - gnss_velocity_latency_s (t the stamp)
+        _, vel = antenna_enu(log, vehicle, t - cfg.gnss_velocity_latency_s)
         v_std = np.array(
             [
                 cfg.gnss_velocity_noise_std_m_s,
