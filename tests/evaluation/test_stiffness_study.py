@@ -30,3 +30,19 @@ def test_snow_study_starts_at_the_requested_fraction_of_the_truth() -> None:
     assert run["steady_mean_rel_error"][0] == pytest.approx(0.5, abs=0.02)
     assert res["runs"] == 1 and len(res["cy_steady_max_abs_rel_error_max"]) == 2
     assert 0.0 <= res["cy_settled_within_2s_share"][0] <= 1.0
+
+
+def test_sine_study_applies_the_config_overrides() -> None:
+    """``overrides`` (``--set`` with ``--sine-runs``) reach the filter's configuration: an
+    invalid value is rejected by the configuration's validation instead of being ignored."""
+    from tire_estimation.errors import ConfigError
+
+    with pytest.raises(ConfigError):
+        sine_study("snow_sine", 1.5, runs=1, n=10, overrides={"activation_steer_rad": -1.0})
+
+
+def test_set_values_parse_as_numbers_or_text() -> None:
+    from tire_estimation.evaluation.stiffness import _number_or_text
+
+    assert _number_or_text("0.01") == pytest.approx(0.01)
+    assert _number_or_text("measured") == "measured"

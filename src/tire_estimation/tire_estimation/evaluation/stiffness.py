@@ -257,7 +257,12 @@ def study(
 
 
 def sine_study(
-    scenario: str, factor: float, runs: int, n: int = 200, first_seed: int = 0
+    scenario: str,
+    factor: float,
+    runs: int,
+    n: int = 200,
+    first_seed: int = 0,
+    overrides: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """``runs`` drives of ``scenario`` (``snow_sine`` / ``asphalt_sine``, sim seeds
     ``first_seed ...``), bias-free, the MPF started at ``factor`` x the true cornering stiffness
@@ -270,6 +275,9 @@ def sine_study(
     share of runs settled within 2 s of activation, median and maximum settling time. ``Cx``
     (column 0) is reported but not aggregated into the cornering figures: with constant speed the
     sine drives do not excite it, and the filter freezes it (Sec. II-B).
+
+    ``overrides``: :class:`StiffnessEstimatorConfig` fields set on top of :func:`eval_config`
+    (``--set FIELD=VALUE`` with ``--sine-runs``).
     """
     per_run: list[dict[str, Any]] = []
     for r in range(first_seed, first_seed + runs):
@@ -279,7 +287,7 @@ def sine_study(
         # truth is half the nominal)
         nominal = StiffnessEstimator(eval_config(1), sim.vehicle, np.random.default_rng(0))
         truth_ratio = float(np.mean(sim.truth.stiffness[0, 1:] / nominal.mpf.nominal[1:]))
-        cfg = eval_config(n, initial_stiffness_factor=factor * truth_ratio)
+        cfg = eval_config(n, initial_stiffness_factor=factor * truth_ratio, **(overrides or {}))
         res = run(sim, cfg, seed=1000 + r)
         rel = res["c"] / res["truth_c"] - 1.0
         on = float(res["t_s"][np.argmax(res["active"])]) if np.any(res["active"]) else math.nan
@@ -302,6 +310,7 @@ def sine_study(
         "initial_factor": factor,
         "runs": runs,
         "n_particles": n,
+        "overrides": dict(overrides or {}),
         "cy_steady_mean_rel_error_mean": mean_err[:, cy].mean(axis=0).tolist(),
         "cy_steady_mean_abs_rel_error_mean": np.abs(mean_err[:, cy]).mean(axis=0).tolist(),
         "cy_steady_max_abs_rel_error_max": max_err[:, cy].max(axis=0).tolist(),
@@ -312,6 +321,14 @@ def sine_study(
         "cx_steady_mean_rel_error_mean": float(mean_err[:, 0].mean()),
         "per_run": per_run,
     }
+
+
+def _number_or_text(value: str) -> float | str:
+    """``--set`` value: a number where it parses as one (``0.2``), else the text (``measured``)."""
+    try:
+        return float(value)
+    except ValueError:
+        return value
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -332,7 +349,8 @@ def main(argv: list[str] | None = None) -> None:
         action="append",
         default=[],
         metavar="FIELD=VALUE",
-        help="study: a StiffnessEstimatorConfig field (number) on top of the study configuration",
+        help="study and sine study: a StiffnessEstimatorConfig field (number, else text) on top "
+        "of the study configuration",
     )
     ap.add_argument(
         "--sine-runs",
@@ -344,9 +362,15 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--sine-scenarios", nargs="+", default=["snow_sine", "asphalt_sine"])
     args = ap.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
+    overrides: dict[str, Any] = {}
+    for item in args.set:
+        key, sep, value = item.partition("=")
+        if not sep:
+            ap.error(f"--set needs FIELD=VALUE, got {item!r}")
+        overrides[key.strip()] = _number_or_text(value.strip())
     if args.sine_runs > 0:
         sine = {
-            f"{scen}@{f0}": sine_study(scen, f0, args.sine_runs, args.particles[0])
+            f"{scen}@{f0}": sine_study(scen, f0, args.sine_runs, args.particles[0], 0, overrides)
             for scen in args.sine_scenarios
             for f0 in (1.5, 0.75)
         }
@@ -357,12 +381,6 @@ def main(argv: list[str] | None = None) -> None:
         print(json.dumps({k: {kk: vv for kk, vv in v.items() if kk != "per_run"}
                           for k, v in sine.items()}, indent=2))  # fmt: skip
         return
-    overrides: dict[str, Any] = {}
-    for item in args.set:
-        key, sep, value = item.partition("=")
-        if not sep:
-            ap.error(f"--set needs FIELD=VALUE, got {item!r}")
-        overrides[key.strip()] = float(value)
     if args.scenario is not None:
         results = [
             study(
