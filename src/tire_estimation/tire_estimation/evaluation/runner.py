@@ -173,14 +173,7 @@ def run_radius_estimator(
                 vupd = estimator.on_gnss_velocity(
                     g_t[row], g_vel[row], None if g_vcov is None else g_vcov[row]
                 )
-                if vupd.nis > 0.0:  # an innovation was computed (learning, not dropped)
-                    trace.vel_t_ns.append(vupd.t_ns)
-                    trace.vel_innov_m_s.append(np.asarray(vupd.innovation_m_s, dtype=float))
-                    trace.vel_innov_cov_m2_s2.append(
-                        np.asarray(vupd.innovation_cov_m2_s2, dtype=float)
-                    )
-                    trace.vel_nis.append(float(vupd.nis))
-                    trace.vel_accepted.append(bool(vupd.accepted))
+                _record_velocity(trace, vupd)
             _record(trace, estimator, upd, g_t[row])
         if progress is not None and n % 10_000 == 0:
             progress(n)
@@ -199,6 +192,18 @@ def run_radius_estimator(
     if ltp is not None:
         trace.origin_lla = (ltp.origin_lat_deg, ltp.origin_lon_deg, ltp.origin_alt_m)
     return trace
+
+
+def _record_velocity(trace: RadiusTrace, upd: Any) -> None:
+    """Keep a GNSS velocity's innovation when one was computed (``nis`` > 0: learning, not
+    dropped or skipped), accepted or gated."""
+    if upd.nis <= 0.0:
+        return
+    trace.vel_t_ns.append(upd.t_ns)
+    trace.vel_innov_m_s.append(np.asarray(upd.innovation_m_s, dtype=float))
+    trace.vel_innov_cov_m2_s2.append(np.asarray(upd.innovation_cov_m2_s2, dtype=float))
+    trace.vel_nis.append(float(upd.nis))
+    trace.vel_accepted.append(bool(upd.accepted))
 
 
 def _record(trace: RadiusTrace, estimator: RadiusEstimator, upd: Any, t_ns: int) -> None:
