@@ -124,6 +124,31 @@ def test_calibration_sensor_overrides_reach_the_drives() -> None:
         _sensor_options([("gnss_velocity_enabled", "yes")])
 
 
+def test_ece_sensor_overrides_reach_every_drive() -> None:
+    """``campaign ece-r64 --sensor KEY=VALUE`` reaches the step, robustness and diffusion
+    drives over their GNSS and road levels (the GNSS Doppler velocity re-validation)."""
+    from tire_estimation.evaluation.campaign import GNSS_LEVELS, ROAD_LEVELS, _cmd_ece_r64
+
+    args = _parser().parse_args(
+        ["campaign", "ece-r64", "--out", "x", "--sensor", "gnss_velocity_enabled=true"]
+    )
+    assert args.func is _cmd_ece_r64 and args.sensor == [("gnss_velocity_enabled", True)]
+    plan = EceCampaignPlan(
+        step_cases=2, robustness_cases=2, diffusion_cases=2,
+        sensors={"gnss_velocity_enabled": True},
+    )  # fmt: skip
+    cases = ece_r64_cases(plan)
+    assert {c.kind for c in cases} == {"step", "robustness", "diffusion"}
+    for c in cases:
+        assert c.sensors["gnss_velocity_enabled"] is True
+        level = GNSS_LEVELS[c.labels["gnss"]]
+        road = ROAD_LEVELS[c.labels["road"]] if "road" in c.labels else {}
+        assert c.sensors == {**level, **road, "gnss_velocity_enabled": True}
+    # without overrides the drives are exactly their levels (the campaigns run so far)
+    base = ece_r64_cases(dataclasses.replace(plan, sensors={}))
+    assert all("gnss_velocity_enabled" not in c.sensors for c in base)
+
+
 def test_braking_signal_from_speed() -> None:
     t = np.arange(0.0, 30.0, 0.1)
     v = np.where(t < 10.0, 25.0, np.maximum(25.0 - 3.0 * (t - 10.0), 10.0))  # brake 3 m/s^2

@@ -578,6 +578,9 @@ class EceCampaignPlan:
     tyre_sensitivities_mm_per_kpa: tuple[float, ...] = TYRE_SENSITIVITIES_MM_PER_KPA
     gnss_levels: tuple[str, ...] = ("good", "standard", "poor")
     road_levels: tuple[str, ...] = tuple(ROAD_LEVELS)
+    #: SensorConfig overrides applied to every drive over its GNSS and road level (e.g.
+    #: ``gnss_velocity_enabled``)
+    sensors: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if not self.tyre_sensitivities_mm_per_kpa or any(
@@ -683,7 +686,7 @@ def ece_r64_cases(plan: EceCampaignPlan) -> list[CaseSpec]:
                     "deflation_time_min": ev / 60.0,
                     "pressure_sensitivity_mm_per_kpa": sens,
                 },
-                sensors={**GNSS_LEVELS[gnss], **ROAD_LEVELS[road]},
+                sensors={**GNSS_LEVELS[gnss], **ROAD_LEVELS[road], **plan.sensors},
                 labels={"wheel": wheel, "tyre": f"{sens:g}", "gnss": gnss, "road": road},
                 deflated_wheels=(wheel,),
                 event_s=ev,
@@ -707,7 +710,7 @@ def ece_r64_cases(plan: EceCampaignPlan) -> list[CaseSpec]:
                 seed=seed,
                 minutes=plan.robustness_minutes,
                 options={"pressure_sensitivity_mm_per_kpa": sens},
-                sensors={**GNSS_LEVELS[gnss], **ROAD_LEVELS[road]},
+                sensors={**GNSS_LEVELS[gnss], **ROAD_LEVELS[road], **plan.sensors},
                 labels={"tyre": f"{sens:g}", "gnss": gnss, "road": road},
                 detector_calibration_s=cal,
                 estimator=_estimator_overrides(plan, cal),
@@ -743,7 +746,7 @@ def ece_r64_cases(plan: EceCampaignPlan) -> list[CaseSpec]:
                     "start_min": start_s / 60.0,
                     "pressure_sensitivity_mm_per_kpa": sens,
                 },
-                sensors=dict(GNSS_LEVELS[dgnss]),
+                sensors={**GNSS_LEVELS[dgnss], **plan.sensors},
                 labels={"tyre": f"{sens:g}", "gnss": dgnss, "rate": f"{rate:g}"},
                 deflated_wheels=picks,
                 event_s=start_s,
@@ -1396,6 +1399,17 @@ def _sensor_options(items: Sequence[tuple[str, Any]] | None) -> dict[str, Any]:
     return d
 
 
+def _add_sensor_arg(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--sensor",
+        action="append",
+        type=_key_value,
+        metavar="KEY=VALUE",
+        help="SensorConfig override of the simulated drives, e.g. gnss_velocity_enabled=true "
+        "(repeatable)",
+    )
+
+
 def _key_value(text: str) -> tuple[str, Any]:
 
     if "=" not in text:
@@ -1493,6 +1507,7 @@ def _cmd_ece_r64(args: argparse.Namespace) -> int:
         tyre_sensitivities_mm_per_kpa=tuple(args.tyres),
         gnss_levels=tuple(args.gnss),
         road_levels=tuple(args.roads),
+        sensors=_sensor_options(args.sensor),
     )
     summary = run_ece_r64_campaign(
         args.out,
@@ -1570,14 +1585,7 @@ def add_campaign_parser(subparsers: Any) -> argparse.ArgumentParser:
         default="calibration",
         help="GNSS level (default: calibration, 1.5 m total per axis)",
     )
-    cal.add_argument(
-        "--sensor",
-        action="append",
-        type=_key_value,
-        metavar="KEY=VALUE",
-        help="SensorConfig override of the simulated drives, e.g. gnss_velocity_enabled=true "
-        "(repeatable)",
-    )
+    _add_sensor_arg(cal)
     _add_exec_args(cal)
     cal.set_defaults(func=_cmd_calibration)
 
@@ -1630,6 +1638,7 @@ def add_campaign_parser(subparsers: Any) -> argparse.ArgumentParser:
         action="store_true",
         help="keep each case's estimator traces in OUT/traces (for campaign redetect)",
     )
+    _add_sensor_arg(ece)
     _add_exec_args(ece)
     ece.set_defaults(func=_cmd_ece_r64)
 
