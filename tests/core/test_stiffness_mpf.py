@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from scipy import stats as sst
 
 from tire_estimation.core import niw
@@ -21,6 +22,7 @@ from tire_estimation.core.stiffness_mpf import (
     yaw_rate_nis,
 )
 from tire_estimation.core.vehicle import VehicleParams
+from tire_estimation.errors import ConfigError
 from tire_estimation.evaluation import stiffness as stiffness_eval
 from tire_estimation.sim import SensorConfig, simulate
 
@@ -260,6 +262,39 @@ def test_bias_gate_holds_the_gyro_bias_while_the_model_disagrees() -> None:
         straight.update(y, 0.0, u, False)
     assert straight.bias_updated
     assert straight.estimate().bias[2] > np.radians(1.0)
+
+
+def test_bias_hold_keeps_the_bias_after_initialization() -> None:
+    # bias_hold_s: no bias update (eq. 30) within the hold after initialize(), even on straight
+    # driving where it otherwise always runs; a re-initialization restarts the hold
+    y = np.array([0.0, 0.0, np.radians(3.0)])
+    u = (20.0, 20.0)
+    params = SingleTrackParams.from_vehicle(VehicleParams())
+    cfg = StiffnessEstimatorConfig(n_particles=50, bias_hold_s=1.0)
+    mpf = StiffnessMpf(cfg, params, np.random.default_rng(3))
+    mpf.initialize(np.array([20.0, 0.0, 0.0]), np.array([0.1, 0.05, 0.002]))
+    for _ in range(90):
+        mpf.predict(0.01, False)
+        mpf.update(y, 0.0, u, False)
+    assert mpf.time_since_init == pytest.approx(0.9)
+    assert not mpf.bias_updated
+    assert np.all(mpf.b == 0.0)
+    for _ in range(110):
+        mpf.predict(0.01, False)
+        mpf.update(y, 0.0, u, False)
+    assert mpf.bias_updated
+    assert mpf.estimate().bias[2] > np.radians(1.0)
+    mpf.initialize(np.array([20.0, 0.0, 0.0]), np.array([0.1, 0.05, 0.002]))
+    mpf.predict(0.01, False)
+    mpf.update(y, 0.0, u, False)
+    assert mpf.time_since_init == pytest.approx(0.01)
+    assert not mpf.bias_updated
+    assert np.all(mpf.b == 0.0)
+
+
+def test_bias_hold_must_be_non_negative() -> None:
+    with pytest.raises(ConfigError):
+        StiffnessEstimatorConfig(bias_hold_s=-1.0)
 
 
 def test_bias_model_matches_the_simulator_imu() -> None:

@@ -57,6 +57,12 @@ class StiffnessEstimatorConfig:
             exponential mean over ``bias_gate_window_s``) is at most this, 1 (default 3.0). On
             straight driving it always runs; after initialization the gate starts closed.
         bias_gate_window_s: time constant of that mean, s (default 1.0).
+        bias_hold_s: the bias update (eq. 30) does not run for this long after the filter is
+            (re)initialized, whether the stiffness is learned or not, s (default 0.0). The
+            per-particle bias filters would take the initial transient of the lateral state
+            (P_0) and of the stiffness (prior) as bias, which the gate above then keeps; a hold
+            did not reduce the run-aways on ``stiffness_step`` reliably (4, 7, 12 s: 11, 4, 10
+            of 40 against 8; docs/results.md, "IMU biases on `stiffness_step`").
         initial_vx_std_m_s: initial std of vX around the measured speed, m/s (default 0.3).
         initial_vy_std_m_s: initial std of vY, m/s (default 0.3).
         initial_yaw_rate_std_rad_s: initial std of the yaw rate, rad/s (default 0.0175).
@@ -134,6 +140,7 @@ class StiffnessEstimatorConfig:
     gyro_bias_walk_rad_s_sqrt_s: float = 0.0001
     bias_gate_sigma: float = 3.0
     bias_gate_window_s: float = 1.0
+    bias_hold_s: float = 0.0
     initial_vx_std_m_s: float = 0.3
     initial_vy_std_m_s: float = 0.3
     initial_yaw_rate_std_rad_s: float = 0.0175
@@ -203,6 +210,7 @@ class StiffnessEstimatorConfig:
             "gyro_bias_std_rad_s",
             "accel_bias_walk_m_s2_sqrt_s",
             "gyro_bias_walk_rad_s_sqrt_s",
+            "bias_hold_s",
             "initial_vx_std_m_s",
             "initial_vy_std_m_s",
             "initial_yaw_rate_std_rad_s",

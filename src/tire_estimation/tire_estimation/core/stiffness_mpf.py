@@ -26,7 +26,8 @@ Approximation 1 (a residual far outside ``S`` barely moves the bias) and, while 
 is learned, runs only while the particles' yaw rate plus bias agrees with the gyro
 (:func:`yaw_rate_nis`, exponential mean below ``bias_gate_sigma^2``; the gyro row of ``d`` is
 zero, so otherwise the per-particle bias filters absorb every yaw-rate model error, after which
-the gyro no longer constrains the yaw rate and the filter diverges);
+the gyro no longer constrains the yaw rate and the filter diverges); it does not run within
+``bias_hold_s`` of the initialization (the initial state and stiffness transient is not bias);
 (vi) without longitudinal excitation the Cx part of the statistics is frozen
 (:func:`freeze_component`); (vii) with a measured speed and no wheel speeds the slip (eq. 3),
 hence the longitudinal tyre force, is unknown: by default (``measured_speed_model`` =
@@ -394,6 +395,8 @@ class StiffnessMpf:
         self.yaw_rate_nis = 0.0
         self.yaw_rate_nis_mean = 0.0
         self.bias_updated = False
+        #: time since :meth:`initialize`, s (the bias hold, ``bias_hold_s``)
+        self.time_since_init = 0.0
         self._dt_s = 0.0
         self._before_learning: niw.NiwStats | None = None
         # compiled path: ancestors without resampling, "no freeze", constant of eq. (35)
@@ -428,6 +431,7 @@ class StiffnessMpf:
         self.initialized = True
         # the gate of the bias update starts closed: the yaw rate must first prove consistent
         self.yaw_rate_nis_mean = 4.0 * self.config.bias_gate_sigma**2
+        self.time_since_init = 0.0
 
     def predict(self, dt_s: float, learn: bool, learn_cx: bool | None = None) -> None:
         """Time update to the next IMU sample: eq. (9) state, (20) NiW, (29) bias.
@@ -458,6 +462,18 @@ class StiffnessMpf:
             # eq. (29) P_{k+1} = P_k + Q
             bias_predict(self.p_bias, self.q_rate * dt_s)
         self._dt_s = dt_s
+        self.time_since_init += dt_s
+
+    def bias_gate_open(self, learn: bool) -> bool:
+        """Whether the bias update (30) runs at this step (deviation v).
+
+        Not within ``bias_hold_s`` of :meth:`initialize`; after that always on straight driving
+        (``learn`` False) and, while the stiffness is learned, when the exponential mean of the
+        yaw-rate NIS is at most ``bias_gate_sigma^2``.
+        """
+        if self.time_since_init < self.config.bias_hold_s:
+            return False
+        return (not learn) or self.yaw_rate_nis_mean <= self.config.bias_gate_sigma**2
 
     def update(
         self,
@@ -597,9 +613,7 @@ class StiffnessMpf:
         resid = e_bar - np.einsum("nij,nj->ni", lin.d, self.stats.mean)
         # eq. (30) on straight driving; while learning only when the particles' yaw rate plus
         # bias agrees with the gyro (else the bias filters absorb the yaw-rate model error)
-        self.bias_updated = (not learn) or (
-            self.yaw_rate_nis_mean <= self.config.bias_gate_sigma**2
-        )
+        self.bias_updated = self.bias_gate_open(learn)
         if self.bias_updated:
             bias_update(self.b, self.p_bias, resid, extra, r_cov, lp.dof)
         # line 18 (first half): derivative for eq. (9), applied in predict()
@@ -656,9 +670,7 @@ class StiffnessMpf:
         self.log_w = np.log(self.weights)
         # eq. (30) on straight driving; while learning only when the particles' yaw rate plus
         # bias agrees with the gyro (else the bias filters absorb the yaw-rate model error)
-        self.bias_updated = (not learn) or (
-            self.yaw_rate_nis_mean <= self.config.bias_gate_sigma**2
-        )
+        self.bias_updated = self.bias_gate_open(learn)
         mean0 = scale00 = self._no_freeze
         if learn and freeze_before is not None:
             # freeze_component: E[Sigma_00] = Lambda_00 / (nu - 4) (eq. 27b) unchanged
