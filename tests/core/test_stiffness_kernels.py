@@ -182,7 +182,7 @@ def test_posterior_step_matches_the_numpy_reference(
     got = sk.posterior_step(
         idx, inp["x"], inp["b"], inp["p_bias"], inp["mean"], inp["scale"], GAMMA, NU, inp["d"],
         inp["a"], inp["rate"], inp["r_cov"], e_bar, z, shape_inv, maha, lower, upper, learn,
-        mean0, scale00, bias_on, rng,
+        mean0, scale00, bias_on, empty, rng,
     )  # fmt: skip
     names = ("x", "b", "p_bias", "rate", "mean", "scale", "w")
     for name, g, r in zip(names, got, ref, strict=True):
@@ -246,6 +246,8 @@ def _filter_run(compiled: bool, scenario: str, **cfg: object) -> np.ndarray:
     [
         ("asphalt_sine", {}),
         ("lane_change", {"stiffness_noise_std_fraction": 0.2, "resampler": "residual"}),
+        ("asphalt_sine", {"niw_update": "tempered", "rejuvenation_bandwidth": 0.1}),
+        ("lane_change", {"niw_update": "rao_blackwellized"}),
     ],
 )
 def test_compiled_filter_equals_the_numpy_filter(scenario: str, cfg: dict) -> None:

@@ -133,6 +133,28 @@ def measurement_update(stats: NiwStats, w: F64) -> None:
     stats.dof += 1.0
 
 
+def measurement_update_split(
+    stats: NiwStats, w: F64, loc: F64, gain_loc: float, gain_w: float, gamma_new: float
+) -> None:
+    """Eq. (23) with a split update of the mean and a given ``gamma``, in place.
+
+    ``Lambda`` and ``nu`` as :func:`measurement_update` with the sample ``w`` (N, d) (eq. 23c-d);
+    the mean moves by ``gain_loc (loc - mean) + gain_w (w - loc)`` with ``loc`` (N, d) the
+    conditional mean of ``w`` given this step's measurement, and ``gamma`` becomes the shared
+    ``gamma_new``. ``gain_loc = gain_w = gamma / (1 + gamma)`` and ``gamma_new = gamma / (1 +
+    gamma)`` is :func:`measurement_update` (up to rounding). Shared ``gamma`` only.
+    """
+    g_pred = stats.gamma
+    diff = w - stats.mean
+    c = 1.0 / (1.0 + g_pred)
+    # eq. (23d) Lambda += (mean_pred - w)(mean_pred - w)^T / (1 + gamma_pred)
+    stats.scale += c * (diff[:, :, None] * diff[:, None, :])
+    stats.mean += gain_loc * (loc - stats.mean) + gain_w * (w - loc)
+    stats.gamma[...] = gamma_new
+    # eq. (23c) nu_{k|k} = nu_{k|k-1} + 1
+    stats.dof += 1.0
+
+
 def predictive_dof(dof: F64 | float, d: int) -> F64:
     """Degrees of freedom ``nu - d + 1`` of the Student-t predictive (eq. 27)."""
     return np.asarray(dof, dtype=float) - d + 1.0

@@ -16,6 +16,7 @@ DRIVE_CHOICES = ("vehicle", "front", "rear", "all")
 SPEED_MODELS = ("input", "kinematic")
 RESAMPLERS = ("systematic", "stratified", "multinomial", "residual")
 STATE_PROPOSALS = ("prior", "measured")
+NIW_UPDATES = ("sampled", "tempered", "rao_blackwellized")
 
 
 @dataclass(frozen=True)
@@ -80,6 +81,21 @@ class StiffnessEstimatorConfig:
             ``measured_speed_model`` = ``kinematic``, vX (measured speed); those rows are then
             weighed with their Gaussian predictive and the other rows with their Student-t
             marginal (``core/stiffness_proposal.py``) (default ``prior``).
+        niw_update: how a step's draw of ``w`` updates the mean ``mu`` and ``gamma`` of the NiW
+            statistics while the stiffness is learned (not in the paper;
+            ``stiffness_mpf.niw_mean_gains``): ``sampled`` is eq. (19) with ``w_bar = w_k``
+            (Remark 3); ``tempered`` counts the draw as the fraction ``alpha = beta / (1 + gamma
+            (1 - beta))`` of an observation, ``beta`` the share of the predictive variance of
+            ``w`` that this measurement explains (mean over the particles and the learned
+            components); ``rao_blackwellized`` moves the mean to the conditional mean of ``w``
+            given the measurement (eq. 41) and commits only the share ``beta`` of the draw's
+            deviation from it, ``gamma`` keeping the rest of the posterior variance of ``mu``.
+            ``Lambda`` and ``nu`` follow eq. (19) in every mode (default ``sampled``).
+        rejuvenation_bandwidth: Liu & West (2001) kernel shrinkage of the NiW means after each
+            resampling while the stiffness is learned: ``mu_i <- a mu_i + (1 - a) mu_bar + h
+            N(0, V)``, ``a = sqrt(1 - h^2)``, ``mu_bar`` and ``V`` the mean and covariance of the
+            resampled means (learned components only); keeps those two moments, 1; 0 switches it
+            off (default 0.0).
         wheel_radius_m: effective wheel radius R_w of eq. (3), m; 0 uses the vehicle's nominal
             radius (default 0.0).
         rolling_resistance_n: known constant longitudinal resistance, N (default 0.0, the
@@ -148,6 +164,8 @@ class StiffnessEstimatorConfig:
     state_jitter_vy_m_s_sqrt_s: float = 0.006
     state_jitter_yaw_rate_rad_s_sqrt_s: float = 0.0006
     state_proposal: str = "prior"
+    niw_update: str = "sampled"
+    rejuvenation_bandwidth: float = 0.0
     wheel_radius_m: float = 0.0
     rolling_resistance_n: float = 0.0
     drag_n_s2_m2: float = 0.0
@@ -181,6 +199,9 @@ class StiffnessEstimatorConfig:
             raise ConfigError(
                 "state_proposal", self.state_proposal, f"must be one of {STATE_PROPOSALS}"
             )
+        if self.niw_update not in NIW_UPDATES:
+            raise ConfigError("niw_update", self.niw_update, f"must be one of {NIW_UPDATES}")
+        require_range("rejuvenation_bandwidth", self.rejuvenation_bandwidth, 0.0, 0.99)
         if self.drive not in DRIVE_CHOICES:
             raise ConfigError("drive", self.drive, f"must be one of {DRIVE_CHOICES}")
         require_range("initial_stiffness_factor", self.initial_stiffness_factor, 0.05, 5.0)

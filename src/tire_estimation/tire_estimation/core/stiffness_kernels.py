@@ -302,6 +302,28 @@ def likelihood_weights(
 
 
 @numba.njit(cache=True, error_model="numpy")
+def information_fraction(
+    d: F64, scale: F64, shape_inv: F64, w_fac: float, components: F64, weights: F64
+) -> float:
+    """Weighted mean over particles of ``stiffness_mpf.information_fraction``, one pass.
+
+    ``B_i = Lambda_11 d^T Lambda~_e^-1 d`` with ``Lambda_11 = w_fac Lambda`` (eq. 21, ``w_fac =
+    (1 + gamma) / nu~``), ``shape_inv`` from :func:`likelihood_weights`; ``beta_i`` the mean of
+    ``diag(B_i)`` over ``components`` (3,) (1 learned, 0 not); returns ``sum_i weights_i
+    beta_i``.
+    """
+    n = d.shape[0]
+    n_c = components[0] + components[1] + components[2]
+    total = 0.0
+    for i in range(n):
+        di = _ld(d[i])
+        bm = _mm(_mm(_mm(_ld(scale[i], w_fac), _tr(di)), _ld(shape_inv[i])), di)
+        tr = components[0] * bm[0] + components[1] * bm[4] + components[2] * bm[8]
+        total += weights[i] * (tr / n_c)
+    return total
+
+
+@numba.njit(cache=True, error_model="numpy")
 def posterior_step(
     idx: IDX,
     x: F64,
@@ -325,6 +347,7 @@ def posterior_step(
     freeze_mean0: F64,
     freeze_scale00: F64,
     bias_on: bool,
+    mean_gains: F64,
     rng: np.random.Generator,
 ) -> tuple[F64, F64, F64, F64, F64, F64, F64]:
     """Algorithm 1 lines 4, 15, 17-18 for the particles ``idx`` (ancestors after resampling).
@@ -339,7 +362,9 @@ def posterior_step(
     ``stiffness_mpf.freeze_component`` (particle ``i`` with ancestor ``j`` gets the mean
     ``freeze_mean0[j]`` and variance ``freeze_scale00[j]``, already scaled by the ratio of
     ``nu - 4``); ``bias_on`` runs the bias
-    update (30).
+    update (30). ``mean_gains`` (2,) non-empty ``(g_loc, g_w)`` replaces the mean update of eq.
+    (19) by ``mu += g_loc (loc - mu) + g_w (w - loc)`` (``loc`` the conditional mean of eq. 41;
+    ``stiffness_mpf.niw_mean_gains``); empty is eq. (19).
 
     Returns new arrays ``(x, b, p_bias, rate, mean, scale, w)``: ``rate = rate_n + a w`` for
     eq. (9) of the next step, ``w`` (N, 3) the sampled stiffness deviation after projection.
@@ -365,6 +390,9 @@ def posterior_step(
     # eq. (27b) Sigma_{k|k} = Lambda / (nu - d - 1)
     nu_s = nu_post - 3.0 - 1.0
     freeze = freeze_mean0.shape[0] > 0
+    split = mean_gains.shape[0] > 0
+    g_loc = mean_gains[0] if split else 0.0
+    g_w = mean_gains[1] if split else 0.0
     x_o = np.empty((n, 3))
     b_o = np.empty((n, 3))
     p_o = np.empty((n, 3, 3))
@@ -423,11 +451,22 @@ def posterior_step(
                 lam[6] + c_niw * (dw[2] * dw[0]), lam[7] + c_niw * (dw[2] * dw[1]),
                 lam[8] + c_niw * (dw[2] * dw[2]),
             )  # fmt: skip
-            mu = (
-                _clip(mu[0] + g_new * dw[0], lower[0], upper[0]),
-                _clip(mu[1] + g_new * dw[1], lower[1], upper[1]),
-                _clip(mu[2] + g_new * dw[2], lower[2], upper[2]),
-            )
+            if split:
+                # niw_update tempered / rao_blackwellized: mu += g_loc (loc - mu) + g_w (w - loc)
+                mu = (
+                    _clip(mu[0] + (g_loc * (loc[0] - mu[0]) + g_w * (w0 - loc[0])), lower[0],
+                          upper[0]),
+                    _clip(mu[1] + (g_loc * (loc[1] - mu[1]) + g_w * (w1 - loc[1])), lower[1],
+                          upper[1]),
+                    _clip(mu[2] + (g_loc * (loc[2] - mu[2]) + g_w * (w2 - loc[2])), lower[2],
+                          upper[2]),
+                )  # fmt: skip
+            else:
+                mu = (
+                    _clip(mu[0] + g_new * dw[0], lower[0], upper[0]),
+                    _clip(mu[1] + g_new * dw[1], lower[1], upper[1]),
+                    _clip(mu[2] + g_new * dw[2], lower[2], upper[2]),
+                )
             if freeze:
                 # deviation (vi): Cx mean and E[Sigma_00] (eq. 27b) as before this step, of the
                 # particle's ancestor j (the statistics before resampling)

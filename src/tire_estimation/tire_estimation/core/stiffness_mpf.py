@@ -34,7 +34,11 @@ hence the longitudinal tyre force, is unknown: by default (``measured_speed_mode
 ``kinematic``) the measured ax drives vX (eq. 1a as kinematics, ``dvX/dt = ax + vY r``) and the
 speed replaces ax as measurement row 0 (``stiffness_model.kinematic_speed_row``); the ax bias
 is then not estimated; (viii) optional saturating lateral tyre ``Fy = C alpha_s tanh(alpha /
-alpha_s)`` (``friction_coefficient``, still affine in ``C``).
+alpha_s)`` (``friction_coefficient``, still affine in ``C``); (ix) optional, against the
+collapse of the particles onto a jointly scaled stiffness pair at activation: the NiW mean and
+``gamma`` updated with the measurement's information share of the draw of ``w``
+(``niw_update``, :func:`niw_mean_gains`), and a Liu & West (2001) shrinkage kernel on the
+means after resampling (``rejuvenation_bandwidth``, :func:`rejuvenate_means`).
 
 Speed: :meth:`StiffnessMpf.predict` and :meth:`StiffnessMpf.update` run the per-particle algebra
 after the linearization in the compiled kernels of :mod:`.stiffness_kernels` (three passes over
@@ -46,6 +50,7 @@ the particles per IMU step, the same random stream); the vectorized NumPy functi
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -278,6 +283,91 @@ def sample_student_t(cp: ConditionalPredictive, rng: np.random.Generator) -> F64
     return niw.student_t_from_draws(cp.loc, chol, cp.dof, z, chi2)
 
 
+def information_fraction(w_shape: F64, d: F64, shape_inv: F64, components: F64) -> F64:
+    """Share ``beta`` of the predictive variance of ``w`` that one measurement explains, (N,).
+
+    ``B = Lambda_11 d^T Lambda~_e^-1 d`` (the gain of eq. 41 times ``d``; ``w_shape`` =
+    ``Lambda_11`` and ``shape_inv`` = ``Lambda~_e^-1`` of :class:`LikelihoodParams`, ``d`` (N, 3,
+    3)): the conditional shape of ``w`` is ``(I - B) Lambda_11`` (eq. 41 without the Student-t
+    factor), so the eigenvalues of ``B`` in [0, 1) are the variance shares the measurement
+    removes. ``beta_i`` is the mean of the diagonal of ``B_i`` over ``components`` (3,) (1 for a
+    learned component, 0 otherwise): ``tr`` of the removed share in the metric of ``Lambda``,
+    per learned component.
+    """
+    b = np.einsum("nij,nkj,nkl,nlm->nim", w_shape, d, shape_inv, d)
+    return np.einsum("nii,i->n", b, components) / float(np.sum(components))
+
+
+def niw_mean_gains(gamma: float, beta: float, mode: str) -> tuple[float, float, float]:
+    """Gains of the NiW mean update and the new ``gamma`` (``niw_update``; not in the paper).
+
+    The mean moves by ``g_loc (loc - mu) + g_w (w - loc)``, ``loc`` the conditional mean of the
+    draw ``w`` (eq. 41), ``Lambda`` and ``nu`` as eq. (19). Returns ``(g_loc, g_w, gamma_new)``.
+
+    Derivation (Gaussian, ``S = E[Sigma]``, ``g = gamma``): with ``mu ~ N(m, g S)`` and ``w ~
+    N(mu, S)`` the predictive of ``w`` is ``(1 + g) S`` and its conditional given the
+    measurement ``P_w = (1 - beta)(1 + g) S`` (:func:`information_fraction`, trace-averaged).
+    The exact posterior of ``mu`` given the measurement (``w`` integrated out) has the mean
+    ``m + g / (1 + g) (loc - m)`` and the variance ``[g / (1 + g) + g^2 (1 - beta) / (1 + g)]
+    S`` (Kalman update of ``mu``; the gain of ``mu`` is ``g / (1 + g)`` times that of ``w``).
+
+    * ``sampled`` (eq. 19, Remark 3): ``g_loc = g_w = g / (1 + g)``, ``gamma_new = g / (1 +
+      g)``: exact given the draw; across the particles the draws add the spread ``(g / (1 +
+      g))^2 P_w`` to the means, which makes up the total. At activation (``beta`` about 0, ``g``
+      = 100) each mean jumps onto its own prior draw and ``gamma`` falls to 1.
+    * ``tempered``: the draw counts as the fraction ``alpha = beta / (1 + g (1 - beta))`` of an
+      observation (NiW update with ``w ~ N(mu, Sigma / alpha)``: ``kappa += alpha``): the
+      effective observation that gives the measurement's information ``beta`` about ``w``
+      has the noise ``R_w`` with ``S / (S + R_w) = alpha``. ``g_loc = g_w = alpha g / (1 + alpha
+      g) = g beta / (1 + g)``, ``gamma_new = g / (1 + alpha g)`` (= the exact variance above).
+    * ``rao_blackwellized``: the exact mean (``g_loc = g / (1 + g)``) plus the share ``beta``
+      of the draw's deviation (``g_w = beta g / (1 + g)``: the state is propagated with ``w``,
+      and a draw the measurement does not inform carries nothing about ``mu``); ``gamma_new =
+      g / (1 + g) + (1 - beta^2) g^2 (1 - beta) / (1 + g)``, so that within (``gamma_new S``)
+      plus between the particles (``g_w^2 P_w``) is the exact variance (law of total variance).
+
+    Both are eq. (19) at ``beta = 1``.
+    """
+    k = gamma / (1.0 + gamma)
+    if mode == "sampled":
+        return k, k, k
+    if mode == "tempered":
+        return k * beta, k * beta, gamma * (1.0 + gamma * (1.0 - beta)) / (1.0 + gamma)
+    if mode == "rao_blackwellized":
+        return k, k * beta, k + (1.0 - beta * beta) * gamma * k * (1.0 - beta)
+    raise ValueError(f"unknown niw_update {mode!r}")
+
+
+def rejuvenate_means(
+    mean: F64,
+    bandwidth: float,
+    components: NDArray[np.intp],
+    lower: F64,
+    upper: F64,
+    rng: np.random.Generator,
+) -> None:
+    """Liu & West (2001) kernel shrinkage of equally weighted NiW means, in place.
+
+    ``mu_i <- a mu_i + (1 - a) mu_bar + h L z_i`` for the ``components`` of ``mean`` (N, 3),
+    ``a = sqrt(1 - h^2)``, ``mu_bar`` and ``V = L L^T`` the mean and covariance of the means,
+    ``z_i ~ N(0, I)``: the kernel keeps ``mu_bar`` and ``V`` (``a^2 V + h^2 V = V``) and gives
+    the copies of a resampled particle distinct means. Projected to ``lower`` / ``upper``
+    (Sec. V).
+    """
+    h = float(bandwidth)
+    a = math.sqrt(1.0 - h * h)
+    m = mean[:, components]
+    m_bar = m.mean(axis=0)
+    dev = m - m_bar
+    v = dev.T @ dev / m.shape[0]
+    # a relative 1e-9 ridge keeps the factor of a (numerically) singular V finite
+    v += 1e-9 * np.trace(v) * np.eye(len(components)) + 1e-300 * np.eye(len(components))
+    chol = np.linalg.cholesky(v)
+    z = rng.standard_normal((m.shape[0], len(components)))
+    new = a * m + (1.0 - a) * m_bar + h * (z @ chol.T)
+    mean[:, components] = np.clip(new, lower[components], upper[components])
+
+
 def freeze_component(stats: niw.NiwStats, before: niw.NiwStats, j: int) -> None:
     """Undo this step's NiW prediction (20) and update (19) for component ``j``, in place.
 
@@ -385,6 +475,12 @@ class StiffnessMpf:
         self.log_w = np.full(self.n, -np.log(self.n))
         self.weights = np.full(self.n, 1.0 / self.n)
         self.stats = self.prior_stats()
+        #: prior gamma_0: the cap of gamma with ``niw_update`` other than ``sampled`` (forgetting
+        #: must not make the mean less certain than the prior)
+        self._gamma0 = float(self.stats.gamma)
+        #: ``niw_update``: weighted share of the predictive variance of w explained by the last
+        #: learning step's measurement (:func:`information_fraction`), 1
+        self.information_share = 0.0
         self.n_eff = float(self.n)
         self.resample_count = 0
         #: sum over updates of log p(y_k | y_1:k-1) (nats) and the number of terms: the log
@@ -578,8 +674,17 @@ class StiffnessMpf:
         self.n_eff = resampling.ess(self.weights)
         if not np.all(np.isfinite(self.weights)):
             self.weights = np.full(self.n, 1.0 / self.n)
+        beta = 0.0
+        if learn and self.config.niw_update != "sampled":
+            # niw_update: the share of the predictive variance of w this measurement explains,
+            # weighted with the normalized weights before resampling
+            comps = self._learned_components(freeze_cx)
+            beta = float(
+                self.weights @ information_fraction(lp.w_shape, lin.d, lp.shape_inv, comps)
+            )
         # line 8-10: resample and copy the statistics
-        if self.n_eff <= self.config.resample_threshold * self.n:
+        resampled = self.n_eff <= self.config.resample_threshold * self.n
+        if resampled:
             idx = self._resample(self.weights, self.rng)
             self._take(idx)
             if before is not None:
@@ -599,11 +704,23 @@ class StiffnessMpf:
         # Sec. V parameter projection to physical bounds
         w = np.clip(w, self.lower, self.upper)
         if learn:
-            # line 4: eq. (19) with w_bar = w_k (Remark 3)
-            niw.measurement_update(self.stats, w)
+            if self.config.niw_update == "sampled":
+                # line 4: eq. (19) with w_bar = w_k (Remark 3)
+                niw.measurement_update(self.stats, w)
+            else:
+                # eq. (19) for Lambda and nu, the mean and gamma by niw_mean_gains
+                g_loc, g_w, g_new = niw_mean_gains(
+                    float(self.stats.gamma), beta, self.config.niw_update
+                )
+                niw.measurement_update_split(
+                    self.stats, w, cp.loc, g_loc, g_w, min(g_new, self._gamma0)
+                )
+                self.information_share = beta
             np.clip(self.stats.mean, self.lower, self.upper, out=self.stats.mean)
             if freeze_cx and before is not None:
                 freeze_component(self.stats, before, 0)
+            if resampled:
+                self._rejuvenate(freeze_cx)
         # line 15: eq. (30) with mu_{k|k} and Sigma_{k|k} = Lambda / (nu - 4)
         sigma = self.stats.scale / np.reshape(
             np.asarray(self.stats.dof) - NW - 1.0, (-1, 1, 1) if np.ndim(self.stats.dof) else ()
@@ -672,6 +789,18 @@ class StiffnessMpf:
         # bias agrees with the gyro (else the bias filters absorb the yaw-rate model error)
         self.bias_updated = self.bias_gate_open(learn)
         mean0 = scale00 = self._no_freeze
+        gains = self._no_freeze
+        g_new = gamma / (1.0 + gamma)
+        if learn and self.config.niw_update != "sampled":
+            # the share of the predictive variance of w this measurement explains
+            beta = stiffness_kernels.information_fraction(
+                lin.d, st.scale, shape_inv, (1.0 + gamma) / (nu - NW + 1.0),
+                self._learned_components(freeze_before is not None), weights,
+            )  # fmt: skip
+            g_loc, g_w, g_new = niw_mean_gains(gamma, beta, self.config.niw_update)
+            g_new = min(g_new, self._gamma0)
+            gains = np.array([g_loc, g_w])
+            self.information_share = beta
         if learn and freeze_before is not None:
             # freeze_component: E[Sigma_00] = Lambda_00 / (nu - 4) (eq. 27b) unchanged
             ratio = ((np.asarray(st.dof, dtype=float) + 1.0) - NW - 1.0) / (
@@ -683,15 +812,32 @@ class StiffnessMpf:
         x, b, p_bias, rate, mean, scale, _ = stiffness_kernels.posterior_step(
             idx, self.x, self.b, self.p_bias, st.mean, st.scale, gamma, nu, lin.d, lin.a,
             lin.rate, r_cov, e_bar, z, shape_inv, maha, self.lower, self.upper, learn, mean0,
-            scale00, self.bias_updated, self.rng,
+            scale00, self.bias_updated, gains, self.rng,
         )  # fmt: skip
         self.x, self.b, self.p_bias, self.rate = x, b, p_bias, rate
         st.mean, st.scale = mean, scale
         if learn:
-            # eq. (19) shared scalars: gamma_{k|k} = gamma / (1 + gamma), nu_{k|k} = nu + 1
-            c = 1.0 / (1.0 + st.gamma)
-            st.gamma[...] = st.gamma * c
+            if self.config.niw_update == "sampled":
+                # eq. (19) shared scalars: gamma_{k|k} = gamma / (1 + gamma), nu_{k|k} = nu + 1
+                c = 1.0 / (1.0 + st.gamma)
+                st.gamma[...] = st.gamma * c
+            else:
+                # niw_mean_gains (capped at the prior gamma_0); nu as eq. (19)
+                st.gamma[...] = g_new
             st.dof += 1.0
+            if idx is not self._identity:
+                self._rejuvenate(freeze_before is not None)
+
+    def _learned_components(self, freeze_cx: bool) -> F64:
+        """1 for each component of ``w`` learned in this step, 0 for a frozen Cx, (3,)."""
+        return np.array([0.0 if freeze_cx else 1.0, 1.0, 1.0])
+
+    def _rejuvenate(self, freeze_cx: bool) -> None:
+        """:func:`rejuvenate_means` after a resampling while learning (if its bandwidth > 0)."""
+        h = self.config.rejuvenation_bandwidth
+        if h > 0.0:
+            comps = np.flatnonzero(self._learned_components(freeze_cx))
+            rejuvenate_means(self.stats.mean, h, comps, self.lower, self.upper, self.rng)
 
     def measurement_cov(self, delta_rad: float, wheel_speed_m_s: tuple[float, float]) -> F64:
         """Measurement-noise covariance of ``y`` per particle, (N, 3, 3).

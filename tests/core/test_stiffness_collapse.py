@@ -1,0 +1,168 @@
+"""The NiW update modes and the mean rejuvenation against the particle collapse at activation.
+
+``niw_update`` (``stiffness_mpf.niw_mean_gains``, ``information_fraction``) and
+``rejuvenation_bandwidth`` (``rejuvenate_means``, Liu & West 2001); not in the paper.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tire_estimation.core import niw
+from tire_estimation.core import stiffness_kernels as sk
+from tire_estimation.core.stiffness_config import StiffnessEstimatorConfig
+from tire_estimation.core.stiffness_mpf import (
+    conditional_predictive,
+    information_fraction,
+    likelihood_params,
+    niw_mean_gains,
+    rejuvenate_means,
+    sample_student_t,
+)
+from tire_estimation.errors import ConfigError
+from tire_estimation.evaluation.stiffness import sine_study
+
+MODES = ("sampled", "tempered", "rao_blackwellized")
+
+
+def _spd(rng: np.random.Generator, n: int, scale: float) -> np.ndarray:
+    a = rng.standard_normal((n, 3, 3))
+    return scale * (a @ np.swapaxes(a, 1, 2) + 0.5 * np.eye(3))
+
+
+def test_config_rejects_unknown_modes_and_bandwidths() -> None:
+    with pytest.raises(ConfigError):
+        StiffnessEstimatorConfig(niw_update="exact")
+    with pytest.raises(ConfigError):
+        StiffnessEstimatorConfig(rejuvenation_bandwidth=1.0)
+    with pytest.raises(ConfigError):
+        StiffnessEstimatorConfig(rejuvenation_bandwidth=-0.1)
+    assert StiffnessEstimatorConfig().niw_update == "sampled"
+    assert StiffnessEstimatorConfig().rejuvenation_bandwidth == 0.0
+
+
+@pytest.mark.parametrize("gamma", [0.01, 1.0, 100.0])
+def test_gains_are_eq19_when_the_measurement_informs_w_fully(gamma: float) -> None:
+    k = gamma / (1.0 + gamma)
+    for mode in MODES:
+        np.testing.assert_allclose(niw_mean_gains(gamma, 1.0, mode), (k, k, k), rtol=1e-15)
+    # eq. (19) does not look at beta
+    assert niw_mean_gains(gamma, 0.1, "sampled") == (k, k, k)
+    with pytest.raises(ValueError):
+        niw_mean_gains(gamma, 0.5, "exact")
+
+
+@pytest.mark.parametrize("beta", [0.0, 0.05, 0.3, 0.8])
+def test_gains_keep_the_exact_posterior_variance_of_the_mean(beta: float) -> None:
+    # in units of S = E[Sigma]: exact Var(mu | y) = g / (1 + g) + g^2 (1 - beta) / (1 + g);
+    # the draw's deviation w - loc has the variance P_w = (1 - beta)(1 + g)
+    g = 100.0
+    exact = g / (1 + g) + g * g * (1 - beta) / (1 + g)
+    p_w = (1 - beta) * (1 + g)
+    g_loc, g_w, g_new = niw_mean_gains(g, beta, "rao_blackwellized")
+    assert g_loc == pytest.approx(g / (1 + g))
+    assert g_new + g_w**2 * p_w == pytest.approx(exact, rel=1e-12)
+    # sampled: the draw carries the same total between the particles
+    _, k_w, g_s = niw_mean_gains(g, beta, "sampled")
+    assert g_s + k_w**2 * p_w == pytest.approx(exact, rel=1e-12)
+    # tempered: kappa += alpha with alpha = beta / (1 + g (1 - beta)); gamma_new is the exact
+    alpha = beta / (1 + g * (1 - beta))
+    t_loc, t_w, t_new = niw_mean_gains(g, beta, "tempered")
+    assert t_new == pytest.approx(1.0 / (1.0 / g + alpha), rel=1e-12)
+    assert t_new == pytest.approx(exact, rel=1e-12)
+    assert t_loc == t_w == pytest.approx(alpha * g / (1 + alpha * g), rel=1e-12)
+    # at activation (beta about 0) neither mode moves a mean onto its draw
+    if beta == 0.0:
+        assert g_w == 0.0 and t_w == 0.0 and g_new == pytest.approx(g)
+
+
+def test_information_fraction_is_the_variance_share_the_measurement_removes() -> None:
+    rng = np.random.default_rng(1)
+    n = 16
+    st = niw.init_stats(n, np.zeros(3), 2.0, 12.0, np.diag([3.0, 1.0, 2.0]) * 7.0)
+    st.mean += rng.standard_normal((n, 3))
+    d = rng.standard_normal((n, 3, 3)) * 0.7
+    d[:, 2] = 0.0  # the gyro row carries no d w
+    lp = likelihood_params(st, d, np.diag([0.5, 0.3, 0.1]), _spd(rng, n, 0.01))
+    e_bar = rng.standard_normal((n, 3))
+    cp = conditional_predictive(st, d, e_bar, lp)
+    nu = float(lp.dof)
+    maha = np.einsum("ni,nij,nj->n", e_bar - lp.loc, lp.shape_inv, e_bar - lp.loc)
+    # conditional shape without the Student-t factor: (I - B) Lambda_11
+    p_w = cp.shape / ((nu + maha) / (nu + 3.0))[:, None, None]
+    removed = np.eye(3) - p_w @ np.linalg.inv(lp.w_shape)
+    comps = np.array([0.0, 1.0, 1.0])
+    beta = information_fraction(lp.w_shape, d, lp.shape_inv, comps)
+    np.testing.assert_allclose(beta, (removed[:, 1, 1] + removed[:, 2, 2]) / 2, rtol=1e-9)
+    assert np.all((beta > 0.0) & (beta < 1.0))
+    # the compiled kernel: the weighted mean of the same
+    wts = rng.dirichlet(np.ones(n))
+    w_fac = (1.0 + float(st.gamma)) / nu
+    got = sk.information_fraction(d, st.scale, lp.shape_inv, w_fac, comps, wts)
+    assert got == pytest.approx(float(wts @ beta), rel=1e-12)
+    # an uninformative measurement (d = 0) explains nothing
+    lp0 = likelihood_params(st, np.zeros((n, 3, 3)), np.eye(3), np.zeros((n, 3, 3)))
+    assert np.all(
+        information_fraction(lp0.w_shape, np.zeros((n, 3, 3)), lp0.shape_inv, comps) == 0
+    )
+
+
+def test_rao_blackwellized_update_matches_the_kalman_posterior_of_the_mean() -> None:
+    # one measurement y = d w + e, w ~ N(mu, S), mu ~ N(0, g S): the cloud of updated means plus
+    # gamma_new S has the Kalman posterior's mean and (in the trace) its variance
+    rng = np.random.default_rng(3)
+    n, g, s2, nu = 200_000, 20.0, 4.0, 1e6
+    st = niw.init_stats(n, np.zeros(3), g, nu, np.eye(3) * s2 * (nu - 4.0))
+    d = np.tile(np.array([[0.0, 1.0, 0.8], [0.2, 0.5, -0.3], [0.0, 0.0, 0.0]]), (n, 1, 1))
+    r = np.diag([0.5, 2.0, 1.0])
+    e = np.tile(np.array([3.0, -1.0, 0.0]), (n, 1))
+    lp = likelihood_params(st, d, r, np.zeros((n, 3, 3)))
+    cp = conditional_predictive(st, d, e, lp)
+    w = sample_student_t(cp, rng)
+    beta = float(information_fraction(lp.w_shape, d, lp.shape_inv, np.ones(3)).mean())
+    g_loc, g_w, g_new = niw_mean_gains(g, beta, "rao_blackwellized")
+    niw.measurement_update_split(st, w, cp.loc, g_loc, g_w, g_new)
+    # Kalman posterior of mu with w integrated out (Student-t with nu = 1e6: Gaussian)
+    p_mu = g * s2 * np.eye(3)
+    s_y = d[0] @ ((1 + g) * s2 * np.eye(3)) @ d[0].T + r
+    k = p_mu @ d[0].T @ np.linalg.pinv(s_y)
+    mean_exact = k @ e[0]
+    cov_exact = p_mu - k @ d[0] @ p_mu
+    np.testing.assert_allclose(st.mean.mean(0), mean_exact, atol=0.02)
+    total = np.trace(np.cov(st.mean.T)) + 3 * g_new * s2
+    assert total == pytest.approx(np.trace(cov_exact), rel=0.02)
+    # eq. (19) as printed: the same mean, but all of the spread between the particles
+    assert g_new > 5 * g / (1 + g)
+
+
+def test_rejuvenation_keeps_the_cloud_moments_and_separates_copies() -> None:
+    rng = np.random.default_rng(4)
+    n = 40_000
+    base = rng.multivariate_normal([5.0, -3.0, 1.0], [[4.0, 1.0, 0], [1.0, 2.0, 0], [0, 0, 1]], 50)
+    mean = base[rng.integers(0, 50, n)]  # 50 distinct values, copied (resampled)
+    before = mean.copy()
+    lo, hi = np.full(3, -1e9), np.full(3, 1e9)
+    comps = np.array([1, 2])
+    rejuvenate_means(mean, 0.2, comps, lo, hi, np.random.default_rng(5))
+    np.testing.assert_array_equal(mean[:, 0], before[:, 0])  # a frozen component stays
+    np.testing.assert_allclose(mean[:, 1:].mean(0), before[:, 1:].mean(0), atol=0.01)
+    np.testing.assert_allclose(np.cov(mean[:, 1:].T), np.cov(before[:, 1:].T), rtol=0.03)
+    assert np.unique(mean[:, 1]).size == n
+    # the shrinkage a = sqrt(1 - h^2) ties each copy to its parent
+    corr = np.corrcoef(mean[:, 1], before[:, 1])[0, 1]
+    assert corr == pytest.approx(np.sqrt(1 - 0.04), abs=0.01)
+    # projection to the bounds
+    rejuvenate_means(mean, 0.5, comps, lo, np.full(3, 0.0), np.random.default_rng(6))
+    assert mean[:, 1:].max() <= 0.0
+
+
+@pytest.mark.parametrize(("mode", "factor", "seed"), [("rao_blackwellized", 1.5, 14)])
+def test_the_worst_snow_run_no_longer_locks(mode: str, factor: float, seed: int) -> None:
+    # eq. (19) ends this run at +21.8 / +40.9 % (docs/results.md, snow sine); the update of
+    # ``mode`` within 8 % (the linear tyre's ML pair is 5-7.5 % below the truth on snow)
+    run = sine_study(
+        "snow_sine", factor, 1, n=200, first_seed=seed, overrides={"niw_update": mode}
+    )
+    err = np.array(run["per_run"][0]["steady_mean_rel_error"][1:])
+    assert np.all(np.abs(err) < 0.08)
