@@ -485,6 +485,36 @@ def test_gnss_velocity_latency_is_compensated():
     assert abs(slopes["compensated"]) < 0.06, slopes
 
 
+def test_gnss_velocity_is_not_used_while_accelerating():
+    """``gnss_velocity_max_accel_m_s2``: a velocity while the rear wheels accelerate by more
+    than the gate is skipped (reason ``accelerating``, counted, no drop): an unknown latency
+    ``tau`` biases the speed by ``tau a`` with the sign of ``a``. Drive: |ax| up to 0.31 m/s^2,
+    velocity 0.3 s late and not compensated, gate 0.15 m/s^2."""
+    drive = make_drive(duration_s=120.0, gnss_rate_hz=1.0, seed=5)
+    fix_ax = {}
+    for k in drive["gi"].tolist():
+        fix_ax[int(drive["t_ns"][k])] = float(drive["ax"][max(k - 30, 0)])
+    cfg = RadiusEstimatorConfig(gnss_velocity_enabled=True, gnss_velocity_max_accel_m_s2=0.15)
+    est = RadiusEstimator(cfg, VEH, np.random.default_rng(5))
+    ups = _feed_velocity(est, drive, latency_s=0.3)
+    skipped = [u for u in ups if u.reason == "accelerating"]
+    used = [u for u in ups if u.accepted]
+    assert len(skipped) == est.velocity_skipped_accel and len(used) == est.velocity_updates
+    # |cos| > 0.48 two thirds of the time
+    assert 65 < len(skipped) < 100 and len(used) > 25, (len(skipped), len(used))
+    # the gate reads the wheel acceleration at the velocity's time (0.2 s difference)
+    assert max(abs(fix_ax[u.t_ns]) for u in used) < 0.18
+    assert min(abs(fix_ax[u.t_ns]) for u in skipped) > 0.12
+    assert "gnss_velocity_accelerating" not in est.stats  # not bad input: nothing dropped
+    open_gate = RadiusEstimator(
+        RadiusEstimatorConfig(gnss_velocity_enabled=True, gnss_velocity_max_accel_m_s2=100.0),
+        VEH,
+        np.random.default_rng(5),
+    )
+    assert sum(u.accepted for u in _feed_velocity(open_gate, drive, latency_s=0.3)) > len(used)
+    assert open_gate.velocity_skipped_accel == 0
+
+
 def test_bad_gnss_velocities_are_dropped_and_counted():
     drive = make_drive(duration_s=30.0, gnss_rate_hz=1.0, seed=6)
     est = RadiusEstimator(

@@ -568,7 +568,7 @@ def _assess_effects(
         return run_radius_estimator(est, bag.wheel_speeds, bag.gnss, bag.steering, bag.imu)
 
     def rerun(effect: str, value: float) -> list[RadiusTrace]:
-        values = {**cfg.to_dict(), residuals.CONFIG_FIELDS[effect]: value}
+        values = {**cfg.to_dict(), **residuals.effect_overrides(effect, value)}
         return [run(values, seed) for seed in seeds]
 
     base = [trace] + [run(cfg.to_dict(), seed) for seed in seeds[1:]]

@@ -84,6 +84,10 @@ class RadiusEstimatorConfig:
             gnss_velocity_latency_s``, s. In [-1, 1]; default 0.
         gnss_velocity_latency_std_s: uncertainty of that latency: the speed's variance grows by
             ``(a std)^2`` at the acceleration ``a`` of the wheel speeds, s. Default 0.1.
+        gnss_velocity_max_accel_m_s2: a velocity is not used while the rear wheel speeds
+            accelerate by more than this, m/s^2: an unknown latency ``tau`` leaves a speed
+            error ``tau a`` of one sign for as long as the car accelerates, which a variance
+            cannot absorb; the gate bounds it by ``tau`` times this value. Default 0.5.
         max_gap_s: a wheel-speed gap longer than this re-initializes the pose prediction (the
             learned radii are kept), s. Default 2.
         init_min_distance_m: distance between the two GNSS fixes that initialize the heading,
@@ -182,6 +186,7 @@ class RadiusEstimatorConfig:
     gnss_velocity_lateral_std_m_s: float = 0.2
     gnss_velocity_latency_s: float = 0.0
     gnss_velocity_latency_std_s: float = 0.1
+    gnss_velocity_max_accel_m_s2: float = 0.5
     max_gap_s: float = 2.0
     init_min_distance_m: float = 10.0
     min_speed_m_s: float = 7.0
@@ -244,6 +249,9 @@ class RadiusEstimatorConfig:
         )
         require_range("gnss_velocity_latency_s", self.gnss_velocity_latency_s, -1.0, 1.0)
         require_range("gnss_velocity_latency_std_s", self.gnss_velocity_latency_std_s, 0.0, 1.0)
+        require_range(
+            "gnss_velocity_max_accel_m_s2", self.gnss_velocity_max_accel_m_s2, 0.01, 100.0
+        )
         require_positive("max_gap_s", self.max_gap_s)
         require_positive("init_min_distance_m", self.init_min_distance_m)
         require_non_negative("min_speed_m_s", self.min_speed_m_s)

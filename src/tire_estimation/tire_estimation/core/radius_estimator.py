@@ -73,7 +73,8 @@ class GnssVelocityUpdate:
         innovation_cov_m2_s2: its covariance (2, 2), m^2/s^2.
         nis: normalized innovation squared (0 when not computed).
         accepted: the velocity re-weighted the particles.
-        reason: short explanation (``updated``, ``paused``, ``outlier``, ``disabled``, ...).
+        reason: short explanation (``updated``, ``paused``, ``outlier``, ``disabled``,
+            ``accelerating``, ...).
     """
 
     t_ns: int
@@ -322,6 +323,8 @@ class RadiusEstimator:
         self._speed_hist: deque[tuple[int, float, float]] = deque(maxlen=SPEED_HISTORY)
         #: GNSS velocities that re-weighted the particles
         self.velocity_updates = 0
+        #: GNSS velocities not used because the wheels accelerated (``gnss_velocity_max_accel``)
+        self.velocity_skipped_accel = 0
         self._prev_ws: F64 | None = None
         self._prev_rear: tuple[float, float] = (0.0, 0.0)
         self._t_pose_ns: int | None = None
@@ -875,6 +878,10 @@ class RadiusEstimator:
         k0 = float(np.interp(x - 0.2, rel, w3s + w4s))
         span = min(0.2, x - float(rel[0]))
         accel = (w3 + w4 - k0) * 0.5 * self.model.nominal_radius_m / span if span > 0 else 0.0
+        if abs(accel) > c.gnss_velocity_max_accel_m_s2:
+            # an unknown latency tau biases the speed by tau a while accelerating: not used
+            self.velocity_skipped_accel += 1
+            return GnssVelocityUpdate(t_ns, zeros2, r, 0.0, False, "accelerating")
         along_var = (accel * c.gnss_velocity_latency_std_s) ** 2
         _, yaw_rate = self._rear_speed_yaw_rate(w3, w4)
         # the heading at the velocity's time: the pose is at t_pose, the velocity describes

@@ -649,6 +649,20 @@ CONFIG_FIELDS: dict[str, str] = {
     "gnss_velocity_latency": "gnss_velocity_latency_s",
 }
 
+#: Settings a candidate's profile runs with besides its own field (base point included): the
+#: velocity latency shows only while the wheels accelerate, which the estimator's velocity
+#: gate (``gnss_velocity_max_accel_m_s2``) otherwise leaves out.
+PROFILE_SETTINGS: dict[str, dict[str, float]] = {
+    "gnss_velocity_latency": {"gnss_velocity_max_accel_m_s2": 100.0},
+}
+
+
+def effect_overrides(effect: str, value: float) -> dict[str, float]:
+    """Configuration fields of a re-run with ``effect`` at ``value`` (:data:`CONFIG_FIELDS`
+    plus :data:`PROFILE_SETTINGS`)."""
+    return {CONFIG_FIELDS[effect]: value, **PROFILE_SETTINGS.get(effect, {})}
+
+
 #: Scan grids of the effects that the estimator can switch on (0 = not modelled).
 DEFAULT_GRIDS: dict[str, tuple[float, ...]] = {
     "gnss_latency": (0.0, 0.1, 0.2, 0.4),
@@ -673,9 +687,11 @@ def rank_effects(
 ) -> list[dict[str, Any]]:
     """Rank the switchable effects by their profile likelihood ratio and size them.
 
-    ``rerun(effect, value)`` runs the estimator with ``effect`` switched on at ``value`` and
-    returns its trace. ``current`` holds the value each effect has in the base model (default
-    0, i.e. not modelled); it is added to the effect's grid and its NLL is ``baseline_nll``.
+    ``rerun(effect, value)`` runs the estimator with ``effect`` switched on at ``value`` (the
+    fields of :func:`effect_overrides`) and returns its trace. ``current`` holds the value each
+    effect has in the base model (default 0, i.e. not modelled); it is added to the effect's
+    grid and its NLL is ``baseline_nll``, except for an effect with :data:`PROFILE_SETTINGS`,
+    whose base point is re-run with them.
     For each effect the mean innovation NLL is profiled over its grid (:func:`profile_scan`);
     ``score = 2 n (NLL(current) - NLL(estimate))`` with ``n`` the number of decimated (about
     independent) fixes: a likelihood-ratio statistic, about chi-square(1) when the current
@@ -696,7 +712,7 @@ def rank_effects(
         def objective(
             v: float, effect: str = effect, traces: dict[float, Any] = traces, base: float = base
         ) -> float:
-            if v == base and baseline_nll is not None:
+            if v == base and baseline_nll is not None and effect not in PROFILE_SETTINGS:
                 return baseline_nll
             f, tr = nll(effect, v)
             traces[v] = tr

@@ -182,6 +182,7 @@ def run_radius_estimator(
         nis = np.asarray(trace.vel_nis, dtype=float)
         trace.gnss_velocity = {
             "updates": estimator.velocity_updates,
+            "skipped_accelerating": estimator.velocity_skipped_accel,
             "innovations": int(nis.size),
             "mean_nis": float(nis[np.asarray(trace.vel_accepted, dtype=bool)].mean())
             if estimator.velocity_updates

@@ -495,6 +495,9 @@ class EstimatorNode(Node):
         if self.config.gnss_velocity_enabled:
             # velocities received minus these: dropped, gated, or while paused / initializing
             values["gnss_velocity.updates"] = str(int(self.estimator.velocity_updates))
+            values["gnss_velocity.skipped_accelerating"] = str(
+                int(self.estimator.velocity_skipped_accel)
+            )
         for stream in INPUT_STREAMS:
             values[f"rate_hz.{stream}"] = f"{self._input_rates_hz.get(stream, 0.0):.1f}"
             values[f"received.{stream}"] = str(self.received.get(stream, 0))
