@@ -103,8 +103,9 @@ def test_rank_effects_fills_the_ranking_of_every_switchable_effect(
     assert main([*argv, "--no-plots", "--no-progress", "--no-stiffness", "--rank-effects"]) == 0
     res = json.loads((out / "metrics.json").read_text())["residuals"]
     ranked = res["ranked_effects"]
-    # every switchable effect but the velocity latency (the bag's run uses no GNSS velocity)
-    assert {e["effect"] for e in ranked} == set(DEFAULT_GRIDS) - {"gnss_velocity_latency"}
+    # every switchable effect, the velocity latency included (the simulated bag has the
+    # receiver's Doppler velocity, which the estimator uses by default)
+    assert {e["effect"] for e in ranked} == set(DEFAULT_GRIDS)
     scores = [e["score"] for e in ranked]
     assert scores == sorted(scores, reverse=True) and all(s >= 0.0 for s in scores)
     assert isinstance(res["consistent"], bool)
@@ -121,19 +122,22 @@ def test_rank_seeds_profiles_the_mean_likelihood_of_several_filter_seeds(
     from tire_estimation.evaluation.runner import run_radius_estimator
 
     config = tmp_path / "cfg.yaml"
-    config.write_text(yaml.safe_dump({"radius": {"n_particles": 100, "seed": 3}}))
+    radius = {"n_particles": 100, "seed": 3, "gnss_velocity_enabled": False}
+    config.write_text(yaml.safe_dump({"radius": radius}))
     out = tmp_path / "report"
     argv = ["replay", str(lane_change_bag), "--out", str(out), "--config", str(config)]
     argv += ["--no-plots", "--no-progress", "--no-stiffness"]
     assert main([*argv, "--rank-effects", "--rank-seeds", "2"]) == 0
     res = json.loads((out / "metrics.json").read_text())["residuals"]
     assert res["tests"]["rank_seeds"] == [3, 4]
+    # without the GNSS velocity its latency is no candidate
+    assert "gnss_velocity_latency" not in {e["effect"] for e in res["ranked_effects"]}
     # the base point of every profile is the mean NLL of the base model's runs with seeds 3, 4
     bag = read_bag(lane_change_bag)
     assert bag.wheel_speeds is not None and bag.gnss is not None
     nll = []
     for seed in (3, 4):
-        cfg = RadiusEstimatorConfig(n_particles=100, seed=seed)
+        cfg = RadiusEstimatorConfig(n_particles=100, seed=seed, gnss_velocity_enabled=False)
         est = RadiusEstimator(cfg, bag.vehicle, np.random.default_rng(seed))
         tr = run_radius_estimator(est, bag.wheel_speeds, bag.gnss, bag.steering, bag.imu)
         nll.append(neg_log_likelihood(tr))

@@ -453,8 +453,9 @@ def test_gnss_velocity_pins_the_radius_scale():
 
 def test_gnss_velocity_disabled_changes_nothing():
     drive = make_drive(duration_s=40.0, gnss_rate_hz=1.0, seed=7)
-    a = RadiusEstimator(RadiusEstimatorConfig(), VEH, np.random.default_rng(7))
-    b = RadiusEstimator(RadiusEstimatorConfig(), VEH, np.random.default_rng(7))
+    off = RadiusEstimatorConfig(gnss_velocity_enabled=False)
+    a = RadiusEstimator(off, VEH, np.random.default_rng(7))
+    b = RadiusEstimator(off, VEH, np.random.default_rng(7))
     feed(a, drive)
     ups = _feed_velocity(b, drive)
     assert {u.reason for u in ups} == {"disabled"} and b.velocity_updates == 0

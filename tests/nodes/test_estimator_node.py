@@ -383,11 +383,12 @@ def test_gnss_velocity_is_subscribed_used_and_bad_ones_are_counted(
     ros: Any, tmp_path: Path
 ) -> None:
     """``radius.gnss_velocity_enabled``: /gnss/velocity re-weights the particles; a velocity in
-    base_link axes and a NaN one are dropped and reported. Off (default): no subscription."""
-    node = _node(ros, tmp_path)
+    base_link axes and a NaN one are dropped and reported. On by default; off: no
+    subscription."""
+    node = _node(ros, tmp_path, **{"radius.gnss_velocity_enabled": False})
     assert "/gnss/velocity" not in _callbacks(node)
     node.destroy_node()
-    node = _node(ros, tmp_path, **{"radius.gnss_velocity_enabled": True})
+    node = _node(ros, tmp_path)
     cb = _callbacks(node)
     t0 = 1_000_000_000_000
     omega = 20.0 / 0.31
@@ -407,6 +408,7 @@ def test_gnss_velocity_is_subscribed_used_and_bad_ones_are_counted(
     assert values["dropped.core.gnss_velocity_nan"] == "1"
     assert int(values["received.gnss_velocity"]) == 302
     assert int(values["gnss_velocity.updates"]) == node.estimator.velocity_updates > 100
+    assert values["gnss_velocity.skipped_accelerating"] == "0"  # constant speed
     est = node.estimator.estimate()
     assert np.all(np.abs(est.radius_error_m) < 0.5e-3), est.radius_error_m
     node.destroy_node()

@@ -164,11 +164,12 @@ def test_gnss_lever_arm_and_latency() -> None:
 
 
 def test_gnss_doppler_velocity_optional() -> None:
-    plain = simulate("asphalt_sine", seed=1, minutes=0.2)
-    assert plain.gnss.velocity_enu_m_s is None
-    res = simulate(
-        "asphalt_sine", seed=1, minutes=0.2, sensors=SensorConfig(gnss_velocity_enabled=True)
+    """The Doppler velocity is simulated by default (receivers report it) and can be left out."""
+    plain = simulate(
+        "asphalt_sine", seed=1, minutes=0.2, sensors=SensorConfig(gnss_velocity_enabled=False)
     )
+    assert plain.gnss.velocity_enu_m_s is None
+    res = simulate("asphalt_sine", seed=1, minutes=0.2)
     v = res.gnss.velocity_enu_m_s
     assert v is not None
     idx = np.searchsorted(res.truth.t_ns, res.gnss.t_ns)

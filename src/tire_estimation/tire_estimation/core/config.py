@@ -73,7 +73,8 @@ class RadiusEstimatorConfig:
             re-initializes the pose, s. Default 30.
         gnss_velocity_enabled: use the receiver's Doppler velocity (``/gnss/velocity``, ENU)
             when it is published: a likelihood for each particle's speed and heading (beyond
-            the paper; :meth:`RadiusMPF.update_velocity`). Default false.
+            the paper; :meth:`RadiusMPF.update_velocity`; without the topic the filter runs on
+            the positions alone, as in the paper). Default true.
         gnss_velocity_default_std_m_s: std of each horizontal velocity component used when a
             velocity has no covariance, m/s. Default 0.1.
         gnss_velocity_lateral_std_m_s: std of the lateral velocity of ``base_link`` that the
@@ -181,7 +182,7 @@ class RadiusEstimatorConfig:
     gnss_gate_probability: float = 0.9999
     gnss_max_rejections: int = 5
     gnss_max_gap_s: float = 30.0
-    gnss_velocity_enabled: bool = False
+    gnss_velocity_enabled: bool = True
     gnss_velocity_default_std_m_s: float = 0.1
     gnss_velocity_lateral_std_m_s: float = 0.2
     gnss_velocity_latency_s: float = 0.0

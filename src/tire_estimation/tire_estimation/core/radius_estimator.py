@@ -878,7 +878,18 @@ class RadiusEstimator:
         k0 = float(np.interp(x - 0.2, rel, w3s + w4s))
         span = min(0.2, x - float(rel[0]))
         accel = (w3 + w4 - k0) * 0.5 * self.model.nominal_radius_m / span if span > 0 else 0.0
-        if abs(accel) > c.gnss_velocity_max_accel_m_s2:
+        # the gate reads the acceleration over the 0.2 s before the velocity's stamp, not its
+        # compensated time: which velocities are used is then a property of the data, the same
+        # for every latency or time offset a residual profile re-runs with (else the joint
+        # likelihood of those re-runs would sum over different sets of velocities)
+        x_g = (t_ns - int(ts[-1])) * 1e-9
+        span_g = min(0.2, x_g - float(rel[0]))
+        k1 = float(np.interp(x_g, rel, w3s + w4s))
+        k0_g = float(np.interp(x_g - 0.2, rel, w3s + w4s))
+        gate_accel = (
+            (k1 - k0_g) * 0.5 * self.model.nominal_radius_m / span_g if span_g > 0 else 0.0
+        )
+        if abs(gate_accel) > c.gnss_velocity_max_accel_m_s2:
             # an unknown latency tau biases the speed by tau a while accelerating: not used
             self.velocity_skipped_accel += 1
             return GnssVelocityUpdate(t_ns, zeros2, r, 0.0, False, "accelerating")

@@ -87,7 +87,8 @@ class SensorConfig:
     gnss_gm_tau_s: float = 120.0
     #: Reported covariance = (scale * true std)^2; 1.0 reports the true total error variance.
     gnss_covariance_scale: float = 1.0
-    gnss_velocity_enabled: bool = False
+    #: Publish the receiver's Doppler velocity (``/gnss/velocity``), as receivers do.
+    gnss_velocity_enabled: bool = True
     gnss_velocity_noise_std_m_s: float = 0.05
     gnss_velocity_vertical_noise_std_m_s: float = 0.1
     #: Injected: a fix stamped t describes the antenna at t - latency, s.
