@@ -198,3 +198,67 @@ def test_bias_correct_is_the_kalman_update_of_every_mean():
     ref = bias + k @ (y[:, None] - h)
     rk.bias_correct(bias, h, y[0], y[1], k[0, 0], k[0, 1], k[1, 0], k[1, 1])
     np.testing.assert_allclose(bias, ref, rtol=1e-14, atol=1e-15)
+
+
+def test_velocity_likelihood_matches_the_per_particle_gaussian():
+    """:func:`velocity_predict` + :func:`loglik_reweight` against the model of
+    ``RadiusMPF.update_velocity`` written with NumPy 2x2 matrices: ``h_i = R(psi_i + offset)
+    [v_i - r l_y, r l_x]``, ``S_i = R + q n n' + p_i t t'``, weights ``w_i N(y; h_i, S_i)``."""
+    rng = np.random.default_rng(11)
+    n = 300
+    yaw = 0.4 + 0.02 * rng.standard_normal(n)
+    mu = 1e-3 * rng.standard_normal((2, n))
+    lam = np.empty((2, 2, n))
+    for i in range(n):
+        a = 1e-4 * rng.standard_normal((2, 3))
+        lam[:, :, i] = a @ a.T + 1e-9 * np.eye(2)
+    w = rng.dirichlet(np.ones(n))
+    w[:3] = 0.0
+    w3, w4, off, yr, lx, ly, q, k_sigma, along = 80.0, 80.5, -0.01, 0.05, 1.2, 0.3, 0.04, 0.1, 0.01
+    r = np.array([[0.01, 0.002], [0.002, 0.012]])
+    v_virt = 0.5 * R_NOM * (w3 + w4)
+    y = np.array([23.0, 10.5])
+    h = np.empty((2, n))
+    maha_ref = np.empty(n)
+    logdet_ref = np.empty(n)
+    s_sum = np.zeros((2, 2))
+    for i in range(n):
+        psi = yaw[i] + off
+        t = np.array([math.cos(psi), math.sin(psi)])
+        nn = np.array([-math.sin(psi), math.cos(psi)])
+        v = v_virt + 0.5 * (w3 * mu[0, i] + w4 * mu[1, i])
+        ww = np.array([w3, w4])
+        p = k_sigma * ww @ lam[:, :, i] @ ww + along
+        rot = np.array([[t[0], nn[0]], [t[1], nn[1]]])
+        h[:, i] = rot @ np.array([v - yr * ly, yr * lx])
+        s_i = r + q * np.outer(nn, nn) + p * np.outer(t, t)
+        d = y - h[:, i]
+        maha_ref[i] = d @ np.linalg.solve(s_i, d)
+        logdet_ref[i] = math.log(np.linalg.det(s_i))
+        s_sum += w[i] * s_i
+    m = h @ w
+    e = h - m[:, None]
+    s_ref = (e * w) @ e.T + s_sum
+    maha, logdet = np.empty(n), np.empty(n)
+    m0, m1, s00, s01, s11 = rk.velocity_predict(
+        yaw, off, mu, lam, w, v_virt, w3, w4, k_sigma, along, yr, lx, ly, q,
+        r[0, 0], r[0, 1], r[1, 1], y[0], y[1], maha, logdet,
+    )  # fmt: skip
+    np.testing.assert_allclose([m0, m1], m, rtol=1e-13)
+    np.testing.assert_allclose([[s00, s01], [s01, s11]], s_ref, rtol=1e-9)
+    np.testing.assert_allclose(maha, maha_ref, rtol=1e-9)
+    np.testing.assert_allclose(logdet, logdet_ref, rtol=1e-12, atol=1e-12)
+    with np.errstate(divide="ignore"):
+        log_w = np.log(w) - 0.5 * (maha_ref + logdet_ref) - math.log(2 * math.pi)
+    ref_w, ref_lz = normalize_log_weights(log_w)
+    got = w.copy()
+    lz, n_eff = rk.loglik_reweight(got, maha, logdet)
+    np.testing.assert_allclose(got, ref_w, rtol=1e-9, atol=1e-300)
+    assert lz == pytest.approx(ref_lz, rel=1e-9)
+    assert n_eff == pytest.approx(1.0 / np.sum(ref_w**2), rel=1e-9)
+    assert np.all(got[:3] == 0.0)
+    # a particle whose S is not positive definite gets weight zero
+    logdet[5] = np.nan
+    got = w.copy()
+    rk.loglik_reweight(got, maha, logdet)
+    assert got[5] == 0.0 and got.sum() == pytest.approx(1.0)

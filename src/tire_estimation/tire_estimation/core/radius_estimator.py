@@ -863,8 +863,17 @@ class RadiusEstimator:
             return GnssVelocityUpdate(t_ns, zeros2, r, 0.0, False, f"paused ({self._reason})")
         # the velocity describes the wheels' time t - latency + offset: rear wheel speeds there
         # (linear interpolation of the recent samples, held at the ends)
-        hist = self._speed_hist
         target = t_ns + round((c.wheel_speed_time_offset_s - c.gnss_velocity_latency_s) * 1e9)
+        # the newest samples back to the first one at or before 0.2 s before the earlier of
+        # target and stamp (the interpolations below read nothing older; the whole history
+        # when it is shorter)
+        lo_ns = min(target, t_ns) - 200_000_000
+        hist: list[tuple[int, float, float]] = []
+        for h in reversed(self._speed_hist):
+            hist.append(h)
+            if h[0] <= lo_ns:
+                break
+        hist.reverse()
         n_h = len(hist)
         ts = np.fromiter((h[0] for h in hist), dtype=np.int64, count=n_h)
         rel = (ts - ts[-1]) * 1e-9

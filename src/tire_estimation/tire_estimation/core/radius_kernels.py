@@ -403,6 +403,123 @@ def fix_reweight(
 
 
 @numba.njit(cache=True, error_model="numpy")
+def velocity_predict(
+    yaw: F64,
+    heading_offset_rad: float,
+    mu: F64,
+    scale: F64,
+    weights: F64,
+    v_virt: float,
+    w3: float,
+    w4: float,
+    k_sigma: float,
+    along_var: float,
+    yaw_rate: float,
+    lx: float,
+    ly: float,
+    q: float,
+    r00: float,
+    r01: float,
+    r11: float,
+    y0: float,
+    y1: float,
+    maha: F64,
+    logdet: F64,
+) -> tuple[float, float, float, float, float]:
+    """Each particle's GNSS Doppler velocity likelihood (see ``RadiusMPF.update_velocity``).
+
+    Per particle ``i``: speed ``v_i = v_virt + (w3 mu_3 + w4 mu_4) / 2`` (eq. 6a at the NiW
+    mean), its variance ``p_i = k_sigma [w3, w4] Lambda_i [w3, w4]' + along_var``, the antenna
+    velocity ``h_i = R(psi_i + offset) [v_i - r l_y, r l_x]`` and
+    ``S_i = R + q n_i n_i' + p_i t_i t_i'``; writes ``maha[i] = d' S_i^-1 d`` for ``d = y - h_i``
+    and ``logdet[i] = log det S_i`` (NaN when not positive). Returns the weighted mean of ``h``
+    (2) and the cloud's innovation covariance ``sum w (h - m)(h - m)' + sum w S_i`` as
+    ``(m0, m1, s00, s01, s11)``; ``weights`` sum to 1.
+    """
+    n = yaw.shape[0]
+    h0 = np.empty(n)
+    h1 = np.empty(n)
+    m0 = 0.0
+    m1 = 0.0
+    sa00 = 0.0
+    sa01 = 0.0
+    sa11 = 0.0
+    vby = yaw_rate * lx
+    for i in range(n):
+        psi = yaw[i] + heading_offset_rad
+        c = math.cos(psi)
+        s = math.sin(psi)
+        # eq. (6a) with the NiW means
+        v = v_virt + 0.5 * (w3 * mu[0, i] + w4 * mu[1, i])
+        # E[Sigma] = Lambda / (nu - d - 1) (Ozkan et al. eq. 32), in k_sigma
+        quad = w3 * w3 * scale[0, 0, i] + 2.0 * w3 * w4 * scale[0, 1, i]
+        quad += w4 * w4 * scale[1, 1, i]
+        p = k_sigma * quad + along_var
+        vbx = v - yaw_rate * ly
+        a = c * vbx - s * vby
+        b = s * vbx + c * vby
+        h0[i] = a
+        h1[i] = b
+        a00 = r00 + q * s * s + p * c * c
+        a01 = r01 - q * s * c + p * c * s
+        a11 = r11 + q * c * c + p * s * s
+        det = a00 * a11 - a01 * a01
+        d0 = y0 - a
+        d1 = y1 - b
+        maha[i] = (a11 * d0 * d0 - 2.0 * a01 * d0 * d1 + a00 * d1 * d1) / det
+        logdet[i] = math.log(det) if det > 0.0 else np.nan
+        wi = weights[i]
+        m0 += wi * a
+        m1 += wi * b
+        sa00 += wi * a00
+        sa01 += wi * a01
+        sa11 += wi * a11
+    s00 = 0.0
+    s01 = 0.0
+    s11 = 0.0
+    for i in range(n):
+        e0 = h0[i] - m0
+        e1 = h1[i] - m1
+        wi = weights[i]
+        s00 += wi * e0 * e0
+        s01 += wi * e0 * e1
+        s11 += wi * e1 * e1
+    return m0, m1, s00 + sa00, s01 + sa01, s11 + sa11
+
+
+@numba.njit(cache=True, error_model="numpy")
+def loglik_reweight(weights: F64, maha: F64, logdet: F64) -> tuple[float, float]:
+    """``w_i <- w_i N(y; h_i, S_i)`` from the Mahalanobis distances and ``log det S_i`` of a
+    2-D measurement, then normalization, in place (as :func:`fix_reweight`). Returns ``log sum
+    w_i N_i`` and the effective sample size; non-finite log weights get weight zero, and if none
+    is finite the weights become uniform and the log-likelihood is ``-inf``."""
+    n = weights.shape[0]
+    log_2pi = math.log(2.0 * math.pi)
+    logw = np.empty(n)
+    top = -np.inf
+    for i in range(n):
+        lw = math.log(weights[i]) - 0.5 * (maha[i] + logdet[i]) - log_2pi
+        logw[i] = lw
+        if math.isfinite(lw) and lw > top:
+            top = lw
+    if not math.isfinite(top):
+        for i in range(n):
+            weights[i] = 1.0 / n
+        return -np.inf, float(n)
+    total = 0.0
+    for i in range(n):
+        lw = logw[i]
+        w = math.exp(lw - top) if math.isfinite(lw) else 0.0
+        weights[i] = w
+        total += w
+    sq = 0.0
+    for i in range(n):
+        weights[i] /= total
+        sq += weights[i] * weights[i]
+    return top + math.log(total), 1.0 / sq
+
+
+@numba.njit(cache=True, error_model="numpy")
 def moments(
     east: F64, north: F64, yaw: F64, mu: F64, scale: F64, weights: F64
 ) -> tuple[F64, F64, F64, F64, F64]:

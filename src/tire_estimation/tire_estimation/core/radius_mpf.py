@@ -565,65 +565,37 @@ class RadiusMPF:
         the noise) nothing is changed and ``accepted`` is false.
         """
         self._flush()
-        # each particle's heading at the velocity's time
-        yaw = self._yaw + float(heading_offset_rad) if heading_offset_rad else self._yaw
-        c = np.cos(yaw)
-        s = np.sin(yaw)
         w3, w4 = float(rear_wheel_speed_rad_s[0]), float(rear_wheel_speed_rad_s[1])
-        lam = self._lam
-        # eq. (6a) with the NiW means: v_i = (w3 (r + mu_3) + w4 (r + mu_4)) / 2
-        v, _ = self.model.speed_yaw_rate(np.array([0.0, 0.0, w3, w4]), self._mu.T)
-        # its variance from E[Sigma | stats_i] = Lambda_i / (nu - d - 1) (Ozkan et al. eq. 32)
+        v_virt, _ = self.model.virtual_speed_yaw_rate(np.array([0.0, 0.0, w3, w4]))
+        # E[Sigma | stats_i] = Lambda_i / (nu - d - 1) (Ozkan et al. eq. 32), times 1/4 of eq. 6a
         k_sigma = 0.25 / (float(self._stats.dof) - self.D - 1.0)
-        p = k_sigma * (w3 * w3 * lam[0, 0] + 2.0 * w3 * w4 * lam[0, 1] + w4 * w4 * lam[1, 1])
-        p += float(along_var_m2_s2)
-        lx, ly = float(lever_arm_m[0]), float(lever_arm_m[1])
-        # antenna velocity in base_link axes [v - r l_y, r l_x], rotated to ENU by R(psi)
-        vbx = v - yaw_rate_rad_s * ly
-        vby = yaw_rate_rad_s * lx
-        h0 = c * vbx - s * vby
-        h1 = s * vbx + c * vby
-        d0 = float(v_m_s[0]) - h0
-        d1 = float(v_m_s[1]) - h1
-        q = float(lateral_std_m_s) ** 2
-        r00, r01, r11 = float(r_m2_s2[0, 0]), float(r_m2_s2[0, 1]), float(r_m2_s2[1, 1])
-        # S_i = R + q n n' + p t t' (2x2 per particle) and its closed-form inverse
-        a00 = r00 + q * s * s + p * c * c
-        a01 = r01 - q * s * c + p * c * s
-        a11 = r11 + q * c * c + p * s * s
-        det = a00 * a11 - a01 * a01
-        maha = (a11 * d0 * d0 - 2.0 * a01 * d0 * d1 + a00 * d1 * d1) / det
-        w = self.weights
+        y0, y1 = float(v_m_s[0]), float(v_m_s[1])
+        maha = np.empty(self.n)
+        logdet = np.empty(self.n)
+        # per particle h_i, S_i = R + q n n' + p t t' and the Mahalanobis distance (compiled)
+        m0, m1, s00, s01, s11 = radius_kernels.velocity_predict(
+            self._yaw, float(heading_offset_rad), self._mu, self._lam, self.weights,
+            float(v_virt), w3, w4, k_sigma, float(along_var_m2_s2), float(yaw_rate_rad_s),
+            float(lever_arm_m[0]), float(lever_arm_m[1]), float(lateral_std_m_s) ** 2,
+            float(r_m2_s2[0, 0]), float(r_m2_s2[0, 1]), float(r_m2_s2[1, 1]), y0, y1,
+            maha, logdet,
+        )  # fmt: skip
         # innovation of the cloud: weighted mean and spread of h plus the mean noise
-        m0 = float(w @ h0)
-        m1 = float(w @ h1)
-        e0 = h0 - m0
-        e1 = h1 - m1
-        s00 = float(w @ (e0 * e0 + a00))
-        s01 = float(w @ (e0 * e1 + a01))
-        s11 = float(w @ (e1 * e1 + a11))
         s_mat = np.array([[s00, s01], [s01, s11]])
-        i0 = float(v_m_s[0]) - m0
-        i1 = float(v_m_s[1]) - m1
+        i0 = y0 - m0
+        i1 = y1 - m1
         det_s = s00 * s11 - s01 * s01
         nis = (s11 * i0 * i0 - 2.0 * s01 * i0 * i1 + s00 * i1 * i1) / det_s
         innov = np.array([i0, i1])
         if not (det_s > 0.0 and nis <= gate_nis):
             return VelocityUpdate(innov, s_mat, nis, -math.inf, False)
-        # log w_i + log N(y; h_i, S_i)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            logw = np.log(w) - 0.5 * (maha + np.log(det)) - math.log(2.0 * math.pi)
-        logw[~np.isfinite(logw)] = -np.inf
-        top = float(np.max(logw))
-        if not math.isfinite(top):
-            w[:] = 1.0 / self.n
+        # w_i <- w_i N(y; h_i, S_i), normalized
+        log_norm, n_eff = radius_kernels.loglik_reweight(self.weights, maha, logdet)
+        if not math.isfinite(log_norm):
             return VelocityUpdate(innov, s_mat, nis, -math.inf, True)
-        lik = np.exp(logw - top)
-        total = float(lik.sum())
-        w[:] = lik / total
-        if ess(w) < self.resample_threshold * self.n:
+        if n_eff < self.resample_threshold * self.n:
             self.resample()
-        return VelocityUpdate(innov, s_mat, nis, top + math.log(total), True)
+        return VelocityUpdate(innov, s_mat, nis, log_norm, True)
 
     @_mutates
     def resample(self) -> None:
