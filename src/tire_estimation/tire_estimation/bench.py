@@ -122,10 +122,12 @@ def replay_rtf(n_particles: int, bag: Path = DEMO_BAG) -> dict[str, float]:
 def node_latency(seconds: float = 20.0, n_particles: int = 500) -> dict[str, Any]:
     """estimator_node end-to-end latency: wheel-speed stamp (wall clock) to odometry arrival.
 
-    Wheel speeds at 100 Hz and GNSS at 10 Hz are published with header stamp = now; the node
-    publishes odometry after every wheel-speed sample (``odometry_publish_period_s:=0``).
+    Wheel speeds at 100 Hz and GNSS fixes and Doppler velocities (used by default) at 10 Hz are
+    published with header stamp = now; the node publishes odometry after every wheel-speed
+    sample (``odometry_publish_period_s:=0``).
     """
     import rclpy
+    from geometry_msgs.msg import TwistWithCovarianceStamped
     from nav_msgs.msg import Odometry
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.qos import qos_profile_sensor_data
@@ -150,6 +152,9 @@ def node_latency(seconds: float = 20.0, n_particles: int = 500) -> dict[str, Any
     node.create_subscription(Odometry, "/tire_estimation/odometry", on_odom, 100)
     pub_w = node.create_publisher(JointState, "/vehicle/wheel_speeds", qos_profile_sensor_data)
     pub_g = node.create_publisher(NavSatFix, "/gnss/fix", qos_profile_sensor_data)
+    pub_v = node.create_publisher(
+        TwistWithCovarianceStamped, "/gnss/velocity", qos_profile_sensor_data
+    )
     executor = SingleThreadedExecutor()
     executor.add_node(node)
     spinner = threading.Thread(target=executor.spin, daemon=True)
@@ -165,6 +170,11 @@ def node_latency(seconds: float = 20.0, n_particles: int = 500) -> dict[str, Any
         fix.position_covariance = [2.25, 0, 0, 0, 2.25, 0, 0, 0, 4.0]
         fix.position_covariance_type = NavSatFix.COVARIANCE_TYPE_DIAGONAL_KNOWN
         fix.status.status = 0
+        vel = TwistWithCovarianceStamped()
+        vel.header.frame_id = "map"
+        vel.twist.twist.linear.x = speed
+        vel.twist.covariance = [0.0025 if i in (0, 7) else 0.01 if i == 14 else 0.0
+                                for i in range(36)]  # fmt: skip
         start = time.monotonic()
         k = 0
         while time.monotonic() - start < seconds:
@@ -177,6 +187,8 @@ def node_latency(seconds: float = 20.0, n_particles: int = 500) -> dict[str, Any
                 fix.header.stamp = wheel.header.stamp
                 fix.latitude, fix.longitude, fix.altitude = float(la), float(lo), float(al)
                 pub_g.publish(fix)
+                vel.header.stamp = wheel.header.stamp
+                pub_v.publish(vel)
             k += 1
             time.sleep(max(0.0, start + k * 0.01 - time.monotonic()))
         time.sleep(1.0)
