@@ -385,6 +385,15 @@ def fix_reweight(
         logw[i] = lw
         if math.isfinite(lw) and lw > top:
             top = lw
+    return _normalize_log_weights(weights, logw, top)
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _normalize_log_weights(weights: F64, logw: F64, top: float) -> tuple[float, float]:
+    """``weights <- exp(logw - top) / sum`` in place (``top`` the largest finite ``logw``;
+    non-finite entries get weight zero, none finite: uniform weights and ``-inf``). Returns
+    ``log sum exp(logw)`` and the effective sample size ``1 / sum w_i^2`` (Table I line 15)."""
+    n = weights.shape[0]
     if not math.isfinite(top):
         for i in range(n):
             weights[i] = 1.0 / n
@@ -502,21 +511,7 @@ def loglik_reweight(weights: F64, maha: F64, logdet: F64) -> tuple[float, float]
         logw[i] = lw
         if math.isfinite(lw) and lw > top:
             top = lw
-    if not math.isfinite(top):
-        for i in range(n):
-            weights[i] = 1.0 / n
-        return -np.inf, float(n)
-    total = 0.0
-    for i in range(n):
-        lw = logw[i]
-        w = math.exp(lw - top) if math.isfinite(lw) else 0.0
-        weights[i] = w
-        total += w
-    sq = 0.0
-    for i in range(n):
-        weights[i] /= total
-        sq += weights[i] * weights[i]
-    return top + math.log(total), 1.0 / sq
+    return _normalize_log_weights(weights, logw, top)
 
 
 @numba.njit(cache=True, error_model="numpy")
