@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.stats import chi2
+from scipy.special import chdtri
 
 from tire_estimation.core import niw
 from tire_estimation.core.aug_kf import AugKf
@@ -270,7 +270,8 @@ class RadiusEstimator:
         self._load_long = vehicle.mass_kg * vehicle.cg_height_m / (2.0 * wb)
         self._load_lat_front = lat * vehicle.cg_to_rear_axle_m / wb
         self._load_lat_rear = lat * vehicle.cg_to_front_axle_m / wb
-        self._gate = float(chi2.ppf(config.gnss_gate_probability, 2))
+        # chi-square(2) quantile (= scipy.stats.chi2.ppf, without importing scipy.stats)
+        self._gate = float(chdtri(2, 1.0 - config.gnss_gate_probability))
         c = config
         self.mpf = RadiusMPF(
             self.model,

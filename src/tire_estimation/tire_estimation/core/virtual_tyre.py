@@ -20,8 +20,6 @@ import math
 from dataclasses import dataclass
 from functools import cached_property
 
-from scipy.optimize import brentq
-
 #: Fraction of the peak force above which the measured force is treated as saturated.
 SATURATION_FRACTION = 0.999
 #: Smallest vertical load used by the virtual sensors (a lifted wheel), N.
@@ -53,6 +51,8 @@ def peak_slip_factor(c: float, e: float) -> float:
 
     phi is strictly increasing for E < 1, so x* is the root of phi(x) = tan(pi / (2 C)).
     """
+    from scipy.optimize import brentq  # here: scipy.optimize costs 0.12 s to import
+
     target = math.tan(math.pi / (2.0 * c))
     hi = max(1.0, 2.0 * target)
     while _shape(hi, e) < target:
@@ -82,6 +82,8 @@ def inverse_magic_formula(
         return math.copysign(alpha_peak, fy_n)
     if f_abs == 0.0:
         return 0.0
+    from scipy.optimize import brentq
+
     # Tuononen 2009 eq. (11) solved for alpha: D sin(C atan(phi(B alpha))) - |Fy| = 0
     alpha = brentq(
         lambda a: magic_formula(a, b_1_rad, c, d_n, e) - f_abs, 0.0, alpha_peak, xtol=1e-10

@@ -71,7 +71,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import stats
+from scipy.special import chdtri
 
 from tire_estimation.core.geodesy import LocalTangentPlane
 from tire_estimation.core.radius_model import RL, RR
@@ -411,7 +411,7 @@ def _runs(trace: Any) -> list[Any]:
 
 #: NIS a gated GNSS velocity adds to the NLL: the estimator's default gate, chi-square(2) at
 #: ``gnss_gate_probability`` 0.9999
-VELOCITY_NIS_CAP = float(stats.chi2.ppf(0.9999, 2))
+VELOCITY_NIS_CAP = float(chdtri(2, 1.0 - 0.9999))
 
 
 def neg_log_likelihood(trace: Any, skip_s: float = 10.0) -> float:
@@ -631,7 +631,8 @@ def speed_dependence_fit(
 
 def chi2_mean_bounds(n: int, dof: int = 2, p: float = 0.95) -> tuple[float, float]:
     """Two-sided bounds of the mean of ``n`` chi-square(dof) variables."""
-    lo, hi = stats.chi2.ppf([(1 - p) / 2, (1 + p) / 2], dof * n) / n
+    # chi-square quantiles (chdtri(k, 1 - q) is scipy.stats.chi2.ppf(q, k))
+    lo, hi = chdtri(dof * n, 1.0 - np.array([(1 - p) / 2, (1 + p) / 2])) / n
     return float(lo), float(hi)
 
 

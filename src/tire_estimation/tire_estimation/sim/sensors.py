@@ -10,7 +10,6 @@ import math
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.signal import lfilter
 
 from tire_estimation.core.geodesy import LocalTangentPlane
 from tire_estimation.core.vehicle import VehicleParams
@@ -67,6 +66,10 @@ def _gauss_markov(
     x0 = rng.standard_normal() * sigma
     w = rng.standard_normal(m) * sigma * math.sqrt(1.0 - phi * phi)
     w[0] = 0.0
+    # scipy.signal costs 0.6 s to import: only the simulator needs it, not the bag reader,
+    # which imports this package for the stream types
+    from scipy.signal import lfilter
+
     # x_k = phi x_{k-1} + sqrt(1 - phi^2) sigma w_k, x_0 ~ N(0, sigma^2)
     y, _ = lfilter([1.0], [1.0, -phi], w, zi=[phi * x0])
     y[0] = x0
