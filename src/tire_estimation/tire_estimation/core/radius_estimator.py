@@ -883,22 +883,23 @@ class RadiusEstimator:
         w4s = np.fromiter((h[2] for h in hist), float, n_h)
         w3 = float(np.interp(x, rel, w3s))
         w4 = float(np.interp(x, rel, w4s))
-        # acceleration of the wheel speed over the 0.2 s before the target: an error of the
-        # latency by std s adds (a s)^2 to the speed's variance
-        k0 = float(np.interp(x - 0.2, rel, w3s + w4s))
-        span = min(0.2, x - float(rel[0]))
-        accel = (w3 + w4 - k0) * 0.5 * self.model.nominal_radius_m / span if span > 0 else 0.0
+        sums = w3s + w4s
+        r_half = 0.5 * self.model.nominal_radius_m
+
+        def accel_before(x_s: float, sum_now: float) -> float:
+            """Wheel acceleration over the 0.2 s before ``x_s`` (held at the history's ends)."""
+            span = min(0.2, x_s - float(rel[0]))
+            k0 = float(np.interp(x_s - 0.2, rel, sums))
+            return (sum_now - k0) * r_half / span if span > 0 else 0.0
+
+        # at the target: an error of the latency by std s adds (a s)^2 to the speed's variance
+        accel = accel_before(x, w3 + w4)
         # the gate reads the acceleration over the 0.2 s before the velocity's stamp, not its
         # compensated time: which velocities are used is then a property of the data, the same
         # for every latency or time offset a residual profile re-runs with (else the joint
         # likelihood of those re-runs would sum over different sets of velocities)
         x_g = (t_ns - int(ts[-1])) * 1e-9
-        span_g = min(0.2, x_g - float(rel[0]))
-        k1 = float(np.interp(x_g, rel, w3s + w4s))
-        k0_g = float(np.interp(x_g - 0.2, rel, w3s + w4s))
-        gate_accel = (
-            (k1 - k0_g) * 0.5 * self.model.nominal_radius_m / span_g if span_g > 0 else 0.0
-        )
+        gate_accel = accel_before(x_g, float(np.interp(x_g, rel, sums)))
         if abs(gate_accel) > c.gnss_velocity_max_accel_m_s2:
             # an unknown latency tau biases the speed by tau a while accelerating: not used
             self.velocity_skipped_accel += 1
