@@ -39,6 +39,8 @@ def test_config_errors_name_field() -> None:
         StiffnessEstimatorConfig(measured_speed_model="replace")
     with pytest.raises(ConfigError, match="friction_coefficient"):
         StiffnessEstimatorConfig(friction_coefficient=-1.0)
+    with pytest.raises(ConfigError, match="saturation_peak"):
+        StiffnessEstimatorConfig(saturation_peak="load")
     with pytest.raises(ConfigError, match="speed_noise_std_m_s"):
         StiffnessEstimatorConfig(speed_noise_std_m_s=0.0)
     with pytest.raises(ConfigError, match="cornering_stiffness_front_n_rad"):

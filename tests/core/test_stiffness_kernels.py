@@ -248,6 +248,8 @@ def _filter_run(compiled: bool, scenario: str, **cfg: object) -> np.ndarray:
         ("lane_change", {"stiffness_noise_std_fraction": 0.2, "resampler": "residual"}),
         ("asphalt_sine", {"niw_update": "tempered", "rejuvenation_bandwidth": 0.1}),
         ("lane_change", {"niw_update": "rao_blackwellized"}),
+        # saturating tyre with the friction-limited peak (per-particle alpha_s)
+        ("lane_change", {"friction_coefficient": 1.0, "saturation_peak": "friction"}),
     ],
 )
 def test_compiled_filter_equals_the_numpy_filter(scenario: str, cfg: dict) -> None:

@@ -11,6 +11,7 @@ from tire_estimation.core.stiffness_model import (
     kinematic_speed_row,
     lateral_slip_function,
     linearize,
+    saturation_slip_at,
     slip_angles,
     wheel_slip,
     wheel_speed_gain,
@@ -176,6 +177,59 @@ def test_friction_coefficient_saturates_the_axle_forces() -> None:
     front_force = cf * sat.a[0, 1, 1] * v.mass_kg / np.cos(delta)
     assert 0.85 * mu * fz_f < front_force < mu * fz_f
     assert cf * lin.a[0, 1, 1] * v.mass_kg / np.cos(delta) > 1.4 * mu * fz_f
+
+
+def test_friction_limited_saturation_keeps_the_peak_at_mu_fz() -> None:
+    v = VehicleParams()
+    mu = 0.3
+    p = SingleTrackParams.from_vehicle(v, friction_coefficient=mu)
+    wheelbase = v.lf_m + v.lr_m
+    fz_f = v.mass_kg * GRAVITY_M_S2 * v.lr_m / wheelbase
+    fz_r = v.mass_kg * GRAVITY_M_S2 * v.lf_m / wheelbase
+    # snow-like stiffness: half the nominal, per particle (and one at the nominal)
+    cyf = np.array([0.5, 1.0]) * p.nominal[1]
+    cyr = np.array([0.5, 1.0]) * p.nominal[2]
+    sat_f, sat_r = saturation_slip_at(p, cyf, cyr)
+    # alpha_s = mu Fz / C: the peak C alpha_s is mu Fz at any stiffness
+    assert np.allclose(cyf * sat_f, mu * fz_f) and np.allclose(cyr * sat_r, mu * fz_r)
+    # at the nominal stiffness it is the nominal-based alpha_s of from_vehicle
+    assert np.isclose(sat_f[1], p.saturation_slip_front_rad)
+    assert np.isclose(sat_r[1], p.saturation_slip_rear_rad)
+    # the per-particle slips enter the regressor: a large front slip angle (0.3 rad) gives a
+    # front force of about mu Fz_f (tanh(>= 2) > 0.96) for both stiffnesses
+    x = np.array([[20.0, 0.0, 0.0], [20.0, 0.0, 0.0]])
+    delta = 0.3
+    lin = linearize(x, delta, (20.0, 20.0), p, (sat_f, sat_r))
+    force = cyf * lin.a[:, 1, 1] * v.mass_kg / np.cos(delta)
+    assert np.all(force < mu * fz_f) and np.all(force > 0.96 * mu * fz_f)
+    # the nominal-based alpha_s (``scaled``) halves the peak with the stiffness instead
+    scaled = linearize(x, delta, (20.0, 20.0), p)
+    force_scaled = cyf * scaled.a[:, 1, 1] * v.mass_kg / np.cos(delta)
+    assert force_scaled[0] < 0.51 * mu * fz_f
+    # per-particle alpha_s = 0 keeps the linear tyre there
+    phi = lateral_slip_function(np.array([0.1, 0.1]), np.array([0.0, 0.05]))
+    assert phi[0] == 0.1 and np.isclose(phi[1], 0.05 * np.tanh(2.0))
+
+
+def test_mpf_friction_peak_uses_each_particles_stiffness_mean() -> None:
+    v = VehicleParams()
+    cfg = StiffnessEstimatorConfig(
+        n_particles=4, friction_coefficient=0.3, saturation_peak="friction"
+    )
+    p = SingleTrackParams.from_vehicle(v, friction_coefficient=0.3)
+    mpf = StiffnessMpf(cfg, p, np.random.default_rng(0))
+    mpf.stats.mean[:, 1] = np.array([-0.5, 0.0, 0.5, 1.0]) * p.nominal[1]
+    mpf.stats.mean[:, 2] = np.array([-0.5, 0.0, 0.5, 1.0]) * p.nominal[2]
+    sat = mpf._saturation_slips()
+    assert sat is not None
+    c = p.nominal[1] + mpf.stats.mean[:, 1]
+    assert np.allclose(sat[0], p.saturation_slip_front_rad * p.nominal[1] / c)
+    # ``friction`` is the default; ``scaled`` and the linear tyre take the slips of ``p``
+    assert StiffnessEstimatorConfig().saturation_peak == "friction"
+    scaled = StiffnessEstimatorConfig(n_particles=4, saturation_peak="scaled")
+    assert StiffnessMpf(scaled, p, np.random.default_rng(0))._saturation_slips() is None
+    lin_p = SingleTrackParams.from_vehicle(v)
+    assert StiffnessMpf(cfg, lin_p, np.random.default_rng(0))._saturation_slips() is None
 
 
 def test_kinematic_speed_row_uses_measured_ax_and_vy_r() -> None:

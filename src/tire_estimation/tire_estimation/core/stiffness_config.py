@@ -17,6 +17,7 @@ SPEED_MODELS = ("input", "kinematic")
 RESAMPLERS = ("systematic", "stratified", "multinomial", "residual")
 STATE_PROPOSALS = ("prior", "measured")
 NIW_UPDATES = ("sampled", "tempered", "rao_blackwellized")
+SATURATION_PEAKS = ("scaled", "friction")
 
 
 @dataclass(frozen=True)
@@ -103,11 +104,19 @@ class StiffnessEstimatorConfig:
         drag_n_s2_m2: known aerodynamic drag coefficient k (F = k vX^2), N s^2/m^2 (default 0.0).
         roll_gain: c_phi g of Sec. II-A; measured ay is divided by 1 + roll_gain, 1 (default
             0.0).
-        friction_coefficient: friction coefficient mu of the saturating lateral tyre ``Fy = C
-            alpha_s tanh(alpha / alpha_s)`` with ``alpha_s = mu Fz / C_n`` per axle (static
-            axle load Fz): the axle force levels off at ``mu Fz`` (times the learned ``C / C_n``)
-            instead of growing linearly with the slip angle, 1; 0 keeps the paper's linear tyre
-            (eq. 2) (default 0.0). Take it from the peak |ay| / g the car reaches.
+        friction_coefficient: road friction coefficient mu of the saturating lateral tyre
+            ``Fy = C alpha_s tanh(alpha / alpha_s)`` per axle (static axle load Fz, ``alpha_s``
+            by ``saturation_peak``): the axle force levels off near ``mu Fz`` instead of growing
+            linearly with the slip angle, 1; 0 keeps the paper's linear tyre (eq. 2) (default
+            0.0). Where the car drives at the limit, the peak |ay| / g it reaches; otherwise the
+            road's value. If unsure, err high: too low a value biases the learned stiffness up
+            more than too high a value biases it down (docs/results.md section 6).
+        saturation_peak: what sets the peak force of the saturating tyre (with
+            ``friction_coefficient`` > 0): ``scaled``: ``alpha_s = mu Fz / C_n`` is fixed, so the
+            peak ``C alpha_s`` scales with the learned ``C / C_n``; ``friction``: the peak is the
+            friction limit ``mu Fz``, i.e. ``alpha_s = mu Fz / C`` with ``C`` each particle's
+            current stiffness mean (nominal + NiW mean; the force stays affine in the step's
+            ``w``; ``stiffness_model.saturation_slip_at``) (default ``friction``).
         cornering_stiffness_front_n_rad: nominal front-axle cornering stiffness C_n (eq. 7),
             N/rad; 0 takes the vehicle's (default 0.0).
         cornering_stiffness_rear_n_rad: nominal rear-axle cornering stiffness, N/rad; 0 takes
@@ -171,6 +180,7 @@ class StiffnessEstimatorConfig:
     drag_n_s2_m2: float = 0.0
     roll_gain: float = 0.0
     friction_coefficient: float = 0.0
+    saturation_peak: str = "friction"
     cornering_stiffness_front_n_rad: float = 0.0
     cornering_stiffness_rear_n_rad: float = 0.0
     measured_speed_model: str = "kinematic"
@@ -201,6 +211,10 @@ class StiffnessEstimatorConfig:
             )
         if self.niw_update not in NIW_UPDATES:
             raise ConfigError("niw_update", self.niw_update, f"must be one of {NIW_UPDATES}")
+        if self.saturation_peak not in SATURATION_PEAKS:
+            raise ConfigError(
+                "saturation_peak", self.saturation_peak, f"must be one of {SATURATION_PEAKS}"
+            )
         require_range("rejuvenation_bandwidth", self.rejuvenation_bandwidth, 0.0, 0.99)
         if self.drive not in DRIVE_CHOICES:
             raise ConfigError("drive", self.drive, f"must be one of {DRIVE_CHOICES}")

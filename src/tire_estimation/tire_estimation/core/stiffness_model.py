@@ -18,7 +18,9 @@ Sign conventions (documented deviations):
   ``phi(alpha) = alpha_s tanh(alpha / alpha_s)`` per axle (:func:`lateral_slip_function`), still
   affine in ``C``. ``C`` stays the small-slip cornering stiffness and the axle's force levels off
   at ``C alpha_s``; with ``alpha_s = mu Fz / C_n`` (static axle load ``Fz``, friction coefficient
-  ``mu``) that peak is ``mu Fz`` at the nominal stiffness and scales with the learned ``C / C_n``.
+  ``mu``) that peak is ``mu Fz`` at the nominal stiffness and scales with the learned ``C / C_n``;
+  with ``alpha_s = mu Fz / C`` at the particle's current stiffness (:func:`saturation_slip_at`,
+  the estimator's default) the peak is the friction limit ``mu Fz`` itself.
 """
 
 from __future__ import annotations
@@ -151,18 +153,44 @@ def wheel_slip(vx_m_s: F64, wheel_speed_m_s: F64 | float) -> F64:
     return (rw - vx) / np.maximum(np.maximum(vx, rw), MIN_SPEED_M_S)
 
 
-def lateral_slip_function(alpha_rad: F64, saturation_slip_rad: float) -> F64:
+def lateral_slip_function(alpha_rad: F64, saturation_slip_rad: float | F64) -> F64:
     """Effective slip ``phi(alpha)`` of the lateral force ``Fy = C phi(alpha)``, rad.
 
     ``saturation_slip_rad`` = 0 gives the linear tyre of eq. (2) (``phi = alpha``); > 0 the
     tanh tyre ``phi = alpha_s tanh(alpha / alpha_s)``: slope 1 at small slip (``C`` is the
-    cornering stiffness), 76 % of the peak ``C alpha_s`` at ``alpha = alpha_s``.
+    cornering stiffness), 76 % of the peak ``C alpha_s`` at ``alpha = alpha_s``. A per-particle
+    ``saturation_slip_rad`` (N,) (all > 0) goes with ``alpha_rad`` (N,).
     """
-    if saturation_slip_rad <= 0.0:
+    if np.ndim(saturation_slip_rad) == 0 and saturation_slip_rad <= 0.0:
         # eq. (2) Fy = C alpha
         return alpha_rad
+    if np.ndim(saturation_slip_rad) > 0:
+        sat = np.asarray(saturation_slip_rad, dtype=float)
+        safe = np.where(sat > 0.0, sat, 1.0)
+        # per particle; alpha_s = 0 keeps the linear tyre
+        return np.where(sat > 0.0, safe * np.tanh(alpha_rad / safe), alpha_rad)
     # Fy = C alpha_s tanh(alpha / alpha_s)  (affine in C; -> C alpha for |alpha| << alpha_s)
     return saturation_slip_rad * np.tanh(alpha_rad / saturation_slip_rad)
+
+
+def saturation_slip_at(
+    p: SingleTrackParams, cy_front_n_rad: F64, cy_rear_n_rad: F64
+) -> tuple[F64, F64]:
+    """Saturation slips of a friction-limited tyre at the given cornering stiffnesses, rad.
+
+    ``alpha_s = mu Fz / C``: the peak ``C alpha_s`` of :func:`lateral_slip_function` is then the
+    friction limit ``mu Fz`` whatever ``C`` is (with ``p``'s ``alpha_s = mu Fz / C_n`` the peak
+    scales with ``C / C_n`` instead). ``cy_*`` (N,) (floored at 1 % of nominal) -> two (N,)
+    arrays; zeros where ``p`` has the linear tyre.
+    """
+    out = []
+    for sat_n, c_n, c in (
+        (p.saturation_slip_front_rad, p.nominal[1], cy_front_n_rad),
+        (p.saturation_slip_rear_rad, p.nominal[2], cy_rear_n_rad),
+    ):
+        # alpha_s = mu Fz / C = alpha_s,n C_n / C
+        out.append(sat_n * c_n / np.maximum(np.asarray(c, dtype=float), 0.01 * c_n))
+    return out[0], out[1]
 
 
 def slip_angles(x: F64, delta_rad: float, p: SingleTrackParams) -> tuple[F64, F64]:
@@ -181,20 +209,27 @@ def force_regressor(
     delta_rad: float,
     wheel_speed_m_s: tuple[float | F64, float | F64],
     p: SingleTrackParams,
+    saturation_slip_rad: tuple[F64, F64] | None = None,
 ) -> F64:
     """Matrix ``A`` (N, 3, 3) with ``[ax, ay, dr] = A @ C + a0`` (eq. 1 with eq. 2, 4).
 
     ``ax = dvx - vy r`` and ``ay = dvy + vx r`` are the body accelerations at the CG, ``dr`` the
     yaw acceleration; ``wheel_speed_m_s`` = (front, rear) axle mean ``R_w omega``, m/s (scalars
-    or per-particle (N,) arrays).
+    or per-particle (N,) arrays). ``saturation_slip_rad`` (front, rear), each (N,), replaces the
+    saturation slips of ``p`` per particle (:func:`saturation_slip_at`).
     """
     n = x.shape[0]
     m, iz, lf, lr = p.mass_kg, p.yaw_inertia_kg_m2, p.lf_m, p.lr_m
     cd, sd = np.cos(delta_rad), np.sin(delta_rad)
     alpha_f, alpha_r = slip_angles(x, delta_rad, p)
     # eq. (2) Fy = C alpha, or the saturating C phi(alpha) (lateral_slip_function)
-    alpha_f = lateral_slip_function(alpha_f, p.saturation_slip_front_rad)
-    alpha_r = lateral_slip_function(alpha_r, p.saturation_slip_rear_rad)
+    sat_f, sat_r = (
+        (p.saturation_slip_front_rad, p.saturation_slip_rear_rad)
+        if saturation_slip_rad is None
+        else saturation_slip_rad
+    )
+    alpha_f = lateral_slip_function(alpha_f, sat_f)
+    alpha_r = lateral_slip_function(alpha_r, sat_r)
     a = np.zeros((n, 3, 3))
     # eq. (2) F = C * slip; eq. (1) columns = force directions / (m, m, I)
     lam_f = wheel_slip(x[:, 0], wheel_speed_m_s[0]) if p.drive in ("front", "all") else 0.0
@@ -253,14 +288,16 @@ def linearize(
     delta_rad: float,
     wheel_speed_m_s: tuple[float | F64, float | F64],
     p: SingleTrackParams,
+    saturation_slip_rad: tuple[F64, F64] | None = None,
 ) -> Linearized:
     """Euler-discretized model (eq. 5, 9, 10) and measurement model (eq. 12), see Linearized.
 
     The measurement is ``y = [ax_imu, ay_imu, r_gyro]`` (specific force at the IMU, roll
-    compensated ay, and yaw rate).
+    compensated ay, and yaw rate). ``saturation_slip_rad``: per-particle saturation slips, see
+    :func:`force_regressor`.
     """
     c_n = np.asarray(p.nominal, dtype=float)
-    a = force_regressor(x, delta_rad, wheel_speed_m_s, p)
+    a = force_regressor(x, delta_rad, wheel_speed_m_s, p, saturation_slip_rad)
     vx, vy, r = x[:, 0], x[:, 1], x[:, 2]
     # eq. (7) accelerations with C = C_n + w -> acc = (A C_n + a0) + A w
     acc_n = np.einsum("nij,j->ni", a, c_n)

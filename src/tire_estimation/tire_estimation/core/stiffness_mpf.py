@@ -34,7 +34,9 @@ hence the longitudinal tyre force, is unknown: by default (``measured_speed_mode
 ``kinematic``) the measured ax drives vX (eq. 1a as kinematics, ``dvX/dt = ax + vY r``) and the
 speed replaces ax as measurement row 0 (``stiffness_model.kinematic_speed_row``); the ax bias
 is then not estimated; (viii) optional saturating lateral tyre ``Fy = C alpha_s tanh(alpha /
-alpha_s)`` (``friction_coefficient``, still affine in ``C``); (ix) optional, against the
+alpha_s)`` (``friction_coefficient``, still affine in ``C``), by default with the peak at the
+friction limit, ``alpha_s = mu Fz / C`` at each particle's stiffness mean (``saturation_peak``);
+(ix) optional, against the
 collapse of the particles onto a jointly scaled stiffness pair at activation: the NiW mean and
 ``gamma`` updated with the measurement's information share of the draw of ``w``
 (``niw_update``, :func:`niw_mean_gains`), and a Liu & West (2001) shrinkage kernel on the
@@ -63,6 +65,7 @@ from tire_estimation.core.stiffness_model import (
     SingleTrackParams,
     kinematic_speed_row,
     linearize,
+    saturation_slip_at,
     wheel_speed_gain,
 )
 from tire_estimation.core.stiffness_proposal import (
@@ -620,12 +623,16 @@ class StiffnessMpf:
                 if j == 2:
                     gyro_nis = float(self.weights @ prop.nis)
             rows = tuple(i for i in range(NE) if i not in {m[0] for m in measured})
+        sat = self._saturation_slips()
         if kinematic:
             assert vx_m_s is not None
             # slip 0 (wheel speed = each particle's vX): the longitudinal force is unknown
             vx_p = self.x[:, 0]
             lin = kinematic_speed_row(
-                linearize(self.x, delta_rad, (vx_p, vx_p), self.params), self.x, y[0], self.params
+                linearize(self.x, delta_rad, (vx_p, vx_p), self.params, sat),
+                self.x,
+                y[0],
+                self.params,
             )
             y = np.array([vx_m_s, y[1], y[2]])
             # the ax bias is not a measurement offset of the speed row: not estimated
@@ -635,7 +642,7 @@ class StiffnessMpf:
             r_cov = np.tile(self.r_cov, (self.n, 1, 1))
             r_cov[:, 0, 0] = self.config.speed_noise_std_m_s**2
         else:
-            lin = linearize(self.x, delta_rad, wheel_speed_m_s, self.params)
+            lin = linearize(self.x, delta_rad, wheel_speed_m_s, self.params, sat)
             r_cov = self.measurement_cov(delta_rad, wheel_speed_m_s)
         if (
             self.compiled
@@ -827,6 +834,20 @@ class StiffnessMpf:
             st.dof += 1.0
             if idx is not self._identity:
                 self._rejuvenate(freeze_before is not None)
+
+    def _saturation_slips(self) -> tuple[F64, F64] | None:
+        """Per-particle saturation slips with ``saturation_peak`` = ``friction``, else None.
+
+        ``alpha_s = mu Fz / C`` at each particle's stiffness mean ``C_n + mu_i`` (eq. 7, 27a
+        per particle) before this step's draw, so the step stays affine in ``w``.
+        """
+        p = self.params
+        if self.config.saturation_peak != "friction" or (
+            p.saturation_slip_front_rad <= 0.0 and p.saturation_slip_rear_rad <= 0.0
+        ):
+            return None
+        c = self.nominal[None, :] + self.stats.mean
+        return saturation_slip_at(p, c[:, 1], c[:, 2])
 
     def _learned_components(self, freeze_cx: bool) -> F64:
         """1 for each component of ``w`` learned in this step, 0 for a frozen Cx, (3,)."""

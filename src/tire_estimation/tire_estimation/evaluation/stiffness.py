@@ -2,7 +2,8 @@
 
 ``python -m tire_estimation.evaluation.stiffness --out DIR --runs R`` writes ``stiffness.json``:
 RMSE of vY vs N on ``stiffness_step`` (Fig. 5, Algorithm 1 only), steady-state cy_front error,
-and per-IMU-step time. Baselines (AUGPF, RLS, EKF) are not implemented yet.
+and per-IMU-step time. The baselines (AUGPF, RLS, EKF) in the same run:
+:mod:`tire_estimation.evaluation.stiffness_compare`.
 
 ``python -m tire_estimation.evaluation.stiffness --out DIR --scenario NAME --seeds 0 1 2
 [--sim-imu-bias] [--bias-estimation] [--particles N ...] [--minutes M]`` runs the per-seed study
