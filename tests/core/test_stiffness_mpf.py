@@ -420,3 +420,37 @@ def test_mean_log_predictive_prefers_the_simulators_noise_level() -> None:
     right = _mean_log_predictive(true_std)
     assert right > _mean_log_predictive(4.0 * true_std) + 0.5
     assert right > _mean_log_predictive(0.25 * true_std) + 0.5
+
+
+def test_bias_average_follows_the_residual_with_its_time_constant() -> None:
+    # bias_average_s = tau: the bias update's noise R + (tau / Ts) P caps the gain at
+    # Ts / (tau + Ts), so a constant gyro residual of 3 deg/s (straight driving, the update
+    # always runs) is followed like an exponential mean: 3 (1 - exp(-t / tau)) = 0.29, 1.90,
+    # 2.85 deg/s at 0.1, 1, 3 s for tau = 1 s (a little faster: the Student-t weight shrinks
+    # the noise); eq. (30) as printed (tau = 0) takes 2.7 deg/s within 0.1 s
+    params = SingleTrackParams.from_vehicle(VehicleParams())
+    y = np.array([0.0, 0.0, np.radians(3.0)])
+    got = {}
+    for tau in (0.0, 1.0):
+        for compiled in (True, False):
+            cfg = StiffnessEstimatorConfig(n_particles=50, bias_average_s=tau)
+            mpf = StiffnessMpf(cfg, params, np.random.default_rng(3))
+            mpf.compiled = compiled
+            mpf.initialize(np.array([20.0, 0.0, 0.0]), np.array([0.1, 0.05, 0.002]))
+            out = []
+            for k in range(300):
+                mpf.predict(0.01, False)
+                mpf.update(y, 0.0, (20.0, 20.0), False)
+                if k in (9, 99, 299):
+                    out.append(np.degrees(mpf.estimate().bias[2]))
+            got[tau, compiled] = np.array(out)
+    np.testing.assert_allclose(got[1.0, True], got[1.0, False], rtol=1e-12)
+    np.testing.assert_allclose(got[1.0, True], [0.29, 1.90, 2.85], rtol=0.12)
+    assert got[0.0, True][0] > 2.5
+    # the default is 2 s
+    assert StiffnessEstimatorConfig().bias_average_s == 2.0
+
+
+def test_bias_average_must_be_non_negative() -> None:
+    with pytest.raises(ConfigError, match="bias_average_s"):
+        StiffnessEstimatorConfig(bias_average_s=-1.0)

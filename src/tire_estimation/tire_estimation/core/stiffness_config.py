@@ -65,6 +65,13 @@ class StiffnessEstimatorConfig:
             (P_0) and of the stiffness (prior) as bias, which the gate above then keeps; a hold
             did not reduce the run-aways on ``stiffness_step`` reliably (4, 7, 12 s: 11, 4, 10
             of 40 against 8; docs/results.md, "IMU biases on `stiffness_step`").
+        bias_average_s: time constant tau of the bias update: eq. (30) adds ``(tau / Ts) P`` to
+            its measurement noise (``Ts`` the IMU period), which caps its gain at ``Ts / (tau +
+            Ts)``, so the bias follows the residuals as an average over about tau instead of
+            taking a transient of the particle's trajectory within a few steps while ``P`` is
+            still near ``P_0``; 0 is eq. (30) as printed, s (default 2.0; on ``stiffness_step``
+            with IMU biases 1 of 40 drives ran away at each of three filter seeds, against 8, 5
+            and 9 with 0; docs/results.md section 6).
         initial_vx_std_m_s: initial std of vX around the measured speed, m/s (default 0.3).
         initial_vy_std_m_s: initial std of vY, m/s (default 0.3).
         initial_yaw_rate_std_rad_s: initial std of the yaw rate, rad/s (default 0.0175).
@@ -166,6 +173,7 @@ class StiffnessEstimatorConfig:
     bias_gate_sigma: float = 3.0
     bias_gate_window_s: float = 1.0
     bias_hold_s: float = 0.0
+    bias_average_s: float = 2.0
     initial_vx_std_m_s: float = 0.3
     initial_vy_std_m_s: float = 0.3
     initial_yaw_rate_std_rad_s: float = 0.0175
@@ -246,6 +254,7 @@ class StiffnessEstimatorConfig:
             "accel_bias_walk_m_s2_sqrt_s",
             "gyro_bias_walk_rad_s_sqrt_s",
             "bias_hold_s",
+            "bias_average_s",
             "initial_vx_std_m_s",
             "initial_vy_std_m_s",
             "initial_yaw_rate_std_rad_s",

@@ -36,11 +36,14 @@ speed replaces ax as measurement row 0 (``stiffness_model.kinematic_speed_row``)
 is then not estimated; (viii) optional saturating lateral tyre ``Fy = C alpha_s tanh(alpha /
 alpha_s)`` (``friction_coefficient``, still affine in ``C``), by default with the peak at the
 friction limit, ``alpha_s = mu Fz / C`` at each particle's stiffness mean (``saturation_peak``);
-(ix) optional, against the
-collapse of the particles onto a jointly scaled stiffness pair at activation: the NiW mean and
-``gamma`` updated with the measurement's information share of the draw of ``w``
-(``niw_update``, :func:`niw_mean_gains`), and a Liu & West (2001) shrinkage kernel on the
-means after resampling (``rejuvenation_bandwidth``, :func:`rejuvenate_means`).
+(ix) optional, against the collapse of the particles onto a jointly scaled stiffness pair at
+activation: the NiW mean and ``gamma`` updated with the measurement's information share of the
+draw of ``w`` (``niw_update``, :func:`niw_mean_gains`), and a Liu & West (2001) shrinkage kernel
+on the means after resampling (``rejuvenation_bandwidth``, :func:`rejuvenate_means`); (x) the
+bias update (30) adds ``(tau / Ts) P`` to its noise (``bias_average_s`` = tau), which caps its
+gain at ``Ts / (tau + Ts)``: right after the initialization (``P`` = ``P_0``) eq. (30) as printed
+takes the particle's own start-up transient as bias within a few steps, after which the
+yaw-rate gate of (v) keeps it; with the cap the bias is an average over about tau.
 
 Speed: :meth:`StiffnessMpf.predict` and :meth:`StiffnessMpf.update` run the per-particle algebra
 after the linearization in the compiled kernels of :mod:`.stiffness_kernels` (three passes over
@@ -497,6 +500,7 @@ class StiffnessMpf:
         #: time since :meth:`initialize`, s (the bias hold, ``bias_hold_s``)
         self.time_since_init = 0.0
         self._dt_s = 0.0
+        self._step_dt_s = 0.0
         self._before_learning: niw.NiwStats | None = None
         # compiled path: ancestors without resampling, "no freeze", constant of eq. (35)
         self._identity = np.arange(self.n, dtype=np.intp)
@@ -592,6 +596,8 @@ class StiffnessMpf:
         ``input`` it replaces the particles' vX; with ``kinematic`` the measured ax drives vX and
         the speed is the measurement row 0 (:func:`kinematic_speed_row`).
         """
+        # IMU period of this step (the bias update's gain cap, bias_average_s)
+        self._step_dt_s = self._dt_s
         kinematic = vx_m_s is not None and self.config.measured_speed_model == "kinematic"
         if vx_m_s is not None and not kinematic:
             self.x[:, 0] = vx_m_s
@@ -739,7 +745,7 @@ class StiffnessMpf:
         # bias agrees with the gyro (else the bias filters absorb the yaw-rate model error)
         self.bias_updated = self.bias_gate_open(learn)
         if self.bias_updated:
-            bias_update(self.b, self.p_bias, resid, extra, r_cov, lp.dof)
+            bias_update(self.b, self.p_bias, resid, extra, self._bias_noise(r_cov), lp.dof)
         # line 18 (first half): derivative for eq. (9), applied in predict()
         self.rate = lin.rate + np.einsum("nij,nj->ni", lin.a, w)
 
@@ -815,10 +821,12 @@ class StiffnessMpf:
             )
             mean0 = np.ascontiguousarray(freeze_before.mean[:, 0])
             scale00 = freeze_before.scale[:, 0, 0] * ratio
-        # lines 17, 4, 15, 18: eq. (39)-(41) draw, projection, eq. (19), eq. (30), eq. (9) rate
+        # lines 17, 4, 15, 18: eq. (39)-(41) draw, projection, eq. (19), eq. (30), eq. (9) rate;
+        # the kernel reads r_cov only in eq. (30): R plus the bias_average_s term, per ancestor
+        r_bias = self._bias_noise(r_cov)
         x, b, p_bias, rate, mean, scale, _ = stiffness_kernels.posterior_step(
             idx, self.x, self.b, self.p_bias, st.mean, st.scale, gamma, nu, lin.d, lin.a,
-            lin.rate, r_cov, e_bar, z, shape_inv, maha, self.lower, self.upper, learn, mean0,
+            lin.rate, r_bias, e_bar, z, shape_inv, maha, self.lower, self.upper, learn, mean0,
             scale00, self.bias_updated, gains, self.rng,
         )  # fmt: skip
         self.x, self.b, self.p_bias, self.rate = x, b, p_bias, rate
@@ -834,6 +842,20 @@ class StiffnessMpf:
             st.dof += 1.0
             if idx is not self._identity:
                 self._rejuvenate(freeze_before is not None)
+
+    def _bias_noise(self, r_cov: F64) -> F64:
+        """Measurement noise of the bias update (eq. 30), (N, 3, 3).
+
+        ``R`` (with the wheel-speed term), plus with ``bias_average_s`` = tau > 0 the term
+        ``(tau / Ts) P`` (deviation x), which caps the Kalman gain at ``Ts / (tau + Ts)``:
+        the bias follows the residuals as an average over about tau instead of taking a
+        transient of the particle's trajectory within a few steps while ``P`` is near ``P_0``.
+        """
+        tau = self.config.bias_average_s
+        if tau <= 0.0 or self._step_dt_s <= 0.0:
+            return r_cov
+        # deviation (x): R_b = R + (tau / Ts) P  ->  K = P (P + R_b)^-1 <= Ts / (tau + Ts)
+        return r_cov + (tau / self._step_dt_s) * self.p_bias
 
     def _saturation_slips(self) -> tuple[F64, F64] | None:
         """Per-particle saturation slips with ``saturation_peak`` = ``friction``, else None.
