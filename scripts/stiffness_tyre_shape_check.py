@@ -18,21 +18,23 @@ from numpy.typing import NDArray
 
 import tire_estimation.core.stiffness_model as sm
 from tire_estimation.evaluation.stiffness import sine_study
-from tire_estimation.sim.tires import TireModelConfig
+from tire_estimation.sim.tires import TireModelConfig, magic_formula
 
 F64 = NDArray[np.float64]
 
 
 def magic_formula_slip(alpha_rad: F64, saturation_slip_rad: float | F64) -> F64:
-    """``alpha_s f(alpha / alpha_s)`` with ``f`` the Magic Formula normalized to slope 1, rad."""
+    """``alpha_s f(alpha / alpha_s)`` with ``f`` the simulator's Magic Formula at slope 1, rad.
+
+    :func:`tire_estimation.sim.tires.magic_formula` with stiffness 1 and peak ``alpha_s``.
+    """
     if np.ndim(saturation_slip_rad) == 0 and saturation_slip_rad <= 0.0:
         return alpha_rad
     tyre = TireModelConfig()
-    c, e = tyre.lateral_shape_c, tyre.lateral_curvature_e
-    sat = np.asarray(saturation_slip_rad, dtype=float)
-    # Pacejka F = D sin(C atan(B x - E (B x - atan B x))) with B = 1 / C in units of alpha_s
-    bu = alpha_rad / sat / c
-    return sat * np.sin(c * np.arctan(bu - e * (bu - np.arctan(bu))))
+    return _MF(alpha_rad, 1.0, tyre.lateral_shape_c, saturation_slip_rad, tyre.lateral_curvature_e)
+
+
+_MF = np.vectorize(magic_formula, otypes=[float])
 
 
 def main() -> None:

@@ -161,16 +161,14 @@ def lateral_slip_function(alpha_rad: F64, saturation_slip_rad: float | F64) -> F
     cornering stiffness), 76 % of the peak ``C alpha_s`` at ``alpha = alpha_s``. A per-particle
     ``saturation_slip_rad`` (N,) (all > 0) goes with ``alpha_rad`` (N,).
     """
-    if np.ndim(saturation_slip_rad) == 0 and saturation_slip_rad <= 0.0:
+    sat = np.asarray(saturation_slip_rad, dtype=float)
+    if sat.ndim == 0 and sat <= 0.0:
         # eq. (2) Fy = C alpha
         return alpha_rad
-    if np.ndim(saturation_slip_rad) > 0:
-        sat = np.asarray(saturation_slip_rad, dtype=float)
-        safe = np.where(sat > 0.0, sat, 1.0)
-        # per particle; alpha_s = 0 keeps the linear tyre
-        return np.where(sat > 0.0, safe * np.tanh(alpha_rad / safe), alpha_rad)
-    # Fy = C alpha_s tanh(alpha / alpha_s)  (affine in C; -> C alpha for |alpha| << alpha_s)
-    return saturation_slip_rad * np.tanh(alpha_rad / saturation_slip_rad)
+    # Fy = C alpha_s tanh(alpha / alpha_s)  (affine in C; -> C alpha for |alpha| << alpha_s);
+    # a per-particle alpha_s = 0 keeps the linear tyre of that particle
+    safe = np.where(sat > 0.0, sat, 1.0)
+    return np.where(sat > 0.0, safe * np.tanh(alpha_rad / safe), alpha_rad)
 
 
 def saturation_slip_at(
