@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tire_estimation.core.vehicle import VehicleParams
+from tire_estimation.convert.revs250lm import load_revs, revs_vehicle
 from tire_estimation.evaluation.axle_fit import fit_axles, kinematic_accel_ratio
 
 
@@ -25,21 +25,10 @@ def main() -> None:
     ap.add_argument("--mu", type=float, default=1.1, help="friction coefficient (0: linear)")
     ap.add_argument("--smooth", type=int, default=25, help="Savitzky-Golay window, samples")
     args = ap.parse_args()
-    col = {
-        n: np.loadtxt(args.data_dir / f"{n}.txt")
-        for n in ("t", "vx", "vy", "yawRate", "ayCG", "yawAngAcc", "delta")
-    }
-    # the benchmark's vehicle numbers (data README); stiffness is what is fitted
-    car = VehicleParams(
-        name="ferrari_250lm_revs",
-        track_width_m=1.35,
-        wheelbase_m=2.4,
-        cg_to_front_axle_m=1.33,
-        cg_to_rear_axle_m=1.07,
-        mass_kg=982.0,
-        yaw_inertia_kg_m2=982.0 / 12 * (1.7**2 + 4.09**2),
-        drive="rear",
-    )
+    # the converter's reader and the benchmark's vehicle numbers (stiffness is what is fitted)
+    col = load_revs(args.data_dir)
+    col["yawAngAcc"] = np.loadtxt(args.data_dir / "yawAngAcc.txt")
+    car = revs_vehicle()
     n = col["t"].size
     for name, part in (
         ("all", slice(None)),

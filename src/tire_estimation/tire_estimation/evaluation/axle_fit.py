@@ -26,7 +26,11 @@ from numpy.typing import NDArray
 from scipy.optimize import least_squares
 from scipy.signal import savgol_filter
 
-from tire_estimation.core.stiffness_model import lateral_slip_function
+from tire_estimation.core.stiffness_model import (
+    SingleTrackParams,
+    lateral_slip_function,
+    slip_angles,
+)
 from tire_estimation.core.vehicle import VehicleParams
 
 F64 = NDArray[np.float64]
@@ -63,12 +67,10 @@ def reference_slip_angles(
     vx_m_s: F64, vy_m_s: F64, yaw_rate_rad_s: F64, delta_rad: F64, vehicle: VehicleParams
 ) -> tuple[F64, F64]:
     """Front and rear slip angles from the measured velocities (eq. 4), rad, (M,) each."""
-    vx = np.maximum(np.asarray(vx_m_s, dtype=float), 1.0)
-    # eq. (4) alpha_f = delta - (vY + lf r) / vX
-    alpha_f = delta_rad - (vy_m_s + vehicle.cg_to_front_axle_m * yaw_rate_rad_s) / vx
-    # eq. (4) alpha_r = (lr r - vY) / vX
-    alpha_r = (vehicle.cg_to_rear_axle_m * yaw_rate_rad_s - vy_m_s) / vx
-    return alpha_f, alpha_r
+    x = np.column_stack([vx_m_s, vy_m_s, yaw_rate_rad_s]).astype(float)
+    # eq. (4) with delta = 0, then alpha_f += delta (the MPF's own slip_angles, per sample)
+    alpha_f, alpha_r = slip_angles(x, 0.0, SingleTrackParams.from_vehicle(vehicle))
+    return alpha_f + np.asarray(delta_rad, dtype=float), alpha_r
 
 
 def axle_forces_from_motion(
