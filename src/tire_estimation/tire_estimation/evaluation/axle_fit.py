@@ -35,9 +35,6 @@ from tire_estimation.core.vehicle import VehicleParams
 
 F64 = NDArray[np.float64]
 
-#: standard gravity, m/s^2
-GRAVITY_M_S2 = 9.80665
-
 
 @dataclass(frozen=True)
 class AxleFit:
@@ -165,10 +162,10 @@ def fit_axles(
     fyf, fyr = axle_forces_from_motion(ay, rdot, delta, vehicle)
     alpha_f, alpha_r, fyf, fyr = (_smooth(x, smooth_samples) for x in (alpha_f, alpha_r, fyf, fyr))
     lf, lr = vehicle.cg_to_front_axle_m, vehicle.cg_to_rear_axle_m
-    weight = vehicle.mass_kg * GRAVITY_M_S2
-    # static axle loads Fz,f = m g lr / L, Fz,r = m g lf / L
-    peak_f = friction_coefficient * weight * lr / (lf + lr)
-    peak_r = friction_coefficient * weight * lf / (lf + lr)
+    # the MPF's peaks mu Fz at the static axle loads: alpha_s,n C_n (SingleTrackParams)
+    mpf = SingleTrackParams.from_vehicle(vehicle, friction_coefficient=friction_coefficient)
+    peak_f = mpf.saturation_slip_front_rad * float(mpf.nominal[1])
+    peak_r = mpf.saturation_slip_rear_rad * float(mpf.nominal[2])
     c_f = fit_axle_stiffness(alpha_f, fyf, peak_f)
     c_r = fit_axle_stiffness(alpha_r, fyr, peak_r)
     model_f = axle_curve(alpha_f, c_f, peak_f)
