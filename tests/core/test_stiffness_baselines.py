@@ -18,16 +18,17 @@ from tire_estimation.core.stiffness_baselines import (
     Measurement,
     RlsConfig,
     RlsEstimator,
+    friction_saturation,
     gaussian_logpdf,
     model,
     model_jacobian,
 )
 from tire_estimation.core.stiffness_config import StiffnessEstimatorConfig
 from tire_estimation.core.stiffness_estimator import StiffnessEstimate
-from tire_estimation.core.stiffness_model import SingleTrackParams
+from tire_estimation.core.stiffness_model import SingleTrackParams, slip_angles
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.errors import ConfigError
-from tire_estimation.evaluation.stiffness import NO_BIAS
+from tire_estimation.evaluation.stiffness import NO_BIAS, truth_over_nominal
 from tire_estimation.evaluation.stiffness_compare import replay
 from tire_estimation.sim import SimResult, simulate
 
@@ -68,6 +69,7 @@ def _scores(sim: SimResult, est: Any) -> tuple[float, float, float]:
         (BaselineConfig, {"drive": "left"}, "drive"),
         (BaselineConfig, {"accel_noise_std_m_s2": float("nan")}, "accel_noise_std_m_s2"),
         (EkfConfig, {"wheel_radius_m": 0.05}, "wheel_radius_m"),
+        (AugPfConfig, {"friction_coefficient": 0.05}, "friction_coefficient"),
     ],
 )
 def test_config_errors_name_field_and_value(cls: type, kw: dict[str, Any], field: str) -> None:
@@ -114,6 +116,48 @@ def test_model_jacobian_matches_finite_differences_and_is_affine_in_w() -> None:
         rp, yp, _, _ = model(xp[None, :], w[None, :], 0.02, ws, p)
         np.testing.assert_allclose((rp[0] - rate) / h, d_rate[:, j], rtol=2e-3, atol=1e-3)
         np.testing.assert_allclose((yp[0] - y_hat) / h, d_meas[:, j], rtol=2e-3, atol=1e-3)
+
+
+def test_friction_tyre_is_the_friction_limited_force_and_saturates_at_mu_g() -> None:
+    mu = 0.3
+    car = VehicleParams()
+    p = SingleTrackParams.from_vehicle(car, friction_coefficient=mu)
+    lin = SingleTrackParams.from_vehicle(car)
+    c_n = np.asarray(p.nominal, dtype=float)
+    # half and 1.5 x nominal cornering stiffness, same state
+    w = np.array([[0.0, -0.5 * c_n[1], -0.5 * c_n[2]], [0.0, 0.5 * c_n[1], 0.5 * c_n[2]]])
+    sat_f, sat_r = friction_saturation(p, w)
+    assert friction_saturation(lin, w) is None
+    # alpha_s = mu Fz / C: the peak C alpha_s is mu Fz whatever C is
+    np.testing.assert_allclose((c_n[1] + w[:, 1]) * sat_f, p.saturation_slip_front_rad * c_n[1])
+    np.testing.assert_allclose((c_n[2] + w[:, 2]) * sat_r, p.saturation_slip_rear_rad * c_n[2])
+    # deep in saturation (|alpha| ~ 0.3 rad) the lateral specific force is mu g for both rows
+    x = np.array([[20.0, -6.0, 0.0], [20.0, -6.0, 0.0]])
+    _, y_hat, _, _ = model(x, w, 0.0, (20.0, 20.0), p)
+    alpha_f, alpha_r = slip_angles(x, 0.0, p)
+    assert np.all(alpha_f > 0.25) and np.all(alpha_r > 0.25)
+    np.testing.assert_allclose(y_hat[:, 1], mu * 9.81, rtol=0.02)
+    # the linear tyre scales with C instead
+    _, y_lin, _, _ = model(x, w, 0.0, (20.0, 20.0), lin)
+    assert y_lin[1, 1] / y_lin[0, 1] == pytest.approx(3.0, rel=0.01)
+
+
+def test_model_jacobian_in_w_with_the_friction_tyre() -> None:
+    p = SingleTrackParams.from_vehicle(VehicleParams(), friction_coefficient=0.3)
+    x = np.array([15.0, -0.4, 0.12])
+    w = np.array([0.0, -4e4, -5e4])
+    ws = (15.1, 15.0)
+    rate, y_hat, _, _, a_w, d_w = model_jacobian(x, w, 0.03, ws, p)
+    _, _, a_sec, d_sec = model(x[None, :], w[None, :], 0.03, ws, p)
+    for j, h in ((1, 50.0), (2, 50.0)):
+        wp = w.copy()
+        wp[j] += h
+        rp, yp, _, _ = model(x[None, :], wp[None, :], 0.03, ws, p)
+        np.testing.assert_allclose((rp[0] - rate) / h, a_w[:, j], rtol=1e-3, atol=1e-9)
+        np.testing.assert_allclose((yp[0] - y_hat) / h, d_w[:, j], rtol=1e-3, atol=1e-9)
+    # not affine any more: the derivative is below the secant a = phi(alpha) in saturation
+    assert abs(d_w[1, 1]) < 0.9 * abs(d_sec[0, 1, 1])
+    assert abs(a_w[1, 2]) < 0.9 * abs(a_sec[0, 1, 2])
 
 
 def test_gaussian_logpdf_matches_scipy() -> None:
@@ -194,6 +238,22 @@ def test_rls_learns_cy_front_and_tracks_vy() -> None:
     # Cx is not estimated: it stays at the initial guess
     e = est.estimate()
     assert e.stiffness[0] == pytest.approx(0.7 * e.nominal[0])
+
+
+def test_rls_with_the_friction_tyre_on_snow() -> None:
+    # snow_sine seed 0 from 150 % of the truth (truth = half the nominal, mu 0.3): measured
+    # steady mean error -3.9 / -4.2 % with the friction tyre, -8.2 / -9.3 % with the linear one
+    snow = simulate("snow_sine", seed=0, sensors=NO_BIAS)
+    start = 1.5 * truth_over_nominal(snow)
+    err = {}
+    for mu in (0.0, 0.3):
+        cfg = RlsConfig(initial_stiffness_factor=start, friction_coefficient=mu)
+        est = RlsEstimator(cfg, snow.vehicle)
+        res = replay(snow, est, lambda e=est: e.initialized)
+        rel = res["c"] / res["truth_c"] - 1.0
+        err[mu] = rel[res["t_s"] > res["t_s"][-1] - 5.0, 1:].mean(axis=0)
+    assert np.all(np.abs(err[0.3]) < 0.06)
+    assert np.all(err[0.0] < -0.07)
 
 
 def test_augpf_reproducible_with_the_same_seed() -> None:

@@ -42,7 +42,9 @@ def test_sine_study_applies_the_config_overrides() -> None:
 
 
 def test_set_values_parse_as_numbers_or_text() -> None:
-    from tire_estimation.evaluation.stiffness import _number_or_text
+    from tire_estimation.evaluation.stiffness import parse_set
 
-    assert _number_or_text("0.01") == pytest.approx(0.01)
-    assert _number_or_text("measured") == "measured"
+    got = parse_set(["forgetting=0.01", "niw_update = measured"])
+    assert got == {"forgetting": pytest.approx(0.01), "niw_update": "measured"}
+    with pytest.raises(ValueError, match="FIELD=VALUE"):
+        parse_set(["forgetting"])

@@ -24,6 +24,12 @@ checks and activation logic of
   regresses the measured lateral acceleration and yaw acceleration on the slip angles to get
   ``[Cy_f, Cy_r]``; ``Cx`` is not estimated.
 
+With ``friction_coefficient`` mu > 0 all three use the friction-limited lateral tyre of
+Algorithm 1 (``saturation_peak`` = ``friction``): ``Fy = mu Fz tanh(C alpha / (mu Fz))`` per axle,
+i.e. ``C phi(alpha)`` with ``alpha_s = mu Fz / C`` at the method's own stiffness (per particle in
+AUGPF, the estimate in the EKF and the RLS); the model is then no longer affine in ``w``, and the
+EKF takes its ``w`` Jacobian by central differences too.
+
 None of them estimates the IMU biases (the paper's simulation, Sec. VI-A, is bias-free):
 compare them on bias-free sensors. The reported ``stiffness_std`` is the posterior std of the
 stiffness estimate (particle spread, ``sqrt(diag P)``), not the std of the stiffness noise
@@ -46,6 +52,7 @@ from tire_estimation.core.stiffness_model import (
     SingleTrackParams,
     linearize,
     roll_compensate,
+    saturation_slip_at,
     wheel_speed_gain,
 )
 from tire_estimation.core.validation import (
@@ -61,6 +68,8 @@ F64 = NDArray[np.float64]
 DRIVE_CHOICES = ("vehicle", "front", "rear", "all")
 #: Central-difference steps of the numeric Jacobians in [vX m/s, vY m/s, r rad/s].
 JACOBIAN_STEP = np.array([1e-3, 1e-3, 1e-4])
+#: Central-difference steps in ``w`` (friction-limited tyre only), fraction of ``C_n``.
+W_JACOBIAN_STEP_FRACTION = 1e-4
 _LOG_2PI = math.log(2.0 * math.pi)
 
 C = TypeVar("C", bound="BaselineConfig")
@@ -90,6 +99,9 @@ class BaselineConfig:
         rolling_resistance_n: known constant longitudinal resistance, N (0.0).
         drag_n_s2_m2: known aerodynamic drag coefficient k (F = k vX^2), N s^2/m^2 (0.0).
         roll_gain: c_phi g of Sec. II-A, 1 (0.0).
+        friction_coefficient: road friction coefficient mu of Algorithm 1's friction-limited
+            lateral tyre ``Fy = mu Fz tanh(C alpha / (mu Fz))`` per axle (static axle load
+            ``Fz``), 1; 0 keeps the linear tyre of eq. (2) (0.0).
         min_speed_m_s: below this speed nothing is learned, m/s (5.0).
         activation_window_s: window of the RMS steering angle, s (1.0).
         activation_steer_rad: minimum RMS road-wheel angle to learn (Sec. V), rad (0.003).
@@ -114,6 +126,7 @@ class BaselineConfig:
     rolling_resistance_n: float = 0.0
     drag_n_s2_m2: float = 0.0
     roll_gain: float = 0.0
+    friction_coefficient: float = 0.0
     min_speed_m_s: float = 5.0
     activation_window_s: float = 1.0
     activation_steer_rad: float = 0.003
@@ -156,6 +169,8 @@ class BaselineConfig:
         if 0.0 < self.wheel_radius_m < 0.1:
             raise ConfigError("wheel_radius_m", self.wheel_radius_m, "must be 0 or >= 0.1")
         require_range("roll_gain", self.roll_gain, -0.5, 5.0)
+        if self.friction_coefficient != 0.0:
+            require_range("friction_coefficient", self.friction_coefficient, 0.1, 5.0)
 
     @classmethod
     def sharing(cls: type[C], other: Any, **overrides: Any) -> C:
@@ -323,15 +338,30 @@ class FilterEstimate:
     n_eff: float
 
 
+def friction_saturation(p: SingleTrackParams, w: F64) -> tuple[F64, F64] | None:
+    """Per-row saturation slips ``alpha_s = mu Fz / C`` at ``C = C_n + w``, or None (linear).
+
+    ``w`` (N, 3) -> two (N,) arrays (``stiffness_model.saturation_slip_at``); None where ``p``
+    has the linear tyre (``friction_coefficient`` 0).
+    """
+    if p.saturation_slip_front_rad <= 0.0 and p.saturation_slip_rear_rad <= 0.0:
+        return None
+    c_n = np.asarray(p.nominal, dtype=float)
+    return saturation_slip_at(p, c_n[1] + w[:, 1], c_n[2] + w[:, 2])
+
+
 def model(
     x: F64, w: F64, delta_rad: float, wheel_speed_m_s: tuple[float, float], p: SingleTrackParams
 ) -> tuple[F64, F64, F64, F64]:
     """State derivative and measurement mean with stiffness ``C_n + w``, per row.
 
     ``x`` (N, 3), ``w`` (N, 3) -> ``rate`` (N, 3), ``y_hat`` (N, 3), ``a`` (N, 3, 3) and ``d``
-    (N, 3, 3) of :func:`~tire_estimation.core.stiffness_model.linearize`.
+    (N, 3, 3) of :func:`~tire_estimation.core.stiffness_model.linearize`. With the
+    friction-limited tyre ``a`` and ``d`` are taken at each row's own ``alpha_s = mu Fz / C``
+    (:func:`friction_saturation`), so ``rate`` and ``y_hat`` are the exact model at ``w``
+    while ``a`` and ``d`` are secants, not derivatives.
     """
-    lin = linearize(x, delta_rad, wheel_speed_m_s, p)
+    lin = linearize(x, delta_rad, wheel_speed_m_s, p, friction_saturation(p, w))
     # eq. (9)-(10): dx/dt = rate_n(x) + a(x) w
     rate = lin.rate + np.einsum("nij,nj->ni", lin.a, w)
     # eq. (12): y = h(x) + d(x) w + e
@@ -342,19 +372,33 @@ def model(
 def model_jacobian(
     x: F64, w: F64, delta_rad: float, wheel_speed_m_s: tuple[float, float], p: SingleTrackParams
 ) -> tuple[F64, F64, F64, F64, F64, F64]:
-    """:func:`model` at one state and its Jacobians in ``x`` by central differences.
+    """:func:`model` at one state and its Jacobians in ``x`` and ``w`` by central differences.
 
     ``x`` (3,), ``w`` (3,) -> ``rate`` (3,), ``y_hat`` (3,), ``d rate / dx`` (3, 3),
-    ``d y_hat / dx`` (3, 3), ``a`` (3, 3) = ``d rate / dw`` and ``d`` (3, 3) = ``d y_hat / dw``
-    (exact: the model is affine in ``w``, eq. 9 and 12). One vectorized call on 7 rows.
+    ``d y_hat / dx`` (3, 3), ``d rate / dw`` (3, 3) and ``d y_hat / dw`` (3, 3). With the
+    linear tyre the model is affine in ``w`` (eq. 9 and 12) and the ``w`` Jacobians are its
+    exact ``a`` and ``d``: one vectorized call on 7 rows. With the friction-limited tyre they
+    are central differences too (13 rows, steps ``W_JACOBIAN_STEP_FRACTION`` of ``C_n``).
     """
     eye = np.diag(JACOBIAN_STEP)
+    friction = friction_saturation(p, w[None, :]) is not None
     xs = np.vstack([x[None, :], x[None, :] + eye, x[None, :] - eye])
-    rate, y_hat, a, d = model(xs, np.broadcast_to(w, xs.shape), delta_rad, wheel_speed_m_s, p)
+    ws = np.broadcast_to(w, xs.shape)
+    if friction:
+        hw = np.diag(W_JACOBIAN_STEP_FRACTION * np.asarray(p.nominal, dtype=float))
+        xs = np.vstack([xs, np.broadcast_to(x, (6, 3))])
+        ws = np.vstack([ws, w[None, :] + hw, w[None, :] - hw])
+    rate, y_hat, a, d = model(xs, ws, delta_rad, wheel_speed_m_s, p)
     # central differences: column j = (f(x + h_j e_j) - f(x - h_j e_j)) / (2 h_j)
     d_rate = ((rate[1:4] - rate[4:7]) / (2.0 * JACOBIAN_STEP[:, None])).T
     d_meas = ((y_hat[1:4] - y_hat[4:7]) / (2.0 * JACOBIAN_STEP[:, None])).T
-    return rate[0], y_hat[0], d_rate, d_meas, a[0], d[0]
+    if not friction:
+        return rate[0], y_hat[0], d_rate, d_meas, a[0], d[0]
+    step_w = 2.0 * W_JACOBIAN_STEP_FRACTION * np.asarray(p.nominal, dtype=float)
+    # d/dw of Fy = mu Fz tanh(C alpha / (mu Fz)): central differences in w as well
+    d_rate_w = ((rate[7:10] - rate[10:13]) / step_w[:, None]).T
+    d_meas_w = ((y_hat[7:10] - y_hat[10:13]) / step_w[:, None]).T
+    return rate[0], y_hat[0], d_rate, d_meas, d_rate_w, d_meas_w
 
 
 def measurement_cov(
@@ -745,8 +789,17 @@ class KfRls(BaselineFilter):
         ikh = np.eye(2) - k @ h
         self.p = ikh @ self.p @ ikh.T + k @ r @ k.T
         self._inputs = (meas.delta_rad, meas.wheel_speed_m_s)
-        # regressors at the KF posterior (a and d of eq. 9 and 12 do not depend on w)
-        lin = linearize(self._x3()[None, :], meas.delta_rad, meas.wheel_speed_m_s, p)
+        # regressors at the KF posterior (a and d of eq. 9 and 12 do not depend on w; with the
+        # friction-limited tyre they are taken at alpha_s = mu Fz / theta, so the regression
+        # model is exact at the current estimate)
+        w_theta = np.concatenate([[0.0], self.theta - self.nominal[1:]])[None, :]
+        lin = linearize(
+            self._x3()[None, :],
+            meas.delta_rad,
+            meas.wheel_speed_m_s,
+            p,
+            friction_saturation(p, w_theta),
+        )
         a, d = lin.a[0], lin.d[0]
         cx0 = c.initial_stiffness_factor * self.nominal[0]
         gyro = float(meas.y[2])
@@ -851,6 +904,7 @@ class BaselineEstimator:
             rolling_resistance_n=config.rolling_resistance_n,
             drag_n_s2_m2=config.drag_n_s2_m2,
             roll_gain=config.roll_gain,
+            friction_coefficient=config.friction_coefficient,
         )
         self.nominal = np.asarray(self.params.nominal, dtype=float)
         self.stats: dict[str, int] = {}

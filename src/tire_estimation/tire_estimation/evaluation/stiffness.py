@@ -260,6 +260,17 @@ def study(
     }
 
 
+def truth_over_nominal(sim: SimResult) -> float:
+    """The drive's true cornering stiffness over the estimator's nominal one (mean of both axles).
+
+    The initial guess is a fraction of the estimator's nominal stiffness (the vehicle's); times
+    this it becomes a fraction of the drive's truth (on ``snow_sine`` the truth is half the
+    nominal).
+    """
+    nominal = StiffnessEstimator(eval_config(1), sim.vehicle, np.random.default_rng(0))
+    return float(np.mean(sim.truth.stiffness[0, 1:] / nominal.mpf.nominal[1:]))
+
+
 def sine_study(
     scenario: str,
     factor: float,
@@ -286,11 +297,7 @@ def sine_study(
     per_run: list[dict[str, Any]] = []
     for r in range(first_seed, first_seed + runs):
         sim = simulate(scenario, seed=r, sensors=NO_BIAS)
-        # the initial guess is a fraction of the estimator's nominal stiffness (the vehicle's):
-        # scale it so that it is ``factor`` x the drive's true cornering stiffness (snow: the
-        # truth is half the nominal)
-        nominal = StiffnessEstimator(eval_config(1), sim.vehicle, np.random.default_rng(0))
-        truth_ratio = float(np.mean(sim.truth.stiffness[0, 1:] / nominal.mpf.nominal[1:]))
+        truth_ratio = truth_over_nominal(sim)
         cfg = eval_config(n, initial_stiffness_factor=factor * truth_ratio, **(overrides or {}))
         res = run(sim, cfg, seed=1000 + r)
         rel = res["c"] / res["truth_c"] - 1.0
@@ -327,12 +334,22 @@ def sine_study(
     }
 
 
-def _number_or_text(value: str) -> float | str:
-    """``--set`` value: a number where it parses as one (``0.2``), else the text (``measured``)."""
-    try:
-        return float(value)
-    except ValueError:
-        return value
+def parse_set(items: list[str]) -> dict[str, float | str]:
+    """``--set FIELD=VALUE`` items -> {field: number where it parses as one, else the text}.
+
+    Raises:
+        ValueError: an item without ``=``.
+    """
+    out: dict[str, float | str] = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep:
+            raise ValueError(f"--set needs FIELD=VALUE, got {item!r}")
+        try:
+            out[key.strip()] = float(value.strip())
+        except ValueError:
+            out[key.strip()] = value.strip()
+    return out
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -372,12 +389,10 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--sine-scenarios", nargs="+", default=["snow_sine", "asphalt_sine"])
     args = ap.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
-    overrides: dict[str, Any] = {}
-    for item in args.set:
-        key, sep, value = item.partition("=")
-        if not sep:
-            ap.error(f"--set needs FIELD=VALUE, got {item!r}")
-        overrides[key.strip()] = _number_or_text(value.strip())
+    try:
+        overrides: dict[str, Any] = dict(parse_set(args.set))
+    except ValueError as exc:
+        ap.error(str(exc))
     if args.sine_runs > 0:
         sine = {
             f"{scen}@{f0}": sine_study(scen, f0, args.sine_runs, args.particles[0], 0, overrides)

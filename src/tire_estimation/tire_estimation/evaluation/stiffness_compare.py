@@ -1,4 +1,4 @@
-"""Algorithm 1 against AUGPF, EKF and KF + RLS on ``stiffness_step`` (issue 5).
+"""Algorithm 1 against AUGPF, EKF and KF + RLS on ``stiffness_step`` and the sine drives (issue 5).
 
 Berntorp & Di Cairano, IEEE TCST 2018, Sec. VI: the same bias-free ``stiffness_step`` drives
 (simulator seeds) go through Algorithm 1 (:class:`StiffnessEstimator` with
@@ -16,6 +16,17 @@ Cy_front and of its reported std relative to the truth, at the largest N) and
 ``timing.png`` (time per IMU step). Steady state as :mod:`~tire_estimation.evaluation.stiffness`:
 15-29.5 s and after 45 s from the first IMU sample.
 
+On the sine drives (``snow_sine``, ``asphalt_sine``; scored as
+:func:`~tire_estimation.evaluation.stiffness.sine_study`: steady state the last 5 s, settling
+within 5 % after activation), every method from each factor x the drive's truth::
+
+    python -m tire_estimation.evaluation.stiffness_compare --out DIR --sine snow_sine \\
+        --runs 50 --particles 200 --jobs 2 --set friction_coefficient=0.3 \\
+        [--set niw_update=rao_blackwellized] [--set augpf.FIELD=VALUE ...]
+
+writes ``compare_snow_sine.json`` and prints one table per factor. Shared settings (e.g. the
+friction-limited tyre's ``friction_coefficient``) reach the baselines too.
+
 The reported std is not the same quantity for every method: Algorithm 1 reports the std of
 the stiffness noise ``w`` (eq. 27b), the baselines the posterior std of their estimate.
 """
@@ -25,6 +36,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import math
 import time
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
@@ -47,13 +59,21 @@ from tire_estimation.core.stiffness_baselines import (
     RlsEstimator,
 )
 from tire_estimation.core.stiffness_estimator import StiffnessEstimate, StiffnessEstimator
-from tire_estimation.evaluation.stiffness import NO_BIAS, eval_config
+from tire_estimation.evaluation.stiffness import (
+    NO_BIAS,
+    eval_config,
+    parse_set,
+    settling,
+    truth_over_nominal,
+)
 from tire_estimation.sim import SimResult, simulate
 
 #: Initial stiffness of every method as a fraction of nominal (paper Sec. VI-A: 70 %).
 INITIAL_STIFFNESS_FACTOR = 0.7
 #: Generator seed of the particle filters = simulator seed + this (as ``stiffness.main``).
 FILTER_SEED_OFFSET = 100
+#: On the sine drives: seed 1000 + simulator seed, as ``stiffness.sine_study``.
+SINE_FILTER_SEED_OFFSET = 1000
 #: A run with a vY RMSE above this diverged (counted in the summary), m/s.
 DIVERGED_VY_RMSE_M_S = 1.0
 METHODS = ("alg1", "augpf", "ekf", "rls")
@@ -76,6 +96,7 @@ def replay(sim: SimResult, est: Estimator, ready: Callable[[], bool]) -> dict[st
     """Feed ``sim`` through ``est`` in stamp order; arrays on the IMU grid.
 
     Keys: ``t_s`` (from the first IMU sample), ``c``/``std`` (K, 3), ``vy`` (CG), ``ready``,
+    ``active`` (learning on),
     ``truth_c`` (stiffness at the next truth sample), ``truth_vy`` (CG, interpolated) and
     ``step_ms`` (mean wall time of ``on_imu``).
     """
@@ -96,6 +117,7 @@ def replay(sim: SimResult, est: Estimator, ready: Callable[[], bool]) -> dict[st
     std: list[np.ndarray] = []
     vy: list[float] = []
     rdy: list[bool] = []
+    act: list[bool] = []
     busy_s = 0.0
     for t, kind, v in events:
         if kind == 0:
@@ -112,6 +134,7 @@ def replay(sim: SimResult, est: Estimator, ready: Callable[[], bool]) -> dict[st
             std.append(e.stiffness_std)
             vy.append(e.vy_m_s)
             rdy.append(ready())
+            act.append(bool(e.active))
     tt = np.asarray(t_ns)
     tr = sim.truth
     j = np.searchsorted(tr.t_ns, tt).clip(0, tr.t_ns.size - 1)
@@ -126,6 +149,7 @@ def replay(sim: SimResult, est: Estimator, ready: Callable[[], bool]) -> dict[st
         "std": np.asarray(std),
         "vy": np.asarray(vy),
         "ready": np.asarray(rdy, dtype=bool),
+        "active": np.asarray(act, dtype=bool),
         "truth_c": tr.stiffness[j],
         "truth_vy": truth_vy,
         "step_ms": np.asarray(1e3 * busy_s / max(len(t_ns), 1)),
@@ -149,17 +173,30 @@ def scores(res: dict[str, np.ndarray]) -> dict[str, Any]:
     }
 
 
-def configs(n: int, initial_vy_std_m_s: float | None) -> dict[str, Any]:
-    """Configurations of the four methods at ``n`` particles (shared values from Alg. 1's)."""
+def configs(n: int, initial_vy_std_m_s: float | None, **overrides: Any) -> dict[str, Any]:
+    """Configurations of the four methods at ``n`` particles (shared values from Alg. 1's).
+
+    ``overrides``: ``StiffnessEstimatorConfig`` fields of Algorithm 1 (after the initial factor
+    and ``initial_vy_std_m_s``); the baselines take those they share (``BaselineConfig``). A
+    key ``augpf.FIELD``, ``ekf.FIELD`` or ``rls.FIELD`` sets a field of that baseline only
+    (e.g. ``augpf.stiffness_walk_std_fraction_sqrt_s``).
+    """
     extra: dict[str, Any] = {"initial_stiffness_factor": INITIAL_STIFFNESS_FACTOR}
     if initial_vy_std_m_s is not None:
         extra["initial_vy_std_m_s"] = initial_vy_std_m_s
+    own: dict[str, dict[str, Any]] = {"augpf": {}, "ekf": {}, "rls": {}}
+    for key, value in overrides.items():
+        method, dot, field = key.partition(".")
+        if dot and method in own:
+            own[method][field] = value
+        else:
+            extra[key] = value
     alg1 = eval_config(n, **extra)
     return {
         "alg1": alg1,
-        "augpf": AugPfConfig.sharing(alg1, n_particles=n),
-        "ekf": EkfConfig.sharing(alg1),
-        "rls": RlsConfig.sharing(alg1),
+        "augpf": AugPfConfig.sharing(alg1, **{"n_particles": n, **own["augpf"]}),
+        "ekf": EkfConfig.sharing(alg1, **own["ekf"]),
+        "rls": RlsConfig.sharing(alg1, **own["rls"]),
     }
 
 
@@ -180,6 +217,106 @@ def run_seed(seed: int, particles: list[int], initial_vy_std_m_s: float | None) 
     rls = RlsEstimator(cfg["rls"], sim.vehicle)
     out["rls"]["-"] = scores(replay(sim, rls, lambda: rls.initialized))
     return out
+
+
+def sine_scores(res: dict[str, np.ndarray]) -> dict[str, Any]:
+    """Scores of one method on a sine drive, as :func:`~.stiffness.sine_study`.
+
+    Activation time (first learning sample), settling time of each stiffness after it (within
+    5 % to the end, nan if never), steady-state (last 5 s) mean and maximum relative error, vY
+    RMSE at the CG over the ready samples, and the step time.
+    """
+    t_s = res["t_s"]
+    rel = res["c"] / res["truth_c"] - 1.0
+    on = float(t_s[np.argmax(res["active"])]) if np.any(res["active"]) else math.nan
+    ss = t_s > t_s[-1] - 5.0
+    m = res["ready"]
+    err = res["vy"][m] - res["truth_vy"][m]
+    return {
+        "activation_s": on,
+        "settling_s": [settling(t_s, rel[:, i], on) for i in range(3)],
+        "steady_mean_rel_error": rel[ss].mean(axis=0).tolist(),
+        "steady_max_abs_rel_error": np.abs(rel[ss]).max(axis=0).tolist(),
+        "vy_rmse_m_s": float(np.sqrt(np.mean(err * err))) if err.size else float("nan"),
+        "step_ms": float(res["step_ms"]),
+    }
+
+
+def run_sine_seed(
+    seed: int, scenario: str, factor: float, n: int, overrides: dict[str, Any]
+) -> dict[str, Any]:
+    """Every method on the sine drive ``scenario`` of ``seed``, started at ``factor`` x truth.
+
+    As :func:`~.stiffness.sine_study` (bias-free, all stiffnesses scaled alike, Algorithm 1
+    seeded 1000 + seed); the AUGPF gets the same seed. ``overrides`` go to Algorithm 1's
+    configuration and, where the names are shared, to the baselines' (e.g.
+    ``friction_coefficient``). -> {method: scores}.
+    """
+    sim = simulate(scenario, seed=seed, sensors=NO_BIAS)
+    start = factor * truth_over_nominal(sim)
+    cfg = configs(n, None, **{**overrides, "initial_stiffness_factor": start})
+    fseed = SINE_FILTER_SEED_OFFSET + seed
+    alg1 = StiffnessEstimator(cfg["alg1"], sim.vehicle, np.random.default_rng(fseed))
+    aug = AugPfEstimator(cfg["augpf"], sim.vehicle, np.random.default_rng(fseed))
+    ekf = EkfEstimator(cfg["ekf"], sim.vehicle)
+    rls = RlsEstimator(cfg["rls"], sim.vehicle)
+    return {
+        "alg1": sine_scores(replay(sim, alg1, lambda: alg1.mpf.initialized)),
+        "augpf": sine_scores(replay(sim, aug, lambda: aug.initialized)),
+        "ekf": sine_scores(replay(sim, ekf, lambda: ekf.initialized)),
+        "rls": sine_scores(replay(sim, rls, lambda: rls.initialized)),
+    }
+
+
+def sine_summary(per_run: list[dict[str, Any]], max_error: float = 0.03) -> dict[str, Any]:
+    """Per method over the runs, cornering stiffness front / rear (as ``sine_study``), in %.
+
+    Mean of the steady mean error, mean |steady mean error|, p95 and maximum of the steady
+    maximum |error|, runs whose steady maximum |error| (front or rear) exceeds ``max_error``,
+    share of runs settled within 2 s of activation, median settling time, mean vY RMSE.
+    """
+    out: dict[str, Any] = {}
+    for m in METHODS:
+        rows = [r[m] for r in per_run]
+        mean = 100.0 * np.array([r["steady_mean_rel_error"][1:] for r in rows])
+        top = 100.0 * np.array([r["steady_max_abs_rel_error"][1:] for r in rows])
+        settle = np.nan_to_num(
+            np.array([r["settling_s"][1:] for r in rows], dtype=float), nan=np.inf
+        )
+        out[m] = {
+            "cy_steady_mean_error_mean_pct": mean.mean(axis=0).tolist(),
+            "cy_steady_abs_mean_error_mean_pct": np.abs(mean).mean(axis=0).tolist(),
+            "cy_steady_max_abs_error_p95_pct": np.quantile(top, 0.95, axis=0).tolist(),
+            "cy_steady_max_abs_error_max_pct": top.max(axis=0).tolist(),
+            "runs_above_max_error": int(np.sum(top.max(axis=1) > 100.0 * max_error)),
+            "cy_settled_within_2s_share": (settle <= 2.0).mean(axis=0).tolist(),
+            "cy_settling_s_median": np.median(settle, axis=0).tolist(),
+            "vy_rmse_mean_m_s": float(np.mean([r["vy_rmse_m_s"] for r in rows])),
+            "step_ms_mean": float(np.mean([r["step_ms"] for r in rows])),
+        }
+    return out
+
+
+def _sine_table(summary: dict[str, Any], runs: int) -> str:
+    """Markdown table of :func:`sine_summary` (front / rear)."""
+    lines = [
+        "| method | mean steady error | mean \\|steady error\\| | p95 / max steady max "
+        f"\\|error\\| | runs > 3 % (of {runs}) | settled within 2 s | vY RMSE m/s |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for m in METHODS:
+        s = summary[m]
+        f, r = s["cy_steady_mean_error_mean_pct"]
+        af, ar = s["cy_steady_abs_mean_error_mean_pct"]
+        pf, pr = s["cy_steady_max_abs_error_p95_pct"]
+        xf, xr = s["cy_steady_max_abs_error_max_pct"]
+        sf, sr = s["cy_settled_within_2s_share"]
+        lines.append(
+            f"| {LABELS[m]} | {f:+.2f} / {r:+.2f} % | {af:.2f} / {ar:.2f} % | {pf:.1f} / {pr:.1f}"
+            f" and {xf:.1f} / {xr:.1f} % | {s['runs_above_max_error']} | {100 * sf:.0f} / "
+            f"{100 * sr:.0f} % | {s['vy_rmse_mean_m_s']:.3f} |"
+        )
+    return "\n".join(lines)
 
 
 def _summary(per_run: dict[str, dict[str, Any]]) -> dict[str, Any]:
@@ -346,7 +483,25 @@ def main(argv: list[str] | None = None) -> None:
         help="prior std of vY for every method, m/s (default: eval_config's)",
     )
     ap.add_argument("--replot", action="store_true", help="only redraw from DIR/compare.json")
+    ap.add_argument(
+        "--sine",
+        metavar="SCENARIO",
+        help="compare on this sine drive (snow_sine, asphalt_sine) instead, at the first "
+        "--particles value, from each --factors x truth; writes compare_SCENARIO.json",
+    )
+    ap.add_argument("--factors", type=float, nargs="+", default=[1.5, 0.75])
+    ap.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="FIELD=VALUE",
+        help="with --sine: a StiffnessEstimatorConfig field of Algorithm 1, shared with the "
+        "baselines where they have it (e.g. friction_coefficient=0.3)",
+    )
     args = ap.parse_args(argv)
+    if args.sine:
+        _main_sine(args)
+        return
     if args.replot:
         old = json.loads((args.out / "compare.json").read_text())
         plot_all(args.out, old["summary"], old["per_run"], old["particles"])
@@ -390,6 +545,47 @@ def main(argv: list[str] | None = None) -> None:
     plot_all(args.out, summary, per_run, particles)
     print(_table(summary))
     print(f"wrote {args.out / 'compare.json'} ({report['wall_s']:.0f} s)")
+
+
+def _main_sine(args: argparse.Namespace) -> None:
+    """``--sine``: every method on the sine drives, ``--runs`` (or ``--seeds``) per factor."""
+    overrides = parse_set(args.set)
+    seeds = list(args.seeds) if args.seeds else list(range(args.runs))
+    n = args.particles[0]
+    args.out.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    jobs = [(f, s) for f in args.factors for s in seeds]
+    results: dict[tuple[float, int], dict[str, Any]] = {}
+    with ProcessPoolExecutor(max_workers=max(args.jobs, 1)) as pool:
+        futures = {
+            job: pool.submit(run_sine_seed, job[1], args.sine, job[0], n, overrides)
+            for job in jobs
+        }
+        for job, fut in futures.items():
+            results[job] = fut.result()
+    report: dict[str, Any] = {
+        "scenario": args.sine,
+        "sensors": "NO_BIAS",
+        "seeds": seeds,
+        "n_particles": n,
+        "overrides": overrides,
+        "wall_s": time.perf_counter() - t0,
+        "notes": {
+            "steady": "last 5 s of the drive; errors relative to the true stiffness",
+            "settling": "time after activation from which |error| stays within 5 %",
+            "start": "every stiffness at factor x the drive's truth",
+        },
+        "by_factor": {},
+    }
+    for f in args.factors:
+        per_run = [results[(f, s)] for s in seeds]
+        summary = sine_summary(per_run)
+        report["by_factor"][str(f)] = {"summary": summary, "per_run": per_run}
+        print(f"{args.sine} from {f:.0%} of the truth, N = {n}, {len(seeds)} runs:")
+        print(_sine_table(summary, len(seeds)))
+    path = args.out / f"compare_{args.sine}.json"
+    path.write_text(json.dumps(report, indent=2))
+    print(f"wrote {path} ({report['wall_s']:.0f} s)")
 
 
 if __name__ == "__main__":
