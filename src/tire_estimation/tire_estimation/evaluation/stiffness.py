@@ -300,28 +300,49 @@ def sine_study(
         truth_ratio = truth_over_nominal(sim)
         cfg = eval_config(n, initial_stiffness_factor=factor * truth_ratio, **(overrides or {}))
         res = run(sim, cfg, seed=1000 + r)
-        rel = res["c"] / res["truth_c"] - 1.0
-        on = float(res["t_s"][np.argmax(res["active"])]) if np.any(res["active"]) else math.nan
-        ss = res["t_s"] > res["t_s"][-1] - 5.0
-        per_run.append({
-            "seed": r,
-            "truth_over_nominal": truth_ratio,
-            "activation_s": on,
-            "settling_s": [settling(res["t_s"], rel[:, i], on) for i in range(3)],
-            "steady_mean_rel_error": rel[ss].mean(axis=0).tolist(),
-            "steady_max_abs_rel_error": np.abs(rel[ss]).max(axis=0).tolist(),
-        })  # fmt: skip
-    mean_err = np.array([p["steady_mean_rel_error"] for p in per_run])
-    max_err = np.array([p["steady_max_abs_rel_error"] for p in per_run])
-    settle = np.array([p["settling_s"] for p in per_run], dtype=float)
-    cy = slice(1, 3)
-    settled = np.nan_to_num(settle[:, cy], nan=np.inf)
+        scores = sine_run_scores(res["t_s"], res["c"] / res["truth_c"] - 1.0, res["active"])
+        per_run.append({"seed": r, "truth_over_nominal": truth_ratio, **scores})
     return {
         "scenario": scenario,
         "initial_factor": factor,
         "runs": runs,
         "n_particles": n,
         "overrides": dict(overrides or {}),
+        **sine_aggregate(per_run),
+        "per_run": per_run,
+    }
+
+
+def sine_run_scores(t_s: np.ndarray, rel: np.ndarray, active: np.ndarray) -> dict[str, Any]:
+    """Scores of one sine drive: ``t_s`` (K,), relative stiffness error ``rel`` (K, 3), ``active``
+    (K,) learning flags.
+
+    Activation time (first learning sample), settling time of each stiffness after it
+    (:func:`settling`), steady-state (last 5 s) mean and maximum |relative error|.
+    """
+    on = float(t_s[np.argmax(active)]) if np.any(active) else math.nan
+    ss = t_s > t_s[-1] - 5.0
+    return {
+        "activation_s": on,
+        "settling_s": [settling(t_s, rel[:, i], on) for i in range(3)],
+        "steady_mean_rel_error": rel[ss].mean(axis=0).tolist(),
+        "steady_max_abs_rel_error": np.abs(rel[ss]).max(axis=0).tolist(),
+    }
+
+
+def sine_aggregate(per_run: list[dict[str, Any]]) -> dict[str, Any]:
+    """Aggregates of :func:`sine_run_scores` over the runs (fractions; Cy front / rear).
+
+    Mean of the steady mean error, mean |steady mean error|, maximum and p95 of the steady
+    maximum |error|, share settled within 2 s, median and maximum settling time (never = inf),
+    and the mean steady error of Cx.
+    """
+    mean_err = np.array([p["steady_mean_rel_error"] for p in per_run])
+    max_err = np.array([p["steady_max_abs_rel_error"] for p in per_run])
+    settle = np.array([p["settling_s"] for p in per_run], dtype=float)
+    cy = slice(1, 3)
+    settled = np.nan_to_num(settle[:, cy], nan=np.inf)
+    return {
         "cy_steady_mean_rel_error_mean": mean_err[:, cy].mean(axis=0).tolist(),
         "cy_steady_mean_abs_rel_error_mean": np.abs(mean_err[:, cy]).mean(axis=0).tolist(),
         "cy_steady_max_abs_rel_error_max": max_err[:, cy].max(axis=0).tolist(),
@@ -330,7 +351,6 @@ def sine_study(
         "cy_settling_s_median": np.median(settled, axis=0).tolist(),
         "cy_settling_s_max": settled.max(axis=0).tolist(),
         "cx_steady_mean_rel_error_mean": float(mean_err[:, 0].mean()),
-        "per_run": per_run,
     }
 
 

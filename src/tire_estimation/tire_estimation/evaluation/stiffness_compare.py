@@ -36,7 +36,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
-import math
 import time
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
@@ -63,7 +62,8 @@ from tire_estimation.evaluation.stiffness import (
     NO_BIAS,
     eval_config,
     parse_set,
-    settling,
+    sine_aggregate,
+    sine_run_scores,
     truth_over_nominal,
 )
 from tire_estimation.sim import SimResult, simulate
@@ -220,23 +220,14 @@ def run_seed(seed: int, particles: list[int], initial_vy_std_m_s: float | None) 
 
 
 def sine_scores(res: dict[str, np.ndarray]) -> dict[str, Any]:
-    """Scores of one method on a sine drive, as :func:`~.stiffness.sine_study`.
-
-    Activation time (first learning sample), settling time of each stiffness after it (within
-    5 % to the end, nan if never), steady-state (last 5 s) mean and maximum relative error, vY
-    RMSE at the CG over the ready samples, and the step time.
+    """Scores of one method on a sine drive: :func:`~.stiffness.sine_run_scores` (activation,
+    settling, steady mean and maximum relative error), the vY RMSE at the CG over the ready
+    samples, and the step time.
     """
-    t_s = res["t_s"]
-    rel = res["c"] / res["truth_c"] - 1.0
-    on = float(t_s[np.argmax(res["active"])]) if np.any(res["active"]) else math.nan
-    ss = t_s > t_s[-1] - 5.0
     m = res["ready"]
     err = res["vy"][m] - res["truth_vy"][m]
     return {
-        "activation_s": on,
-        "settling_s": [settling(t_s, rel[:, i], on) for i in range(3)],
-        "steady_mean_rel_error": rel[ss].mean(axis=0).tolist(),
-        "steady_max_abs_rel_error": np.abs(rel[ss]).max(axis=0).tolist(),
+        **sine_run_scores(res["t_s"], res["c"] / res["truth_c"] - 1.0, res["active"]),
         "vy_rmse_m_s": float(np.sqrt(np.mean(err * err))) if err.size else float("nan"),
         "step_ms": float(res["step_ms"]),
     }
@@ -278,23 +269,24 @@ def sine_summary(per_run: list[dict[str, Any]], max_error: float = 0.03) -> dict
     out: dict[str, Any] = {}
     for m in METHODS:
         rows = [r[m] for r in per_run]
-        mean = 100.0 * np.array([r["steady_mean_rel_error"][1:] for r in rows])
-        top = 100.0 * np.array([r["steady_max_abs_rel_error"][1:] for r in rows])
-        settle = np.nan_to_num(
-            np.array([r["settling_s"][1:] for r in rows], dtype=float), nan=np.inf
-        )
+        agg = sine_aggregate(rows)
+        top = np.array([r["steady_max_abs_rel_error"][1:] for r in rows])
         out[m] = {
-            "cy_steady_mean_error_mean_pct": mean.mean(axis=0).tolist(),
-            "cy_steady_abs_mean_error_mean_pct": np.abs(mean).mean(axis=0).tolist(),
-            "cy_steady_max_abs_error_p95_pct": np.quantile(top, 0.95, axis=0).tolist(),
-            "cy_steady_max_abs_error_max_pct": top.max(axis=0).tolist(),
-            "runs_above_max_error": int(np.sum(top.max(axis=1) > 100.0 * max_error)),
-            "cy_settled_within_2s_share": (settle <= 2.0).mean(axis=0).tolist(),
-            "cy_settling_s_median": np.median(settle, axis=0).tolist(),
+            "cy_steady_mean_error_mean_pct": _pct(agg["cy_steady_mean_rel_error_mean"]),
+            "cy_steady_abs_mean_error_mean_pct": _pct(agg["cy_steady_mean_abs_rel_error_mean"]),
+            "cy_steady_max_abs_error_p95_pct": _pct(agg["cy_steady_max_abs_rel_error_p95"]),
+            "cy_steady_max_abs_error_max_pct": _pct(agg["cy_steady_max_abs_rel_error_max"]),
+            "runs_above_max_error": int(np.sum(top.max(axis=1) > max_error)),
+            "cy_settled_within_2s_share": agg["cy_settled_within_2s_share"],
+            "cy_settling_s_median": agg["cy_settling_s_median"],
             "vy_rmse_mean_m_s": float(np.mean([r["vy_rmse_m_s"] for r in rows])),
             "step_ms_mean": float(np.mean([r["step_ms"] for r in rows])),
         }
     return out
+
+
+def _pct(values: list[float]) -> list[float]:
+    return [100.0 * v for v in values]
 
 
 def _sine_table(summary: dict[str, Any], runs: int) -> str:
