@@ -155,3 +155,32 @@ def test_take_resamples_all_arrays():
     np.testing.assert_allclose(st.mean[:, 0], [2.0, 2.0, 0.0])
     np.testing.assert_allclose(st.scale[:, 0, 0], [3.0, 3.0, 1.0])
     np.testing.assert_allclose(st.gamma, [0.3, 0.3, 0.1])
+
+
+@pytest.mark.parametrize("shared", [True, False])
+def test_collapse_keeps_the_mixture_moments(shared: bool) -> None:
+    rng = np.random.default_rng(3)
+    n, d = 6, 3
+    st = niw.init_stats(n, np.zeros(d), 0.05, 12.0, np.eye(d) * 9.0, shared=shared)
+    st.mean[:] = rng.normal(scale=0.3, size=(n, d))
+    a = rng.normal(size=(n, d, d))
+    st.scale[:] = a @ np.swapaxes(a, 1, 2) + 2.0 * np.eye(d)
+    if not shared:
+        st.gamma[:] = rng.uniform(0.02, 0.1, n)
+        st.dof[:] = rng.uniform(10.0, 14.0, n)
+    w = rng.dirichlet(np.ones(n))
+    before = niw.mmse(st, w)
+    niw.collapse(st, w, np.array([1, 2]))
+    # every particle carries the mixture's mean and expected noise covariance
+    np.testing.assert_allclose(st.mean, np.tile(before.mean, (n, 1)), rtol=1e-14)
+    after = niw.mmse(st, rng.dirichlet(np.ones(n)))
+    np.testing.assert_allclose(after.mean, before.mean, rtol=1e-14)
+    np.testing.assert_allclose(after.noise_cov, before.noise_cov, rtol=1e-12)
+    assert float(np.asarray(after.dof)) == pytest.approx(before.dof, rel=1e-14)
+    # gamma holds the covariance of the mean (spread included) on average over components 1, 2
+    ratio = np.diag(before.mean_cov)[1:] / np.diag(before.noise_cov)[1:]
+    np.testing.assert_allclose(st.gamma, np.mean(ratio), rtol=1e-12)
+    assert np.all(st.gamma > (0.1 if not shared else 0.05))
+    np.testing.assert_allclose(
+        np.mean(np.diag(after.mean_cov)[1:] / np.diag(after.noise_cov)[1:]), np.mean(ratio)
+    )

@@ -261,9 +261,11 @@ def test_compiled_filter_equals_the_numpy_filter(scenario: str, cfg: dict) -> No
     assert ref[-1, 1] > 10  # resampled
     # the paths differ by rounding (1e-17 in the states from the first steps); with
     # bias_average_s the bias filters keep a larger gain for longer and carry it to a relative
-    # 3e-9 in a few estimates of the 12 s drive
-    rtol = 1e-7 if cfg.get("bias_average_s", 0.0) else 1e-9
-    np.testing.assert_allclose(fast, ref, rtol=rtol, atol=1e-12)
+    # 3e-9 in a few estimates of the 12 s drive; the moment match of the held statistics
+    # (inactive_statistics, default) at the end of each learning phase takes the two paths'
+    # weights, equal to rounding, and carries that to 2e-9 in a few N_eff (atol: vY near 0)
+    rtol = 1e-7 if cfg.get("bias_average_s", 0.0) else 1e-8
+    np.testing.assert_allclose(fast, ref, rtol=rtol, atol=1e-11)
 
 
 def test_compiled_filter_equals_the_numpy_filter_with_a_measured_speed() -> None:

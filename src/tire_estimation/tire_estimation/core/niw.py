@@ -295,6 +295,33 @@ def mmse(stats: NiwStats, weights: F64) -> NiwEstimate:
     )
 
 
+def collapse(stats: NiwStats, weights: F64, components: NDArray[np.intp] | None = None) -> None:
+    """Replace the weighted mixture of the particles' statistics by one, shared by all, in place.
+
+    Moment matching of the mixture ``sum_i q_i NiW_i`` (``weights`` ``q`` (N,), normalized):
+    every particle gets the mean ``mean_bar = sum q_i mean_i`` (eq. 30a), the expected noise
+    covariance ``S = sum q_i Lambda_i / (nu_i - d - 1)`` (``nu`` = ``sum q_i nu_i``, ``Lambda =
+    S (nu - d - 1)``) and the ``gamma`` that keeps the covariance of the mean, ``C = sum q_i
+    gamma_i Lambda_i / (nu_i - d - 1) + sum q_i (mean_i - mean_bar)(mean_i - mean_bar)^T`` (eq.
+    30b without the predictive factor), on the diagonal on average: ``gamma = mean_j C_jj /
+    S_jj`` over ``components`` (indices; default all). Not in the papers: used to hold the
+    statistics while nothing is learned (weighting and resampling the particles then no longer
+    move the estimate).
+    """
+    d = stats.d
+    q = np.asarray(weights, dtype=float)
+    est = mmse(stats, q)
+    comps = np.arange(d) if components is None else np.asarray(components, dtype=np.intp)
+    s_diag = np.maximum(np.diag(est.noise_cov)[comps], 1e-300)
+    gamma = float(np.mean(np.diag(est.mean_cov)[comps] / s_diag))
+    nu = est.dof
+    stats.mean[...] = est.mean[None, :]
+    # Lambda = S (nu - d - 1) keeps E[Sigma] = S (Ozkan et al. eq. 32)
+    stats.scale[...] = (est.noise_cov * (nu - d - 1.0))[None, :, :]
+    stats.gamma[...] = gamma
+    stats.dof[...] = nu
+
+
 def stats_from_moments(n: int, mean: F64, mean_cov: F64, noise_cov: F64, dof: float) -> NiwStats:
     """Statistics whose MMSE summary reproduces (approximately) the given moments.
 

@@ -18,6 +18,7 @@ RESAMPLERS = ("systematic", "stratified", "multinomial", "residual")
 STATE_PROPOSALS = ("prior", "measured")
 NIW_UPDATES = ("sampled", "tempered", "rao_blackwellized")
 SATURATION_PEAKS = ("scaled", "friction")
+INACTIVE_STATISTICS = ("particles", "held")
 
 
 @dataclass(frozen=True)
@@ -38,7 +39,11 @@ class StiffnessEstimatorConfig:
         initial_stiffness_std_fraction: prior std of the stiffness mean as a fraction of the
             nominal value, 1 (default 0.3, paper Sec. VI-A).
         stiffness_noise_std_fraction: prior std of the stiffness process noise w (square root of
-            E[Sigma]) as a fraction of nominal, 1 (default 0.03).
+            E[Sigma]) as a fraction of nominal, 1 (default 0.03). Smaller values make the
+            likelihood sharper along the weakly observed joint scale of the cornering
+            stiffnesses: 0.01 settles faster on a uniform surface with a bias-free IMU, but
+            leaves IMU-bias errors less room and ran away more often with them
+            (docs/results.md section 6).
         prior_dof: prior inverse-Wishart degrees of freedom nu_0 (> 4), 1 (default 10.0).
         min_stiffness_fraction: lower projection bound of every stiffness, fraction of nominal,
             1 (default 0.05; Sec. V).
@@ -104,6 +109,16 @@ class StiffnessEstimatorConfig:
             N(0, V)``, ``a = sqrt(1 - h^2)``, ``mu_bar`` and ``V`` the mean and covariance of the
             resampled means (learned components only); keeps those two moments, 1; 0 switches it
             off (default 0.0).
+        inactive_statistics: what the particles' NiW statistics do while the stiffness is not
+            learned (activation, Sec. V; not in the paper): ``particles`` keeps them per particle,
+            so weighting and resampling the particles (which goes on for the lateral state)
+            still moves the weighted estimate (27) although nothing is learned; ``held``
+            replaces them at the end of each learning phase by their weighted moment match,
+            shared by all particles (``niw.collapse``: same mean and expected noise covariance,
+            the spread of the means folded into ``gamma``), so the estimate stays where the
+            learning left it until the next excitation, as the paper runs Algorithm 1 only while
+            the stiffness is observable (Sec. V) (default ``held``; on ``snow_sine`` 4 of 100
+            runs end above 3 % against 12 with ``particles``, docs/results.md section 6).
         wheel_radius_m: effective wheel radius R_w of eq. (3), m; 0 uses the vehicle's nominal
             radius (default 0.0).
         rolling_resistance_n: known constant longitudinal resistance, N (default 0.0, the
@@ -183,6 +198,7 @@ class StiffnessEstimatorConfig:
     state_proposal: str = "prior"
     niw_update: str = "sampled"
     rejuvenation_bandwidth: float = 0.0
+    inactive_statistics: str = "held"
     wheel_radius_m: float = 0.0
     rolling_resistance_n: float = 0.0
     drag_n_s2_m2: float = 0.0
@@ -224,6 +240,12 @@ class StiffnessEstimatorConfig:
                 "saturation_peak", self.saturation_peak, f"must be one of {SATURATION_PEAKS}"
             )
         require_range("rejuvenation_bandwidth", self.rejuvenation_bandwidth, 0.0, 0.99)
+        if self.inactive_statistics not in INACTIVE_STATISTICS:
+            raise ConfigError(
+                "inactive_statistics",
+                self.inactive_statistics,
+                f"must be one of {INACTIVE_STATISTICS}",
+            )
         if self.drive not in DRIVE_CHOICES:
             raise ConfigError("drive", self.drive, f"must be one of {DRIVE_CHOICES}")
         require_range("initial_stiffness_factor", self.initial_stiffness_factor, 0.05, 5.0)

@@ -43,7 +43,11 @@ on the means after resampling (``rejuvenation_bandwidth``, :func:`rejuvenate_mea
 bias update (30) adds ``(tau / Ts) P`` to its noise (``bias_average_s`` = tau), which caps its
 gain at ``Ts / (tau + Ts)``: right after the initialization (``P`` = ``P_0``) eq. (30) as printed
 takes the particle's own start-up transient as bias within a few steps, after which the
-yaw-rate gate of (v) keeps it; with the cap the bias is an average over about tau.
+yaw-rate gate of (v) keeps it; with the cap the bias is an average over about tau; (xi) by
+default (``inactive_statistics`` = ``held``) the statistics of all particles are replaced by
+their weighted moment match (:func:`niw.collapse`) when a learning phase ends, so that weighting
+and resampling for the lateral state do not move the stiffness estimate while nothing is learned
+(the paper runs Algorithm 1 only while the stiffness is observable, Sec. V).
 
 Speed: :meth:`StiffnessMpf.predict` and :meth:`StiffnessMpf.update` run the per-particle algebra
 after the linearization in the compiled kernels of :mod:`.stiffness_kernels` (three passes over
@@ -502,6 +506,9 @@ class StiffnessMpf:
         self._dt_s = 0.0
         self._step_dt_s = 0.0
         self._before_learning: niw.NiwStats | None = None
+        #: inactive_statistics = held: whether the last update learned, and which components
+        self._learned_last_step = False
+        self._last_learned_components = np.arange(NW)
         # compiled path: ancestors without resampling, "no freeze", constant of eq. (35)
         self._identity = np.arange(self.n, dtype=np.intp)
         self._no_freeze = np.empty(0)
@@ -598,6 +605,7 @@ class StiffnessMpf:
         """
         # IMU period of this step (the bias update's gain cap, bias_average_s)
         self._step_dt_s = self._dt_s
+        self._hold_statistics(learn, bool(learn) and learn_cx is False)
         kinematic = vx_m_s is not None and self.config.measured_speed_model == "kinematic"
         if vx_m_s is not None and not kinematic:
             self.x[:, 0] = vx_m_s
@@ -842,6 +850,21 @@ class StiffnessMpf:
             st.dof += 1.0
             if idx is not self._identity:
                 self._rejuvenate(freeze_before is not None)
+
+    def _hold_statistics(self, learn: bool, freeze_cx: bool) -> None:
+        """``inactive_statistics`` = ``held``: at the first step without learning after a learning
+        phase, every particle takes the weighted moment match of the statistics
+        (:func:`niw.collapse`, the learned components set ``gamma``), so that the estimate (27)
+        stays at its last learned value while the particles are weighted and resampled for the
+        state only.
+        """
+        if self.config.inactive_statistics != "held":
+            return
+        if learn:
+            self._last_learned_components = np.flatnonzero(self._learned_components(freeze_cx))
+        elif self._learned_last_step:
+            niw.collapse(self.stats, self.weights, self._last_learned_components)
+        self._learned_last_step = learn
 
     def _bias_noise(self, r_cov: F64) -> F64:
         """Measurement noise of the bias update (eq. 30), (N, 3, 3).
