@@ -253,6 +253,8 @@ def _filter_run(compiled: bool, scenario: str, **cfg: object) -> np.ndarray:
         ("lane_change", {"friction_coefficient": 1.0, "saturation_peak": "friction"}),
         # the default gain cap of the bias update (deviation x)
         ("lane_change", {"bias_average_s": 2.0}),
+        # the state driven by part of the draw (deviation xii)
+        ("lane_change", {"niw_update": "rao_blackwellized", "propagation_draw_share": 0.3}),
     ],
 )
 def test_compiled_filter_equals_the_numpy_filter(scenario: str, cfg: dict) -> None:

@@ -109,6 +109,16 @@ class StiffnessEstimatorConfig:
             N(0, V)``, ``a = sqrt(1 - h^2)``, ``mu_bar`` and ``V`` the mean and covariance of the
             resampled means (learned components only); keeps those two moments, 1; 0 switches it
             off (default 0.0).
+        propagation_draw_share: share ``h`` of the draw's deviation from its conditional mean
+            that drives the state (not in the paper): eq. (9) propagates each particle with
+            ``loc + h (w_k - loc)``, ``loc`` the conditional mean of eq. (41); 1 is eq. (9) as
+            printed (the draw ``w_k``), 0 the conditional mean. The NiW update (19) takes the
+            draw in any case. Below 1 the per-step stiffness noise ``Sigma`` diffuses the lateral
+            state by only ``h^2`` of its variance, so the state keeps more of the information
+            that fixes the common scale of the two cornering stiffnesses. Experimental: it
+            also takes away the state diversity that lets the gyro pull a drifting lateral
+            state back (with 0.5, on one snow drive of 50 the state ran off before the
+            excitation; docs/results.md section 6), 1 (default 1.0).
         inactive_statistics: what the particles' NiW statistics do while the stiffness is not
             learned (activation, Sec. V; not in the paper): ``particles`` keeps them per particle,
             so weighting and resampling the particles (which goes on for the lateral state)
@@ -198,6 +208,7 @@ class StiffnessEstimatorConfig:
     state_proposal: str = "prior"
     niw_update: str = "sampled"
     rejuvenation_bandwidth: float = 0.0
+    propagation_draw_share: float = 1.0
     inactive_statistics: str = "held"
     wheel_radius_m: float = 0.0
     rolling_resistance_n: float = 0.0
@@ -240,6 +251,7 @@ class StiffnessEstimatorConfig:
                 "saturation_peak", self.saturation_peak, f"must be one of {SATURATION_PEAKS}"
             )
         require_range("rejuvenation_bandwidth", self.rejuvenation_bandwidth, 0.0, 0.99)
+        require_range("propagation_draw_share", self.propagation_draw_share, 0.0, 1.0)
         if self.inactive_statistics not in INACTIVE_STATISTICS:
             raise ConfigError(
                 "inactive_statistics",

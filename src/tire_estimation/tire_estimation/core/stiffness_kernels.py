@@ -349,6 +349,7 @@ def posterior_step(
     bias_on: bool,
     mean_gains: F64,
     rng: np.random.Generator,
+    draw_share: float = 1.0,
 ) -> tuple[F64, F64, F64, F64, F64, F64, F64]:
     """Algorithm 1 lines 4, 15, 17-18 for the particles ``idx`` (ancestors after resampling).
 
@@ -364,7 +365,8 @@ def posterior_step(
     ``nu - 4``); ``bias_on`` runs the bias
     update (30). ``mean_gains`` (2,) non-empty ``(g_loc, g_w)`` replaces the mean update of eq.
     (19) by ``mu += g_loc (loc - mu) + g_w (w - loc)`` (``loc`` the conditional mean of eq. 41;
-    ``stiffness_mpf.niw_mean_gains``); empty is eq. (19).
+    ``stiffness_mpf.niw_mean_gains``); empty is eq. (19). ``draw_share`` ``h`` < 1 drives the
+    state with ``loc + h (w - loc)`` instead of ``w`` (``stiffness_mpf.propagated_draw``).
 
     Returns new arrays ``(x, b, p_bias, rate, mean, scale, w)``: ``rate = rate_n + a w`` for
     eq. (9) of the next step, ``w`` (N, 3) the sampled stiffness deviation after projection.
@@ -526,8 +528,16 @@ def posterior_step(
             for k in range(3):
                 b_o[i, k] = b[j, k]
             _st(p_o[i], pj)
-        # line 18 (first half): derivative for eq. (9), rate = rate_n + a w_k
-        aw = _mv(_ld(a[j]), w)
+        # line 18 (first half): derivative for eq. (9), rate = rate_n + a w_k; deviation (xii):
+        # with draw_share h < 1 the state is driven by loc + h (w_k - loc), projected
+        w_s = w
+        if draw_share < 1.0:
+            w_s = (
+                _clip(loc[0] + draw_share * (w0 - loc[0]), lower[0], upper[0]),
+                _clip(loc[1] + draw_share * (w1 - loc[1]), lower[1], upper[1]),
+                _clip(loc[2] + draw_share * (w2 - loc[2]), lower[2], upper[2]),
+            )
+        aw = _mv(_ld(a[j]), w_s)
         for k in range(3):
             x_o[i, k] = x[j, k]
             rate_o[i, k] = rate_n[j, k] + aw[k]

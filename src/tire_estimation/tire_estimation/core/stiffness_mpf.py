@@ -47,7 +47,12 @@ yaw-rate gate of (v) keeps it; with the cap the bias is an average over about ta
 default (``inactive_statistics`` = ``held``) the statistics of all particles are replaced by
 their weighted moment match (:func:`niw.collapse`) when a learning phase ends, so that weighting
 and resampling for the lateral state do not move the stiffness estimate while nothing is learned
-(the paper runs Algorithm 1 only while the stiffness is observable, Sec. V).
+(the paper runs Algorithm 1 only while the stiffness is observable, Sec. V); (xii) optional
+(``propagation_draw_share`` h < 1, default 1 = eq. 9 as printed): the state is driven by ``loc
++ h (w_k - loc)`` instead of the draw ``w_k`` (:func:`propagated_draw`), ``loc`` its
+conditional mean (41); the NiW update (19) still takes the draw. Experimental: it speeds up the
+learning of the common stiffness scale on snow but takes away the state diversity that lets the
+gyro correct the lateral state (docs/results.md section 6).
 
 Speed: :meth:`StiffnessMpf.predict` and :meth:`StiffnessMpf.update` run the per-particle algebra
 after the linearization in the compiled kernels of :mod:`.stiffness_kernels` (three passes over
@@ -346,6 +351,17 @@ def niw_mean_gains(gamma: float, beta: float, mode: str) -> tuple[float, float, 
     if mode == "rao_blackwellized":
         return k, k * beta, k + (1.0 - beta * beta) * gamma * k * (1.0 - beta)
     raise ValueError(f"unknown niw_update {mode!r}")
+
+
+def propagated_draw(w: F64, loc: F64, share: float, lower: F64, upper: F64) -> F64:
+    """The stiffness deviation that drives the state in eq. (9), (N, 3) (deviation xii).
+
+    ``loc + h (w - loc)`` with ``h`` = ``share``, ``w`` the draw (39) and ``loc`` its conditional
+    mean (41), projected to the bounds (Sec. V); ``h`` = 1 returns ``w`` (eq. 9 as printed).
+    """
+    if share >= 1.0:
+        return w
+    return np.clip(loc + share * (w - loc), lower, upper)
 
 
 def rejuvenate_means(
@@ -754,8 +770,12 @@ class StiffnessMpf:
         self.bias_updated = self.bias_gate_open(learn)
         if self.bias_updated:
             bias_update(self.b, self.p_bias, resid, extra, self._bias_noise(r_cov), lp.dof)
-        # line 18 (first half): derivative for eq. (9), applied in predict()
-        self.rate = lin.rate + np.einsum("nij,nj->ni", lin.a, w)
+        # line 18 (first half): derivative for eq. (9), applied in predict(); deviation (xii):
+        # the state is driven by loc + h (w - loc), h = propagation_draw_share
+        w_state = propagated_draw(
+            w, cp.loc, self.config.propagation_draw_share, self.lower, self.upper
+        )
+        self.rate = lin.rate + np.einsum("nij,nj->ni", lin.a, w_state)
 
     def _student_t_log_const(self, nu_t: float) -> float:
         """``lgamma((nu~+3)/2) - lgamma(nu~/2) - 3/2 log(nu~ pi)`` of eq. (35), cached on nu~."""
@@ -835,7 +855,7 @@ class StiffnessMpf:
         x, b, p_bias, rate, mean, scale, _ = stiffness_kernels.posterior_step(
             idx, self.x, self.b, self.p_bias, st.mean, st.scale, gamma, nu, lin.d, lin.a,
             lin.rate, r_bias, e_bar, z, shape_inv, maha, self.lower, self.upper, learn, mean0,
-            scale00, self.bias_updated, gains, self.rng,
+            scale00, self.bias_updated, gains, self.rng, self.config.propagation_draw_share,
         )  # fmt: skip
         self.x, self.b, self.p_bias, self.rate = x, b, p_bias, rate
         st.mean, st.scale = mean, scale
