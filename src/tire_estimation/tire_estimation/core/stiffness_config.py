@@ -117,7 +117,7 @@ class StiffnessEstimatorConfig:
             state by only ``h^2`` of its variance, so the state keeps more of the information
             that fixes the common scale of the two cornering stiffnesses. Experimental: it
             also takes away the state diversity that lets the gyro pull a drifting lateral
-            state back (with 0.5, on one snow drive of 50 the state ran off before the
+            state back (with 0.5, 1-2 of 50 snow drives per start ran off, drive 8 before the
             excitation; docs/results.md section 6), 1 (default 1.0).
         inactive_statistics: what the particles' NiW statistics do while the stiffness is not
             learned (activation, Sec. V; not in the paper): ``particles`` keeps them per particle,
