@@ -290,3 +290,35 @@ def test_state_driven_by_the_conditional_mean_learns_the_scale_faster_on_snow() 
         err[share] = res["c"][k, 1:] / res["truth_c"][k, 1:] - 1.0
     assert err[1.0][1] > 0.08
     assert np.all(np.abs(err[0.0]) < 0.05)
+
+
+def test_inactive_propagation_is_validated() -> None:
+    with pytest.raises(ConfigError, match="inactive_propagation"):
+        StiffnessEstimatorConfig(inactive_propagation="frozen")
+    assert StiffnessEstimatorConfig().inactive_propagation == "draw"
+
+
+def test_held_mean_driving_the_state_keeps_it_on_track_before_the_excitation() -> None:
+    # snow drive 8 from 150 %, MPF seed 1008, propagation_draw_share 0.5: before the first
+    # excitation the conditional mean of eq. (41) explains each ay residual by a stiffness
+    # change (gamma is the prior's), and the particles' vY and yaw rate drift off together
+    # while the gyro reads 0; driven by the held mean mu they stay at the truth
+    # (inactive_propagation, deviation xiii; docs/results.md section 6)
+    sim = simulate("snow_sine", seed=8, sensors=NO_BIAS)
+    factor = 1.5 * truth_over_nominal(sim)
+    base = {"niw_update": "rao_blackwellized", "friction_coefficient": 0.3}
+    vy_err = {}
+    for mode in ("draw", "mean"):
+        cfg = eval_config(
+            200,
+            initial_stiffness_factor=factor,
+            propagation_draw_share=0.5,
+            inactive_propagation=mode,
+            **base,
+        )
+        res = run(sim, cfg, seed=1008)
+        on = int(np.argmax(res["active"]))
+        assert res["t_s"][on] > 20.0
+        vy_err[mode] = np.abs(res["vy"][:on] - res["truth_vy"][:on])
+    assert np.max(vy_err["draw"]) > 1.0  # m/s
+    assert np.max(vy_err["mean"][100:]) < 0.05  # m/s, after the initial transient

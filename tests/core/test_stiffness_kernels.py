@@ -255,6 +255,8 @@ def _filter_run(compiled: bool, scenario: str, **cfg: object) -> np.ndarray:
         ("lane_change", {"bias_average_s": 2.0}),
         # the state driven by part of the draw (deviation xii)
         ("lane_change", {"niw_update": "rao_blackwellized", "propagation_draw_share": 0.3}),
+        # the held mean drives the state while nothing is learned (deviation xiii)
+        ("lane_change", {"niw_update": "rao_blackwellized", "inactive_propagation": "mean"}),
     ],
 )
 def test_compiled_filter_equals_the_numpy_filter(scenario: str, cfg: dict) -> None:

@@ -19,6 +19,7 @@ STATE_PROPOSALS = ("prior", "measured")
 NIW_UPDATES = ("sampled", "tempered", "rao_blackwellized")
 SATURATION_PEAKS = ("scaled", "friction")
 INACTIVE_STATISTICS = ("particles", "held")
+INACTIVE_PROPAGATIONS = ("draw", "mean")
 
 
 @dataclass(frozen=True)
@@ -129,6 +130,18 @@ class StiffnessEstimatorConfig:
             learning left it until the next excitation, as the paper runs Algorithm 1 only while
             the stiffness is observable (Sec. V) (default ``held``; on ``snow_sine`` 4 of 100
             runs end above 3 % against 12 with ``particles``, docs/results.md section 6).
+        inactive_propagation: what drives the state (eq. 9) while the stiffness is not learned
+            (not in the paper): ``draw`` is eq. (9) as printed, the draw ``w_k`` of the
+            conditional predictive (39)-(41); ``mean`` is each particle's NiW mean ``mu``, the
+            stiffness the filter holds. Without learning the draw is a fresh sample of the whole
+            predictive ``(1 + gamma) Sigma`` at every step, and its conditional mean explains
+            each lateral-acceleration residual by a stiffness change (the gain is large when
+            ``gamma`` is): this diffuses the lateral state and, driven by that conditional
+            mean alone (``propagation_draw_share`` 0), lets vY and the yaw rate drift off
+            together. Experimental: ``mean`` keeps the lateral state tight before the
+            excitation, which helps the runs that start above the true stiffness and hurts
+            those that start below it (snow, 100 runs: 9 end above 3 % against 4 with
+            ``draw``; docs/results.md section 6) (default ``draw``).
         wheel_radius_m: effective wheel radius R_w of eq. (3), m; 0 uses the vehicle's nominal
             radius (default 0.0).
         rolling_resistance_n: known constant longitudinal resistance, N (default 0.0, the
@@ -210,6 +223,7 @@ class StiffnessEstimatorConfig:
     rejuvenation_bandwidth: float = 0.0
     propagation_draw_share: float = 1.0
     inactive_statistics: str = "held"
+    inactive_propagation: str = "draw"
     wheel_radius_m: float = 0.0
     rolling_resistance_n: float = 0.0
     drag_n_s2_m2: float = 0.0
@@ -257,6 +271,12 @@ class StiffnessEstimatorConfig:
                 "inactive_statistics",
                 self.inactive_statistics,
                 f"must be one of {INACTIVE_STATISTICS}",
+            )
+        if self.inactive_propagation not in INACTIVE_PROPAGATIONS:
+            raise ConfigError(
+                "inactive_propagation",
+                self.inactive_propagation,
+                f"must be one of {INACTIVE_PROPAGATIONS}",
             )
         if self.drive not in DRIVE_CHOICES:
             raise ConfigError("drive", self.drive, f"must be one of {DRIVE_CHOICES}")

@@ -350,6 +350,7 @@ def posterior_step(
     mean_gains: F64,
     rng: np.random.Generator,
     draw_share: float = 1.0,
+    drive_by_mean: bool = False,
 ) -> tuple[F64, F64, F64, F64, F64, F64, F64]:
     """Algorithm 1 lines 4, 15, 17-18 for the particles ``idx`` (ancestors after resampling).
 
@@ -366,7 +367,9 @@ def posterior_step(
     update (30). ``mean_gains`` (2,) non-empty ``(g_loc, g_w)`` replaces the mean update of eq.
     (19) by ``mu += g_loc (loc - mu) + g_w (w - loc)`` (``loc`` the conditional mean of eq. 41;
     ``stiffness_mpf.niw_mean_gains``); empty is eq. (19). ``draw_share`` ``h`` < 1 drives the
-    state with ``loc + h (w - loc)`` instead of ``w`` (``stiffness_mpf.propagated_draw``).
+    state with ``loc + h (w - loc)`` instead of ``w`` (``stiffness_mpf.propagated_draw``);
+    ``drive_by_mean`` drives it with the particle's NiW mean ``mu`` after this step (deviation
+    xiii, ``inactive_propagation`` = ``mean``).
 
     Returns new arrays ``(x, b, p_bias, rate, mean, scale, w)``: ``rate = rate_n + a w`` for
     eq. (9) of the next step, ``w`` (N, 3) the sampled stiffness deviation after projection.
@@ -531,7 +534,10 @@ def posterior_step(
         # line 18 (first half): derivative for eq. (9), rate = rate_n + a w_k; deviation (xii):
         # with draw_share h < 1 the state is driven by loc + h (w_k - loc), projected
         w_s = w
-        if draw_share < 1.0:
+        if drive_by_mean:
+            # deviation (xiii): the held stiffness mu drives the state
+            w_s = mu
+        elif draw_share < 1.0:
             w_s = (
                 _clip(loc[0] + draw_share * (w0 - loc[0]), lower[0], upper[0]),
                 _clip(loc[1] + draw_share * (w1 - loc[1]), lower[1], upper[1]),

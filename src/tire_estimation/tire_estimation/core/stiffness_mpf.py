@@ -52,7 +52,12 @@ and resampling for the lateral state do not move the stiffness estimate while no
 + h (w_k - loc)`` instead of the draw ``w_k`` (:func:`propagated_draw`), ``loc`` its
 conditional mean (41); the NiW update (19) still takes the draw. Experimental: it speeds up the
 learning of the common stiffness scale on snow but takes away the state diversity that lets the
-gyro correct the lateral state (docs/results.md section 6).
+gyro correct the lateral state (docs/results.md section 6); (xiii) optional
+(``inactive_propagation`` = ``mean``, default ``draw`` = eq. 9 as printed): while the stiffness
+is not learned, eq. (9) takes each particle's NiW mean ``mu`` instead of the draw ``w_k``. The
+stiffness is then a held parameter, not a fresh sample of the predictive ``(1 + gamma) Sigma``
+at every step whose conditional mean explains each ay residual by a stiffness change.
+Experimental (docs/results.md section 6).
 
 Speed: :meth:`StiffnessMpf.predict` and :meth:`StiffnessMpf.update` run the per-particle algebra
 after the linearization in the compiled kernels of :mod:`.stiffness_kernels` (three passes over
@@ -771,11 +776,19 @@ class StiffnessMpf:
         if self.bias_updated:
             bias_update(self.b, self.p_bias, resid, extra, self._bias_noise(r_cov), lp.dof)
         # line 18 (first half): derivative for eq. (9), applied in predict(); deviation (xii):
-        # the state is driven by loc + h (w - loc), h = propagation_draw_share
-        w_state = propagated_draw(
-            w, cp.loc, self.config.propagation_draw_share, self.lower, self.upper
-        )
+        # the state is driven by loc + h (w - loc), h = propagation_draw_share; deviation
+        # (xiii): without learning and inactive_propagation = mean by the held mean mu
+        if self._drive_by_mean(learn):
+            w_state = self.stats.mean
+        else:
+            w_state = propagated_draw(
+                w, cp.loc, self.config.propagation_draw_share, self.lower, self.upper
+            )
         self.rate = lin.rate + np.einsum("nij,nj->ni", lin.a, w_state)
+
+    def _drive_by_mean(self, learn: bool) -> bool:
+        """Whether eq. (9) of the next step takes the NiW mean instead of the draw (xiii)."""
+        return not learn and self.config.inactive_propagation == "mean"
 
     def _student_t_log_const(self, nu_t: float) -> float:
         """``lgamma((nu~+3)/2) - lgamma(nu~/2) - 3/2 log(nu~ pi)`` of eq. (35), cached on nu~."""
@@ -856,6 +869,7 @@ class StiffnessMpf:
             idx, self.x, self.b, self.p_bias, st.mean, st.scale, gamma, nu, lin.d, lin.a,
             lin.rate, r_bias, e_bar, z, shape_inv, maha, self.lower, self.upper, learn, mean0,
             scale00, self.bias_updated, gains, self.rng, self.config.propagation_draw_share,
+            self._drive_by_mean(learn),
         )  # fmt: skip
         self.x, self.b, self.p_bias, self.rate = x, b, p_bias, rate
         st.mean, st.scale = mean, scale
