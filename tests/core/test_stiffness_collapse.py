@@ -236,17 +236,28 @@ def test_held_statistics_keep_the_estimate_while_nothing_is_learned() -> None:
     assert np.max(np.abs(kept[300:, 1:] / kept[299, 1:] - 1.0)) > 1e-4
 
 
+def _snow_runs(
+    seed: int, start: float, field: str, values: tuple[object, ...], **overrides: object
+) -> dict[object, dict[str, np.ndarray]]:
+    """Snow drive ``seed`` from ``start`` times the truth (N = 200, MPF seed 1000 + seed,
+    ``rao_blackwellized``, friction 0.3), once per value of the configuration ``field``."""
+    sim = simulate("snow_sine", seed=seed, sensors=NO_BIAS)
+    factor = start * truth_over_nominal(sim)
+    base = {"niw_update": "rao_blackwellized", "friction_coefficient": 0.3, **overrides}
+    out = {}
+    for value in values:
+        cfg = eval_config(200, initial_stiffness_factor=factor, **{field: value}, **base)
+        out[value] = run(sim, cfg, seed=1000 + seed)
+    return out
+
+
 def test_held_statistics_end_the_drift_after_the_excitation_on_snow() -> None:
     # snow drive 40 from 75 %: with per-particle statistics the published Cy moves by about
     # 1 % in the 7 s of straight driving after the sine (selection and resampling alone);
     # held, it stays at the value of the last learning sample (docs/results.md section 6)
-    sim = simulate("snow_sine", seed=40, sensors=NO_BIAS)
-    factor = 0.75 * truth_over_nominal(sim)
-    base = {"niw_update": "rao_blackwellized", "friction_coefficient": 0.3}
+    runs = _snow_runs(40, 0.75, "inactive_statistics", ("particles", "held"))
     after = {}
-    for mode in ("particles", "held"):
-        cfg = eval_config(200, initial_stiffness_factor=factor, inactive_statistics=mode, **base)
-        res = run(sim, cfg, seed=1040)
+    for mode, res in runs.items():
         last = int(np.flatnonzero(res["active"])[-1])
         assert res["t_s"][-1] - res["t_s"][last] > 7.0
         after[mode] = res["c"][last:, 1:] / res["c"][last, 1:] - 1.0
@@ -276,15 +287,8 @@ def test_state_driven_by_the_conditional_mean_learns_the_scale_faster_on_snow() 
     # snow drive 11 from 150 %, MPF seed 1011: with the draw driving the state the rear Cy is
     # still more than 8 % high one second after the activation (the slow approach along the
     # common scale); driven by the conditional mean it is within 5 % (docs/results.md section 6)
-    sim = simulate("snow_sine", seed=11, sensors=NO_BIAS)
-    factor = 1.5 * truth_over_nominal(sim)
-    base = {"niw_update": "rao_blackwellized", "friction_coefficient": 0.3}
     err = {}
-    for share in (1.0, 0.0):
-        cfg = eval_config(
-            200, initial_stiffness_factor=factor, propagation_draw_share=share, **base
-        )
-        res = run(sim, cfg, seed=1011)
+    for share, res in _snow_runs(11, 1.5, "propagation_draw_share", (1.0, 0.0)).items():
         t = res["t_s"]
         k = int(np.searchsorted(t, t[int(np.argmax(res["active"]))] + 1.0))
         err[share] = res["c"][k, 1:] / res["truth_c"][k, 1:] - 1.0
@@ -304,19 +308,9 @@ def test_held_mean_driving_the_state_keeps_it_on_track_before_the_excitation() -
     # change (gamma is the prior's), and the particles' vY and yaw rate drift off together
     # while the gyro reads 0; driven by the held mean mu they stay at the truth
     # (inactive_propagation, deviation xiii; docs/results.md section 6)
-    sim = simulate("snow_sine", seed=8, sensors=NO_BIAS)
-    factor = 1.5 * truth_over_nominal(sim)
-    base = {"niw_update": "rao_blackwellized", "friction_coefficient": 0.3}
+    runs = _snow_runs(8, 1.5, "inactive_propagation", ("draw", "mean"), propagation_draw_share=0.5)
     vy_err = {}
-    for mode in ("draw", "mean"):
-        cfg = eval_config(
-            200,
-            initial_stiffness_factor=factor,
-            propagation_draw_share=0.5,
-            inactive_propagation=mode,
-            **base,
-        )
-        res = run(sim, cfg, seed=1008)
+    for mode, res in runs.items():
         on = int(np.argmax(res["active"]))
         assert res["t_s"][on] > 20.0
         vy_err[mode] = np.abs(res["vy"][:on] - res["truth_vy"][:on])

@@ -7,6 +7,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from tire_estimation.core.validation import (
+    require_choice,
     require_finite,
     require_non_negative,
     require_positive,
@@ -70,8 +71,7 @@ class EstimatorNodeOptions:
         require_non_negative("lateral_publish_period_s", self.lateral_publish_period_s)
         require_non_negative("stiffness_publish_period_s", self.stiffness_publish_period_s)
         require_positive("diagnostics_period_s", self.diagnostics_period_s)
-        if self.sensor_qos not in SENSOR_QOS:
-            raise ConfigError("sensor_qos", self.sensor_qos, f"must be one of {SENSOR_QOS}")
+        require_choice("sensor_qos", self.sensor_qos, SENSOR_QOS)
 
 
 @dataclass(frozen=True)

@@ -13,6 +13,7 @@ from typing import Any
 
 from tire_estimation.core.resampling import RESAMPLERS
 from tire_estimation.core.validation import (
+    require_choice,
     require_int_range,
     require_non_negative,
     require_positive,
@@ -217,8 +218,7 @@ class RadiusEstimatorConfig:
 
     def __post_init__(self) -> None:
         require_int_range("n_particles", self.n_particles, 10, 1_000_000)
-        if self.resampler not in RESAMPLERS:
-            raise ConfigError("resampler", self.resampler, f"must be one of {tuple(RESAMPLERS)}")
+        require_choice("resampler", self.resampler, RESAMPLERS)
         require_range("resample_threshold", self.resample_threshold, 1e-6, 1.0)
         require_range("forgetting_factor", self.forgetting_factor, 0.5, 1.0)
         require_range("prior_radius_error_m", self.prior_radius_error_m, -0.05, 0.05)
@@ -270,8 +270,7 @@ class RadiusEstimatorConfig:
             )
         require_non_negative("calibration_time_s", self.calibration_time_s)
         require_non_negative("non_increasing_margin_m", self.non_increasing_margin_m)
-        if self.wheels not in WHEEL_MODES:
-            raise ConfigError("wheels", self.wheels, f"must be one of {WHEEL_MODES}")
+        require_choice("wheels", self.wheels, WHEEL_MODES)
         if not isinstance(self.run_aug_kf, bool):
             raise ConfigError("run_aug_kf", self.run_aug_kf, "must be a bool")
         require_non_negative(

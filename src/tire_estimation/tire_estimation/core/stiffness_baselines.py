@@ -56,6 +56,7 @@ from tire_estimation.core.stiffness_model import (
     wheel_speed_gain,
 )
 from tire_estimation.core.validation import (
+    require_choice,
     require_int_range,
     require_non_negative,
     require_positive,
@@ -136,8 +137,7 @@ class BaselineConfig:
     max_input_age_s: float = 0.2
 
     def __post_init__(self) -> None:
-        if self.drive not in DRIVE_CHOICES:
-            raise ConfigError("drive", self.drive, f"must be one of {DRIVE_CHOICES}")
+        require_choice("drive", self.drive, DRIVE_CHOICES)
         require_range("initial_stiffness_factor", self.initial_stiffness_factor, 0.05, 5.0)
         require_range(
             "initial_stiffness_std_fraction", self.initial_stiffness_std_fraction, 1e-4, 5.0

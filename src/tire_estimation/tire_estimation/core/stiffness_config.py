@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from tire_estimation.core.validation import (
+    require_choice,
     require_int_range,
     require_non_negative,
     require_positive,
@@ -246,40 +247,16 @@ class StiffnessEstimatorConfig:
         require_int_range("n_particles", self.n_particles, 1, 1_000_000)
         require_range("forgetting", self.forgetting, 0.5, 1.0)
         require_range("resample_threshold", self.resample_threshold, 0.0, 1.0)
-        if self.resampler not in RESAMPLERS:
-            raise ConfigError("resampler", self.resampler, f"must be one of {RESAMPLERS}")
-        if self.measured_speed_model not in SPEED_MODELS:
-            raise ConfigError(
-                "measured_speed_model",
-                self.measured_speed_model,
-                f"must be one of {SPEED_MODELS}",
-            )
-        if self.state_proposal not in STATE_PROPOSALS:
-            raise ConfigError(
-                "state_proposal", self.state_proposal, f"must be one of {STATE_PROPOSALS}"
-            )
-        if self.niw_update not in NIW_UPDATES:
-            raise ConfigError("niw_update", self.niw_update, f"must be one of {NIW_UPDATES}")
-        if self.saturation_peak not in SATURATION_PEAKS:
-            raise ConfigError(
-                "saturation_peak", self.saturation_peak, f"must be one of {SATURATION_PEAKS}"
-            )
+        require_choice("resampler", self.resampler, RESAMPLERS)
+        require_choice("measured_speed_model", self.measured_speed_model, SPEED_MODELS)
+        require_choice("state_proposal", self.state_proposal, STATE_PROPOSALS)
+        require_choice("niw_update", self.niw_update, NIW_UPDATES)
+        require_choice("saturation_peak", self.saturation_peak, SATURATION_PEAKS)
         require_range("rejuvenation_bandwidth", self.rejuvenation_bandwidth, 0.0, 0.99)
         require_range("propagation_draw_share", self.propagation_draw_share, 0.0, 1.0)
-        if self.inactive_statistics not in INACTIVE_STATISTICS:
-            raise ConfigError(
-                "inactive_statistics",
-                self.inactive_statistics,
-                f"must be one of {INACTIVE_STATISTICS}",
-            )
-        if self.inactive_propagation not in INACTIVE_PROPAGATIONS:
-            raise ConfigError(
-                "inactive_propagation",
-                self.inactive_propagation,
-                f"must be one of {INACTIVE_PROPAGATIONS}",
-            )
-        if self.drive not in DRIVE_CHOICES:
-            raise ConfigError("drive", self.drive, f"must be one of {DRIVE_CHOICES}")
+        require_choice("inactive_statistics", self.inactive_statistics, INACTIVE_STATISTICS)
+        require_choice("inactive_propagation", self.inactive_propagation, INACTIVE_PROPAGATIONS)
+        require_choice("drive", self.drive, DRIVE_CHOICES)
         require_range("initial_stiffness_factor", self.initial_stiffness_factor, 0.05, 5.0)
         require_range(
             "initial_stiffness_std_fraction", self.initial_stiffness_std_fraction, 1e-4, 5.0

@@ -38,6 +38,7 @@ from numpy.typing import NDArray
 
 from tire_estimation.core.single_track import SingleTrackModel, SingleTrackParams
 from tire_estimation.core.validation import (
+    require_choice,
     require_non_negative,
     require_positive,
     require_range,
@@ -202,12 +203,7 @@ class TyreForceKFConfig:
         require_range(
             "deviation_filter_time_constant_s", self.deviation_filter_time_constant_s, 0.0, 60.0
         )
-        if self.virtual_sensor_method not in VIRTUAL_SENSOR_METHODS:
-            raise ConfigError(
-                "virtual_sensor_method",
-                self.virtual_sensor_method,
-                f"must be one of {VIRTUAL_SENSOR_METHODS}",
-            )
+        require_choice("virtual_sensor_method", self.virtual_sensor_method, VIRTUAL_SENSOR_METHODS)
         require_range("mf_shape_c", self.mf_shape_c, 1.01, 1.99)
         require_range("mf_curvature_e", self.mf_curvature_e, -10.0, 0.99)
         require_range("mf_friction_mu", self.mf_friction_mu, 0.05, 3.0)

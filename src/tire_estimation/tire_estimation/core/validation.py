@@ -7,6 +7,7 @@ naming the field and its value.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 
 from tire_estimation.errors import ConfigError
 
@@ -54,3 +55,12 @@ def require_int_range(
         raise error(field, value, "must be an integer")
     if not low <= value <= high:
         raise error(field, value, f"must be within [{low}, {high}]")
+
+
+def require_choice(
+    field: str, value: object, choices: Iterable[str], error: type[ConfigError] = ConfigError
+) -> None:
+    """Raise unless ``value`` is one of ``choices`` (the message lists them as a tuple)."""
+    allowed = tuple(choices)
+    if value not in allowed:
+        raise error(field, value, f"must be one of {allowed}")

@@ -16,7 +16,7 @@ from typing import Any
 import yaml
 
 from tire_estimation.core import yamlio
-from tire_estimation.core.validation import require_finite, require_range
+from tire_estimation.core.validation import require_choice, require_finite, require_range
 from tire_estimation.errors import VehicleConfigError
 
 DRIVES = ("front", "rear", "all")
@@ -93,8 +93,7 @@ class VehicleParams:
                 self.wheelbase_m,
                 f"must equal cg_to_front_axle_m + cg_to_rear_axle_m = {lf_lr:.3f} (within 2 cm)",
             )
-        if self.drive not in DRIVES:
-            raise err("vehicle.drive", self.drive, f"must be one of {DRIVES}")
+        require_choice("vehicle.drive", self.drive, DRIVES, err)
         for field in ("gnss_antenna_position_m", "imu_position_m"):
             value = getattr(self, field)
             if len(value) != 3:
