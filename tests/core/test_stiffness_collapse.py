@@ -316,3 +316,19 @@ def test_held_mean_driving_the_state_keeps_it_on_track_before_the_excitation() -
         vy_err[mode] = np.abs(res["vy"][:on] - res["truth_vy"][:on])
     assert np.max(vy_err["draw"]) > 1.0  # m/s
     assert np.max(vy_err["mean"][100:]) < 0.05  # m/s, after the initial transient
+
+
+def test_the_tyres_own_curve_removes_the_tanh_offset_on_snow() -> None:
+    # snow drive 17 from 75 %: the tanh tyre ends 2.0 / 2.7 % high (front / rear), the
+    # simulator's own Magic Formula shape (C 1.3, E -0.5, ``tyre_shape``) within 0.4 %
+    # (docs/results.md section 6, sixteenth session)
+    overrides = {"niw_update": "rao_blackwellized", "friction_coefficient": 0.3}
+    err = {}
+    for shape in ("tanh", "magic_formula"):
+        res = sine_study(
+            "snow_sine", 0.75, 1, n=200, first_seed=17,
+            overrides={**overrides, "tyre_shape": shape, "magic_formula_curvature_e": -0.5},
+        )  # fmt: skip
+        err[shape] = np.array(res["per_run"][0]["steady_mean_rel_error"][1:])
+    assert np.all(err["tanh"] > 0.015)
+    assert np.all(np.abs(err["magic_formula"]) < 0.005)

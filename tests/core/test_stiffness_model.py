@@ -3,8 +3,11 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
+from tire_estimation.core.stiffness_baselines import AugPfConfig, AugPfEstimator
 from tire_estimation.core.stiffness_config import StiffnessEstimatorConfig
+from tire_estimation.core.stiffness_estimator import StiffnessEstimator
 from tire_estimation.core.stiffness_model import (
     GRAVITY_M_S2,
     SingleTrackParams,
@@ -18,7 +21,9 @@ from tire_estimation.core.stiffness_model import (
 )
 from tire_estimation.core.stiffness_mpf import StiffnessMpf
 from tire_estimation.core.vehicle import VehicleParams
+from tire_estimation.errors import ConfigError
 from tire_estimation.sim import simulate
+from tire_estimation.sim.tires import magic_formula
 
 
 def test_wheel_slip_eq3() -> None:
@@ -147,6 +152,72 @@ def test_lateral_slip_function_linear_and_tanh() -> None:
     assert np.isclose(lateral_slip_function(np.array(s), s), s * np.tanh(1.0))
     assert np.all(np.abs(phi) < s) and np.all(np.diff(phi) > 0)
     assert np.isclose(phi[-1], s * np.tanh(6.0))
+
+
+def test_lateral_slip_function_magic_formula_is_the_pacejka_curve() -> None:
+    a = np.linspace(-0.4, 0.4, 81)
+    s, c, e = 0.05, 1.3, -0.5
+    phi = lateral_slip_function(a, s, "magic_formula", c, e)
+    # C_y phi is Pacejka's curve with stiffness B C D = C_y and peak D = C_y alpha_s (the
+    # simulator's tyre function, written independently)
+    cy = 40e3
+    want = [magic_formula(float(x), cy, c, cy * s, e) for x in a]
+    assert np.allclose(cy * phi, want, rtol=1e-12, atol=1e-9)
+    # slope 1 at small slip, peak alpha_s (reached, not only approached), falls off beyond
+    assert np.isclose(lateral_slip_function(np.array(1e-6), s, "magic_formula", c, e), 1e-6)
+    assert np.isclose(phi.max(), s, rtol=2e-3) and phi.max() <= s
+    assert phi[-1] < 0.95 * s and np.isclose(phi[-1], -phi[0])
+    # E shapes the curve between: a more negative E rises more sharply to the peak
+    mid = np.array(0.04)
+    assert lateral_slip_function(mid, s, "magic_formula", c, -2.0) > lateral_slip_function(
+        mid, s, "magic_formula", c, 0.0
+    )
+    # alpha_s = 0 stays linear whatever the shape; per particle as well
+    assert np.array_equal(lateral_slip_function(a, 0.0, "magic_formula", c, e), a)
+    both = lateral_slip_function(np.array([0.1, 0.1]), np.array([0.0, s]), "magic_formula", c, e)
+    assert both[0] == 0.1 and np.isclose(cy * both[1], magic_formula(0.1, cy, c, cy * s, e))
+
+
+def test_tyre_shape_reaches_the_regressor_of_the_filter_and_the_baselines() -> None:
+    v = VehicleParams()
+    kw = {"friction_coefficient": 0.3, "magic_formula_shape_c": 1.3}
+    tanh_cfg = StiffnessEstimatorConfig(n_particles=4, **kw)
+    mf_cfg = StiffnessEstimatorConfig(
+        n_particles=4, tyre_shape="magic_formula", magic_formula_curvature_e=-0.5, **kw
+    )
+    rng = np.random.default_rng(0)
+    tanh_p = StiffnessEstimator(tanh_cfg, v, rng).params
+    mf_p = StiffnessEstimator(mf_cfg, v, rng).params
+    assert (mf_p.tyre_shape, mf_p.magic_formula_c, mf_p.magic_formula_e) == (
+        "magic_formula",
+        1.3,
+        -0.5,
+    )
+    # the baselines take the same shape from the estimator's config
+    aug = AugPfEstimator(AugPfConfig.sharing(mf_cfg, n_particles=4), v, rng)
+    assert aug.params == mf_p
+    x = np.array([[20.0, 0.0, 0.0]])
+    a_s = mf_p.saturation_slip_front_rad
+    for delta, same in ((1e-4, True), (2.0 * a_s, False)):
+        a_tanh = linearize(x, delta, (20.0, 20.0), tanh_p).a[0, 1, 1]
+        a_mf = linearize(x, delta, (20.0, 20.0), mf_p).a[0, 1, 1]
+        # equal at small slip (same stiffness); at 2 alpha_s tanh(2) = 0.96 of the peak,
+        # the Magic Formula (C 1.3, E -0.5) is near its peak
+        assert np.isclose(a_tanh, a_mf, rtol=1e-6) == same
+        want = magic_formula(delta, 1.0, 1.3, a_s, -0.5) * np.cos(delta) / v.mass_kg
+        assert np.isclose(a_mf, want)
+
+
+def test_tyre_shape_config_errors_name_the_field() -> None:
+    for field, value in (
+        ("tyre_shape", "brush"),
+        ("magic_formula_shape_c", 2.5),
+        ("magic_formula_curvature_e", 1.0),
+    ):
+        with pytest.raises(ConfigError, match=field):
+            StiffnessEstimatorConfig(**{field: value})
+        with pytest.raises(ConfigError, match=field):
+            AugPfConfig(**{field: value})
 
 
 def test_friction_coefficient_saturates_the_axle_forces() -> None:

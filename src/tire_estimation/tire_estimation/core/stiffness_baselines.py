@@ -27,8 +27,9 @@ checks and activation logic of
 With ``friction_coefficient`` mu > 0 all three use the friction-limited lateral tyre of
 Algorithm 1 (``saturation_peak`` = ``friction``): ``Fy = mu Fz tanh(C alpha / (mu Fz))`` per axle,
 i.e. ``C phi(alpha)`` with ``alpha_s = mu Fz / C`` at the method's own stiffness (per particle in
-AUGPF, the estimate in the EKF and the RLS); the model is then no longer affine in ``w``, and the
-EKF takes its ``w`` Jacobian by central differences too.
+AUGPF, the estimate in the EKF and the RLS), in the shape Algorithm 1 is given (``tyre_shape``:
+the tanh, or the Magic Formula of ``stiffness_model.lateral_slip_function``); the model is then no
+longer affine in ``w``, and the EKF takes its ``w`` Jacobian by central differences too.
 
 None of them estimates the IMU biases (the paper's simulation, Sec. VI-A, is bias-free):
 compare them on bias-free sensors. The reported ``stiffness_std`` is the posterior std of the
@@ -46,6 +47,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tire_estimation.core import resampling
+from tire_estimation.core.stiffness_config import require_tyre_shape
 from tire_estimation.core.stiffness_estimator import SlidingWindow, StiffnessEstimate
 from tire_estimation.core.stiffness_model import (
     NAMES,
@@ -103,6 +105,9 @@ class BaselineConfig:
         friction_coefficient: road friction coefficient mu of Algorithm 1's friction-limited
             lateral tyre ``Fy = mu Fz tanh(C alpha / (mu Fz))`` per axle (static axle load
             ``Fz``), 1; 0 keeps the linear tyre of eq. (2) (0.0).
+        tyre_shape: ``tanh`` or ``magic_formula``, as Algorithm 1's (``tanh``).
+        magic_formula_shape_c: shape factor C of the ``magic_formula`` tyre, 1 (1.3).
+        magic_formula_curvature_e: curvature factor E of the ``magic_formula`` tyre, 1 (0.0).
         min_speed_m_s: below this speed nothing is learned, m/s (5.0).
         activation_window_s: window of the RMS steering angle, s (1.0).
         activation_steer_rad: minimum RMS road-wheel angle to learn (Sec. V), rad (0.003).
@@ -128,6 +133,9 @@ class BaselineConfig:
     drag_n_s2_m2: float = 0.0
     roll_gain: float = 0.0
     friction_coefficient: float = 0.0
+    tyre_shape: str = "tanh"
+    magic_formula_shape_c: float = 1.3
+    magic_formula_curvature_e: float = 0.0
     min_speed_m_s: float = 5.0
     activation_window_s: float = 1.0
     activation_steer_rad: float = 0.003
@@ -171,6 +179,7 @@ class BaselineConfig:
         require_range("roll_gain", self.roll_gain, -0.5, 5.0)
         if self.friction_coefficient != 0.0:
             require_range("friction_coefficient", self.friction_coefficient, 0.1, 5.0)
+        require_tyre_shape(self)
 
     @classmethod
     def sharing(cls: type[C], other: Any, **overrides: Any) -> C:
@@ -905,6 +914,9 @@ class BaselineEstimator:
             drag_n_s2_m2=config.drag_n_s2_m2,
             roll_gain=config.roll_gain,
             friction_coefficient=config.friction_coefficient,
+            tyre_shape=config.tyre_shape,
+            magic_formula_c=config.magic_formula_shape_c,
+            magic_formula_e=config.magic_formula_curvature_e,
         )
         self.nominal = np.asarray(self.params.nominal, dtype=float)
         self.stats: dict[str, int] = {}

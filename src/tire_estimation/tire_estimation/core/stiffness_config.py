@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
+from tire_estimation.core.stiffness_model import TYRE_SHAPES
 from tire_estimation.core.validation import (
     require_choice,
     require_int_range,
@@ -21,6 +23,13 @@ NIW_UPDATES = ("sampled", "tempered", "rao_blackwellized")
 SATURATION_PEAKS = ("scaled", "friction")
 INACTIVE_STATISTICS = ("particles", "held")
 INACTIVE_PROPAGATIONS = ("draw", "mean")
+
+
+def require_tyre_shape(config: Any) -> None:
+    """Check ``tyre_shape`` and the Magic Formula factors of ``config`` (ConfigError)."""
+    require_choice("tyre_shape", config.tyre_shape, TYRE_SHAPES)
+    require_range("magic_formula_shape_c", config.magic_formula_shape_c, 1.0, 1.9)
+    require_range("magic_formula_curvature_e", config.magic_formula_curvature_e, -5.0, 0.99)
 
 
 @dataclass(frozen=True)
@@ -163,6 +172,15 @@ class StiffnessEstimatorConfig:
             friction limit ``mu Fz``, i.e. ``alpha_s = mu Fz / C`` with ``C`` each particle's
             current stiffness mean (nominal + NiW mean; the force stays affine in the step's
             ``w``; ``stiffness_model.saturation_slip_at``) (default ``friction``).
+        tyre_shape: shape of the saturating tyre (with ``friction_coefficient`` > 0): ``tanh``
+            (``Fy = C alpha_s tanh(alpha / alpha_s)``, no shape to know) or ``magic_formula``
+            (Pacejka's ``D sin(C atan(B alpha - E (B alpha - atan(B alpha))))`` with ``D = C_y
+            alpha_s`` and ``B C D = C_y``: the same stiffness and peak, the curve of a known
+            tyre; ``stiffness_model.lateral_slip_function``) (default ``tanh``).
+        magic_formula_shape_c: shape factor C of the ``magic_formula`` tyre, within [1, 1.9],
+            1 (default 1.3, a typical lateral value).
+        magic_formula_curvature_e: curvature factor E of the ``magic_formula`` tyre, within
+            [-5, 0.99], 1 (default 0.0).
         cornering_stiffness_front_n_rad: nominal front-axle cornering stiffness C_n (eq. 7),
             N/rad; 0 takes the vehicle's (default 0.0).
         cornering_stiffness_rear_n_rad: nominal rear-axle cornering stiffness, N/rad; 0 takes
@@ -231,6 +249,9 @@ class StiffnessEstimatorConfig:
     roll_gain: float = 0.0
     friction_coefficient: float = 0.0
     saturation_peak: str = "friction"
+    tyre_shape: str = "tanh"
+    magic_formula_shape_c: float = 1.3
+    magic_formula_curvature_e: float = 0.0
     cornering_stiffness_front_n_rad: float = 0.0
     cornering_stiffness_rear_n_rad: float = 0.0
     measured_speed_model: str = "kinematic"
@@ -304,5 +325,6 @@ class StiffnessEstimatorConfig:
         require_range("roll_gain", self.roll_gain, -0.5, 5.0)
         if self.friction_coefficient != 0.0:
             require_range("friction_coefficient", self.friction_coefficient, 0.1, 5.0)
+        require_tyre_shape(self)
         for name in ("cornering_stiffness_front_n_rad", "cornering_stiffness_rear_n_rad"):
             require_range(name, getattr(self, name), 0.0, 1e7)

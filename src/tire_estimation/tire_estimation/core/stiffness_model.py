@@ -20,7 +20,9 @@ Sign conventions (documented deviations):
   at ``C alpha_s``; with ``alpha_s = mu Fz / C_n`` (static axle load ``Fz``, friction coefficient
   ``mu``) that peak is ``mu Fz`` at the nominal stiffness and scales with the learned ``C / C_n``;
   with ``alpha_s = mu Fz / C`` at the particle's current stiffness (:func:`saturation_slip_at`,
-  the estimator's default) the peak is the friction limit ``mu Fz`` itself.
+  the estimator's default) the peak is the friction limit ``mu Fz`` itself. Instead of the tanh,
+  ``phi`` can be Pacejka's Magic Formula with a given shape factor and curvature factor, scaled
+  to the same slope 1 and the same peak ``alpha_s`` (``tyre_shape`` = ``magic_formula``).
 """
 
 from __future__ import annotations
@@ -40,6 +42,8 @@ GRAVITY_M_S2 = 9.81
 MIN_SPEED_M_S = 1.0
 #: Names of the three estimated stiffnesses (order of ``w`` in eq. 8).
 NAMES = ("cx_front", "cy_front", "cy_rear")
+#: Shapes of the saturating lateral tyre (:func:`lateral_slip_function`).
+TYRE_SHAPES = ("tanh", "magic_formula")
 
 
 @dataclass(frozen=True)
@@ -62,6 +66,9 @@ class SingleTrackParams:
         saturation_slip_front_rad: saturation slip angle alpha_s of the front axle of
             :func:`lateral_slip_function`, rad (0 = linear tyre, eq. 2 as printed).
         saturation_slip_rear_rad: the same for the rear axle, rad (0 = linear).
+        tyre_shape: shape of the saturating tyre, ``tanh`` or ``magic_formula``.
+        magic_formula_c: shape factor C of the ``magic_formula`` shape, 1.
+        magic_formula_e: curvature factor E of the ``magic_formula`` shape, 1.
     """
 
     mass_kg: float
@@ -78,6 +85,9 @@ class SingleTrackParams:
     roll_gain: float = 0.0
     saturation_slip_front_rad: float = 0.0
     saturation_slip_rear_rad: float = 0.0
+    tyre_shape: str = "tanh"
+    magic_formula_c: float = 1.3
+    magic_formula_e: float = 0.0
 
     @staticmethod
     def from_vehicle(
@@ -90,12 +100,17 @@ class SingleTrackParams:
         friction_coefficient: float = 0.0,
         cornering_stiffness_front_n_rad: float | None = None,
         cornering_stiffness_rear_n_rad: float | None = None,
+        tyre_shape: str = "tanh",
+        magic_formula_c: float = 1.3,
+        magic_formula_e: float = 0.0,
     ) -> SingleTrackParams:
         """Build from :class:`VehicleParams` (``base_link`` at the rear axle: CG at x = lr).
 
         ``friction_coefficient`` mu > 0 switches on the lateral saturation with ``alpha_s =
         mu Fz / C_n`` per axle (static loads ``Fz_f = m g lr / L``, ``Fz_r = m g lf / L``);
-        the cornering stiffnesses override the vehicle's nominal values when given.
+        the cornering stiffnesses override the vehicle's nominal values when given;
+        ``tyre_shape``, ``magic_formula_c`` and ``magic_formula_e`` choose the saturating
+        shape (:func:`lateral_slip_function`).
         """
         drv = vehicle.drive if drive is None else drive
         cx = (
@@ -139,6 +154,9 @@ class SingleTrackParams:
             roll_gain=roll_gain,
             saturation_slip_front_rad=sat_f,
             saturation_slip_rear_rad=sat_r,
+            tyre_shape=tyre_shape,
+            magic_formula_c=magic_formula_c,
+            magic_formula_e=magic_formula_e,
         )
 
 
@@ -153,22 +171,40 @@ def wheel_slip(vx_m_s: F64, wheel_speed_m_s: F64 | float) -> F64:
     return (rw - vx) / np.maximum(np.maximum(vx, rw), MIN_SPEED_M_S)
 
 
-def lateral_slip_function(alpha_rad: F64, saturation_slip_rad: float | F64) -> F64:
+def lateral_slip_function(
+    alpha_rad: F64,
+    saturation_slip_rad: float | F64,
+    shape: str = "tanh",
+    shape_c: float = 1.3,
+    curvature_e: float = 0.0,
+) -> F64:
     """Effective slip ``phi(alpha)`` of the lateral force ``Fy = C phi(alpha)``, rad.
 
-    ``saturation_slip_rad`` = 0 gives the linear tyre of eq. (2) (``phi = alpha``); > 0 the
-    tanh tyre ``phi = alpha_s tanh(alpha / alpha_s)``: slope 1 at small slip (``C`` is the
-    cornering stiffness), 76 % of the peak ``C alpha_s`` at ``alpha = alpha_s``. A per-particle
-    ``saturation_slip_rad`` (N,) (all > 0) goes with ``alpha_rad`` (N,).
+    ``saturation_slip_rad`` = 0 gives the linear tyre of eq. (2) (``phi = alpha``); > 0 a
+    saturating tyre with slope 1 at small slip (``C`` is the cornering stiffness) and peak
+    ``C alpha_s``. ``shape`` ``tanh``: ``phi = alpha_s tanh(alpha / alpha_s)`` (76 % of the peak
+    at ``alpha = alpha_s``, the peak reached only asymptotically); ``magic_formula``: Pacejka's
+    ``phi = alpha_s sin(C atan(u - E (u - atan u)))`` with ``u = alpha / (C alpha_s)``, i.e.
+    ``D = C_y alpha_s`` and ``B = 1 / (C alpha_s)`` (shape factor ``shape_c`` C in [1, 2),
+    curvature factor ``curvature_e`` E < 1; the force peaks at ``C_y alpha_s`` and falls to
+    ``sin(C pi / 2)`` of it at large slip). A per-particle ``saturation_slip_rad`` (N,) (all
+    > 0) goes with ``alpha_rad`` (N,).
     """
     sat = np.asarray(saturation_slip_rad, dtype=float)
     if sat.ndim == 0 and sat <= 0.0:
         # eq. (2) Fy = C alpha
         return alpha_rad
-    # Fy = C alpha_s tanh(alpha / alpha_s)  (affine in C; -> C alpha for |alpha| << alpha_s);
     # a per-particle alpha_s = 0 keeps the linear tyre of that particle
     safe = np.where(sat > 0.0, sat, 1.0)
-    return np.where(sat > 0.0, safe * np.tanh(alpha_rad / safe), alpha_rad)
+    if shape == "magic_formula":
+        # Pacejka: Fy = D sin(C atan(B a - E (B a - atan(B a)))) with D = C_y alpha_s and
+        # B = C_y / (C D) = 1 / (C alpha_s), so Fy = C_y phi(a) (affine in C_y, slope C_y at 0)
+        u = alpha_rad / (shape_c * safe)
+        phi = safe * np.sin(shape_c * np.arctan(u - curvature_e * (u - np.arctan(u))))
+    else:
+        # Fy = C alpha_s tanh(alpha / alpha_s)  (affine in C; -> C alpha for |alpha| << alpha_s)
+        phi = safe * np.tanh(alpha_rad / safe)
+    return np.where(sat > 0.0, phi, alpha_rad)
 
 
 def saturation_slip_at(
@@ -226,8 +262,9 @@ def force_regressor(
         if saturation_slip_rad is None
         else saturation_slip_rad
     )
-    alpha_f = lateral_slip_function(alpha_f, sat_f)
-    alpha_r = lateral_slip_function(alpha_r, sat_r)
+    shape = (p.tyre_shape, p.magic_formula_c, p.magic_formula_e)
+    alpha_f = lateral_slip_function(alpha_f, sat_f, *shape)
+    alpha_r = lateral_slip_function(alpha_r, sat_r, *shape)
     a = np.zeros((n, 3, 3))
     # eq. (2) F = C * slip; eq. (1) columns = force directions / (m, m, I)
     lam_f = wheel_slip(x[:, 0], wheel_speed_m_s[0]) if p.drive in ("front", "all") else 0.0

@@ -35,7 +35,9 @@ hence the longitudinal tyre force, is unknown: by default (``measured_speed_mode
 speed replaces ax as measurement row 0 (``stiffness_model.kinematic_speed_row``); the ax bias
 is then not estimated; (viii) optional saturating lateral tyre ``Fy = C alpha_s tanh(alpha /
 alpha_s)`` (``friction_coefficient``, still affine in ``C``), by default with the peak at the
-friction limit, ``alpha_s = mu Fz / C`` at each particle's stiffness mean (``saturation_peak``);
+friction limit, ``alpha_s = mu Fz / C`` at each particle's stiffness mean (``saturation_peak``),
+and with the tanh or, for a tyre whose curve is known, Pacejka's Magic Formula shape scaled to the
+same stiffness and peak (``tyre_shape``);
 (ix) optional, against the collapse of the particles onto a jointly scaled stiffness pair at
 activation: the NiW mean and ``gamma`` updated with the measurement's information share of the
 draw of ``w`` (``niw_update``, :func:`niw_mean_gains`), and a Liu & West (2001) shrinkage kernel
