@@ -160,12 +160,13 @@ class StiffnessEstimatorConfig:
         roll_gain: c_phi g of Sec. II-A; measured ay is divided by 1 + roll_gain, 1 (default
             0.0).
         friction_coefficient: road friction coefficient mu of the saturating lateral tyre
-            ``Fy = C alpha_s tanh(alpha / alpha_s)`` per axle (static axle load Fz, ``alpha_s``
-            by ``saturation_peak``): the axle force levels off near ``mu Fz`` instead of growing
-            linearly with the slip angle, 1; 0 keeps the paper's linear tyre (eq. 2) (default
-            0.0). Where the car drives at the limit, the peak |ay| / g it reaches; otherwise the
-            road's value. If unsure, err high: too low a value biases the learned stiffness up
-            more than too high a value biases it down (docs/results.md section 6).
+            ``Fy = C alpha_s tanh(alpha / alpha_s)`` per axle, or the curve of ``tyre_shape``
+            (static axle load Fz, ``alpha_s`` by ``saturation_peak``): the axle force levels off
+            near ``mu Fz`` instead of growing linearly with the slip angle, 1; 0 keeps the
+            paper's linear tyre (eq. 2) (default 0.0). Where the car drives at the limit, the
+            peak |ay| / g it reaches; otherwise the road's value. If unsure, err high: too low
+            a value biases the learned stiffness up more than too high a value biases it down
+            (docs/results.md section 6).
         saturation_peak: what sets the peak force of the saturating tyre (with
             ``friction_coefficient`` > 0): ``scaled``: ``alpha_s = mu Fz / C_n`` is fixed, so the
             peak ``C alpha_s`` scales with the learned ``C / C_n``; ``friction``: the peak is the
