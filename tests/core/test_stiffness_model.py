@@ -188,7 +188,7 @@ def test_tyre_shape_reaches_the_regressor_of_the_filter_and_the_baselines() -> N
     rng = np.random.default_rng(0)
     tanh_p = StiffnessEstimator(tanh_cfg, v, rng).params
     mf_p = StiffnessEstimator(mf_cfg, v, rng).params
-    assert (mf_p.tyre_shape, mf_p.magic_formula_c, mf_p.magic_formula_e) == (
+    assert (mf_p.tyre_shape, mf_p.magic_formula_shape_c, mf_p.magic_formula_curvature_e) == (
         "magic_formula",
         1.3,
         -0.5,

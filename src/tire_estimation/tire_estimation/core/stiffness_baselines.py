@@ -915,8 +915,8 @@ class BaselineEstimator:
             roll_gain=config.roll_gain,
             friction_coefficient=config.friction_coefficient,
             tyre_shape=config.tyre_shape,
-            magic_formula_c=config.magic_formula_shape_c,
-            magic_formula_e=config.magic_formula_curvature_e,
+            magic_formula_shape_c=config.magic_formula_shape_c,
+            magic_formula_curvature_e=config.magic_formula_curvature_e,
         )
         self.nominal = np.asarray(self.params.nominal, dtype=float)
         self.stats: dict[str, int] = {}

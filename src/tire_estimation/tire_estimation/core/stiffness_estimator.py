@@ -155,8 +155,8 @@ class StiffnessEstimator:
             cornering_stiffness_front_n_rad=config.cornering_stiffness_front_n_rad or None,
             cornering_stiffness_rear_n_rad=config.cornering_stiffness_rear_n_rad or None,
             tyre_shape=config.tyre_shape,
-            magic_formula_c=config.magic_formula_shape_c,
-            magic_formula_e=config.magic_formula_curvature_e,
+            magic_formula_shape_c=config.magic_formula_shape_c,
+            magic_formula_curvature_e=config.magic_formula_curvature_e,
         )
         self.mpf = StiffnessMpf(config, self.params, rng)
         self.stats: dict[str, int] = {}

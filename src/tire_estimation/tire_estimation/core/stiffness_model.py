@@ -67,8 +67,8 @@ class SingleTrackParams:
             :func:`lateral_slip_function`, rad (0 = linear tyre, eq. 2 as printed).
         saturation_slip_rear_rad: the same for the rear axle, rad (0 = linear).
         tyre_shape: shape of the saturating tyre, ``tanh`` or ``magic_formula``.
-        magic_formula_c: shape factor C of the ``magic_formula`` shape, 1.
-        magic_formula_e: curvature factor E of the ``magic_formula`` shape, 1.
+        magic_formula_shape_c: shape factor C of the ``magic_formula`` shape, 1.
+        magic_formula_curvature_e: curvature factor E of the ``magic_formula`` shape, 1.
     """
 
     mass_kg: float
@@ -86,8 +86,8 @@ class SingleTrackParams:
     saturation_slip_front_rad: float = 0.0
     saturation_slip_rear_rad: float = 0.0
     tyre_shape: str = "tanh"
-    magic_formula_c: float = 1.3
-    magic_formula_e: float = 0.0
+    magic_formula_shape_c: float = 1.3
+    magic_formula_curvature_e: float = 0.0
 
     @staticmethod
     def from_vehicle(
@@ -101,16 +101,16 @@ class SingleTrackParams:
         cornering_stiffness_front_n_rad: float | None = None,
         cornering_stiffness_rear_n_rad: float | None = None,
         tyre_shape: str = "tanh",
-        magic_formula_c: float = 1.3,
-        magic_formula_e: float = 0.0,
+        magic_formula_shape_c: float = 1.3,
+        magic_formula_curvature_e: float = 0.0,
     ) -> SingleTrackParams:
         """Build from :class:`VehicleParams` (``base_link`` at the rear axle: CG at x = lr).
 
         ``friction_coefficient`` mu > 0 switches on the lateral saturation with ``alpha_s =
         mu Fz / C_n`` per axle (static loads ``Fz_f = m g lr / L``, ``Fz_r = m g lf / L``);
         the cornering stiffnesses override the vehicle's nominal values when given;
-        ``tyre_shape``, ``magic_formula_c`` and ``magic_formula_e`` choose the saturating
-        shape (:func:`lateral_slip_function`).
+        ``tyre_shape``, ``magic_formula_shape_c`` and ``magic_formula_curvature_e`` choose the
+        saturating shape (:func:`lateral_slip_function`).
         """
         drv = vehicle.drive if drive is None else drive
         cx = (
@@ -155,8 +155,8 @@ class SingleTrackParams:
             saturation_slip_front_rad=sat_f,
             saturation_slip_rear_rad=sat_r,
             tyre_shape=tyre_shape,
-            magic_formula_c=magic_formula_c,
-            magic_formula_e=magic_formula_e,
+            magic_formula_shape_c=magic_formula_shape_c,
+            magic_formula_curvature_e=magic_formula_curvature_e,
         )
 
 
@@ -262,7 +262,7 @@ def force_regressor(
         if saturation_slip_rad is None
         else saturation_slip_rad
     )
-    shape = (p.tyre_shape, p.magic_formula_c, p.magic_formula_e)
+    shape = (p.tyre_shape, p.magic_formula_shape_c, p.magic_formula_curvature_e)
     alpha_f = lateral_slip_function(alpha_f, sat_f, *shape)
     alpha_r = lateral_slip_function(alpha_r, sat_r, *shape)
     a = np.zeros((n, 3, 3))
