@@ -13,6 +13,8 @@ Two truth-free-in-principle ways to find the curve that ``tyre_shape`` needs, tr
    with the Magic Formula whose C and E are free (an upper bound on what the data hold).
 
     python scripts/snow_tyre_shape_evidence.py --drives 100 112 --mpf-seeds 1 2 3
+    python scripts/snow_tyre_shape_evidence.py --drives 100 112 --mpf-seeds 1 --seed-base 1000 \\
+        --wide
     python scripts/snow_tyre_shape_evidence.py --drives 100 104 --regression
 """
 
@@ -50,20 +52,42 @@ CANDIDATES: dict[str, dict[str, Any]] = {
     },
     "MF C 1.3 E 0": {"tyre_shape": "magic_formula", "magic_formula_curvature_e": 0.0},
 }
+#: ``--wide``: the tanh, C 1.3 with E from -1 to 0.25, and C 1.1 / 1.5 with E -0.5.
+WIDE_CANDIDATES: dict[str, dict[str, Any]] = {
+    "tanh": {},
+    **{
+        f"MF C 1.3 E {e:g}": {"tyre_shape": "magic_formula", "magic_formula_curvature_e": e}
+        for e in (-1.0, -0.75, -0.5, -0.25, 0.0, 0.25)
+    },
+    **{
+        f"MF C {c:g} E -0.5": {
+            "tyre_shape": "magic_formula",
+            "magic_formula_curvature_e": -0.5,
+            "magic_formula_shape_c": c,
+        }
+        for c in (1.1, 1.5)
+    },
+}
 
 
-def evidence(drives: range, mpf_seeds: list[int], n: int) -> None:
-    """Part 1: log evidence per candidate, drive and MPF seed (``seed * 10000 + drive``)."""
-    logz = {k: np.zeros((len(drives), len(mpf_seeds))) for k in CANDIDATES}
-    err = {k: np.zeros((len(drives), len(mpf_seeds), 2)) for k in CANDIDATES}
+def evidence(
+    drives: range,
+    mpf_seeds: list[int],
+    n: int,
+    candidates: dict[str, dict[str, Any]],
+    seed_base: int,
+) -> None:
+    """Part 1: log evidence per candidate, drive and MPF seed (``seed * seed_base + drive``)."""
+    logz = {k: np.zeros((len(drives), len(mpf_seeds))) for k in candidates}
+    err = {k: np.zeros((len(drives), len(mpf_seeds), 2)) for k in candidates}
     for i, s in enumerate(drives):
         sim = simulate("snow_sine", seed=s, sensors=NO_BIAS)
         for j, ms in enumerate(mpf_seeds):
-            for label, fields in CANDIDATES.items():
+            for label, fields in candidates.items():
                 cfg = eval_config(
                     n, niw_update="rao_blackwellized", friction_coefficient=SNOW_MU, **fields
                 )
-                res = run(sim, cfg, seed=ms * 10000 + s)
+                res = run(sim, cfg, seed=ms * seed_base + s)
                 # mean_log_predictive is the evidence per IMU update; one update per record
                 logz[label][i, j] = float(res["mean_log_predictive"]) * res["t_s"].size
                 rel = res["c"] / res["truth_c"] - 1.0
@@ -74,7 +98,7 @@ def evidence(drives: range, mpf_seeds: list[int], n: int) -> None:
     print("| curve | sum over drives vs tanh [nats] | sd over drives | sd over MPF seeds | "
           "steady error front / rear |")  # fmt: skip
     print("|---|---|---|---|---|")
-    for label in CANDIDATES:
+    for label in candidates:
         diff = logz[label] - logz["tanh"]
         per_drive = diff.mean(axis=1)
         seed_sd = diff.std(axis=1, ddof=1).mean() if len(mpf_seeds) > 1 else float("nan")
@@ -141,13 +165,16 @@ def main() -> None:
     ap.add_argument("--drives", type=int, nargs=2, default=[100, 112], metavar=("FIRST", "END"))
     ap.add_argument("--mpf-seeds", type=int, nargs="+", default=[1, 2, 3])
     ap.add_argument("--particles", type=int, default=200)
+    ap.add_argument("--seed-base", type=int, default=10000, help="MPF seed = S * this + drive")
+    ap.add_argument("--wide", action="store_true", help="the wider grid of candidate curves")
     ap.add_argument("--regression", action="store_true", help="run part 2 instead of part 1")
     args = ap.parse_args()
     drives = range(*args.drives)
     if args.regression:
         regression(drives, args.particles)
     else:
-        evidence(drives, args.mpf_seeds, args.particles)
+        candidates = WIDE_CANDIDATES if args.wide else CANDIDATES
+        evidence(drives, args.mpf_seeds, args.particles, candidates, args.seed_base)
 
 
 if __name__ == "__main__":
