@@ -88,7 +88,8 @@ def evidence(
                     n, niw_update="rao_blackwellized", friction_coefficient=SNOW_MU, **fields
                 )
                 res = run(sim, cfg, seed=ms * seed_base + s)
-                # mean_log_predictive is the evidence per IMU update; one update per record
+                # mean_log_predictive (per IMU update) times the records: the evidence up to
+                # the factor records / updates, the same for every candidate of a drive
                 logz[label][i, j] = float(res["mean_log_predictive"]) * res["t_s"].size
                 rel = res["c"] / res["truth_c"] - 1.0
                 err[label][i, j] = sine_run_scores(res["t_s"], rel, res["active"])[
