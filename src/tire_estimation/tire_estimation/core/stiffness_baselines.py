@@ -47,6 +47,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tire_estimation.core import resampling
+from tire_estimation.core.activation_replay import ActivationReplay
 from tire_estimation.core.stiffness_config import require_tyre_shape
 from tire_estimation.core.stiffness_estimator import SlidingWindow, StiffnessEstimate
 from tire_estimation.core.stiffness_model import (
@@ -111,6 +112,9 @@ class BaselineConfig:
         min_speed_m_s: below this speed nothing is learned, m/s (5.0).
         activation_window_s: window of the RMS steering angle, s (1.0).
         activation_steer_rad: minimum RMS road-wheel angle to learn (Sec. V), rad (0.003).
+        activation_replay_s: when learning starts, rewind the filter to the onset of the
+            steering within this time and replay the inputs since with learning on, as
+            Algorithm 1's, s (0.0 = off).
         activation_accel_x_window_s: window of the std of the measured ax, s (3.0).
         activation_accel_x_std_m_s2: minimum std of the measured ax to learn Cx, m/s^2 (0.2).
         max_gap_s: a larger gap between IMU samples re-initializes the filter, s (0.5).
@@ -139,6 +143,7 @@ class BaselineConfig:
     min_speed_m_s: float = 5.0
     activation_window_s: float = 1.0
     activation_steer_rad: float = 0.003
+    activation_replay_s: float = 0.0
     activation_accel_x_window_s: float = 3.0
     activation_accel_x_std_m_s2: float = 0.2
     max_gap_s: float = 0.5
@@ -146,6 +151,7 @@ class BaselineConfig:
 
     def __post_init__(self) -> None:
         require_choice("drive", self.drive, DRIVE_CHOICES)
+        require_range("activation_replay_s", self.activation_replay_s, 0.0, 10.0)
         require_range("initial_stiffness_factor", self.initial_stiffness_factor, 0.05, 5.0)
         require_range(
             "initial_stiffness_std_fraction", self.initial_stiffness_std_fraction, 1e-4, 5.0
@@ -929,6 +935,10 @@ class BaselineEstimator:
     def reset(self) -> None:
         """Forget everything learned and all inputs."""
         self.filter = self.make_filter()
+        self._replay: ActivationReplay[BaselineFilter, tuple[float | None, Measurement, bool]]
+        self._replay = ActivationReplay(
+            self.config.activation_replay_s, shared=(self.rng, self.config, self.params)
+        )
         self._last: dict[str, int | None] = {
             "imu": None,
             "wheel": None,
@@ -1054,7 +1064,10 @@ class BaselineEstimator:
             self.filter.initialize(x0, std)
             self._steer_window.reset()
             self._accel_x_window.reset()
+            self._replay.clear()
+            self._active = False
             dt = None
+        was_active = self._active
         # Sec. V activation over sliding windows (as StiffnessEstimator)
         self._steer_window.add(t, steer)
         self._accel_x_window.add(t, float(acc[0]))
@@ -1064,11 +1077,20 @@ class BaselineEstimator:
             self._active, self._reason = False, "no lateral excitation"
         else:
             self._active, self._reason = True, "excited"
-        self._cx_active = (
-            self._active and self._accel_x_window.std >= c.activation_accel_x_std_m_s2
-        )
+        cx_excited = self._accel_x_window.std >= c.activation_accel_x_std_m_s2
+        self._cx_active = self._active and cx_excited
         if self._active and not self._cx_active:
             self._reason = "excited (Cx frozen: no longitudinal excitation)"
+        if self._active and not was_active:
+            # learn from the onset of the excitation (core/activation_replay, as Algorithm 1)
+            threshold = c.activation_steer_rad
+            got = self._replay.rewind(excited=lambda step: abs(step[1].delta_rad) >= threshold)
+            if got is not None:
+                self.filter, steps = got
+                for dt_s, past, past_cx in steps:
+                    if dt_s is not None:
+                        self.filter.predict(dt_s, True, past_cx)
+                    self.filter.update(past, True, past_cx)
         if dt is not None:
             self.filter.predict(dt, self._active, self._cx_active)
         meas = Measurement(
@@ -1079,6 +1101,8 @@ class BaselineEstimator:
             vx_measured=not have_wheel,
         )
         self.filter.update(meas, self._active, self._cx_active)
+        if not self._active:
+            self._replay.record(t, (dt, meas, cx_excited), self.filter)
 
     # ------------------------------------------------------------------ outputs
     def estimate(self) -> StiffnessEstimate:

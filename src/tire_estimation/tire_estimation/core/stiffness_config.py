@@ -199,6 +199,12 @@ class StiffnessEstimatorConfig:
             (default 1.0). Learning stops at most one window after the excitation ends.
         activation_steer_rad: minimum RMS road-wheel angle over the window to learn the
             stiffness (Sec. V: lateral excitation), rad (default 0.003).
+        activation_replay_s: when learning starts, the filter goes back to a copy of itself
+            taken before the first sample of the last ``activation_replay_s`` with a steering
+            angle of at least ``activation_steer_rad``, and runs the inputs since again with
+            learning on, so it learns from the onset of the excitation that the window measure
+            sees only later; not in the paper (:mod:`~tire_estimation.core.activation_replay`;
+            experimental, docs/results.md section 6), s (default 0 = off; at most 10).
         activation_accel_x_window_s: length of the sliding window of the longitudinal
             excitation measure, s (default 3.0).
         activation_accel_x_std_m_s2: minimum standard deviation of the measured longitudinal
@@ -260,6 +266,7 @@ class StiffnessEstimatorConfig:
     min_speed_m_s: float = 5.0
     activation_window_s: float = 1.0
     activation_steer_rad: float = 0.003
+    activation_replay_s: float = 0.0
     activation_accel_x_window_s: float = 3.0
     activation_accel_x_std_m_s2: float = 0.2
     max_gap_s: float = 0.5
@@ -267,6 +274,7 @@ class StiffnessEstimatorConfig:
 
     def __post_init__(self) -> None:
         require_int_range("n_particles", self.n_particles, 1, 1_000_000)
+        require_range("activation_replay_s", self.activation_replay_s, 0.0, 10.0)
         require_range("forgetting", self.forgetting, 0.5, 1.0)
         require_range("resample_threshold", self.resample_threshold, 0.0, 1.0)
         require_choice("resampler", self.resampler, RESAMPLERS)

@@ -18,6 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tire_estimation.core import niw
+from tire_estimation.core.activation_replay import ActivationReplay
 from tire_estimation.core.stiffness_config import StiffnessEstimatorConfig
 from tire_estimation.core.stiffness_model import NAMES, SingleTrackParams, roll_compensate
 from tire_estimation.core.stiffness_mpf import StiffnessMpf
@@ -26,6 +27,10 @@ from tire_estimation.errors import InputError
 
 F64 = NDArray[np.float64]
 STATE_DICT_VERSION = 1
+
+#: one IMU step as the MPF ran it: dt_s (None on the first step), y, steering angle, axle
+#: speeds (front, rear), measured vX (None with wheel speeds), Cx excitation (learn_cx when on)
+_Step = tuple[float | None, F64, float, tuple[float, float], float | None, bool]
 
 
 @dataclass(frozen=True)
@@ -160,11 +165,16 @@ class StiffnessEstimator:
         )
         self.mpf = StiffnessMpf(config, self.params, rng)
         self.stats: dict[str, int] = {}
+        #: times learning started with a replay of the window before it
+        self.replay_count = 0
         self.reset()
 
     def reset(self) -> None:
         """Forget everything learned and all inputs."""
         self.mpf = StiffnessMpf(self.config, self.params, self.rng)
+        self._replay: ActivationReplay[StiffnessMpf, _Step] = ActivationReplay(
+            self.config.activation_replay_s, shared=(self.rng, self.config, self.params)
+        )
         self._last: dict[str, int | None] = {
             "imu": None,
             "wheel": None,
@@ -297,7 +307,10 @@ class StiffnessEstimator:
             self.mpf.initialize(x0, std)
             self._steer_window.reset()
             self._accel_x_window.reset()
+            self._replay.clear()
+            self._active = False
             dt = None
+        was_active = self._active
         # Sec. V activation over sliding windows: RMS road-wheel angle (lateral excitation)
         # and, for Cx, the variation (std) of the measured longitudinal acceleration
         self._steer_window.add(t, steer)
@@ -309,17 +322,33 @@ class StiffnessEstimator:
         else:
             self._active, self._reason = True, "excited"
         # without wheel speeds the slip (eq. 3) is unknown: Cx is not observable, keep it frozen
-        self._cx_active = (
-            self._active
-            and vx_in is None
-            and self._accel_x_window.std >= c.activation_accel_x_std_m_s2
-        )
+        cx_excited = vx_in is None and self._accel_x_window.std >= c.activation_accel_x_std_m_s2
+        self._cx_active = self._active and cx_excited
         if self._active and not self._cx_active:
             why = "no wheel speeds" if vx_in is not None else "no longitudinal excitation"
             self._reason = f"excited (Cx frozen: {why})"
+        if self._active and not was_active:
+            self._replay_window()
         if dt is not None:
             self.mpf.predict(dt, self._active, self._cx_active)
         self.mpf.update(y, steer, (wf, wr), self._active, vx_in, self._cx_active)
+        if not self._active:
+            self._replay.record(t, (dt, y, steer, (wf, wr), vx_in, cx_excited), self.mpf)
+
+    def _replay_window(self) -> None:
+        """Learning starts: rewind the MPF to before the first step of the last
+        ``activation_replay_s`` with a steering angle of at least ``activation_steer_rad``, and
+        run the steps since again with learning on (:mod:`~.activation_replay`)."""
+        threshold = self.config.activation_steer_rad
+        got = self._replay.rewind(excited=lambda step: abs(step[2]) >= threshold)
+        if got is None:
+            return
+        self.mpf, steps = got
+        for dt_s, y, steer, speeds, vx_in, cx_excited in steps:
+            if dt_s is not None:
+                self.mpf.predict(dt_s, True, cx_excited)
+            self.mpf.update(y, steer, speeds, True, vx_in, cx_excited)
+        self.replay_count += 1
 
     # ------------------------------------------------------------------ outputs
     def estimate(self) -> StiffnessEstimate:
@@ -391,6 +420,8 @@ class StiffnessEstimator:
         except (KeyError, TypeError, ValueError, AttributeError) as exc:
             raise InputError("state", f"malformed stiffness state: {exc}") from exc
         self.mpf.stats = stats
+        # a copy taken before would bring the old statistics back on the next activation
+        self._replay.clear()
 
 
 __all__ = ["StiffnessEstimate", "StiffnessEstimator"]
