@@ -6,7 +6,7 @@ error (estimate minus truth, at the CG) 0.5 s before, at, and 0.2 s after the fi
 sample, the Cy front / rear errors 0.5 s and 2 s after it, and the true vY RMS over the first
 0.5 s; then the correlation of the vY error with the rear error (docs/results.md, section 6).
 
-    python scripts/snow_activation_vy.py 1.5 0 30
+    python scripts/snow_activation_vy.py 1.5 0 30 [--set activation_replay_s=1]
 """
 
 from __future__ import annotations
@@ -18,6 +18,7 @@ import numpy as np
 from tire_estimation.evaluation.stiffness import (
     NO_BIAS,
     eval_config,
+    parse_set,
     run,
     simulate,
     sine_run_scores,
@@ -37,13 +38,15 @@ def main() -> None:
     ap.add_argument("factor", type=float, help="start, fraction of the true stiffness")
     ap.add_argument("first", type=int)
     ap.add_argument("end", type=int)
+    ap.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE")
     args = ap.parse_args()
+    overrides = {**SNOW, **parse_set(args.set)}
     rows = []
     print("seed | vY err -0.5 s / 0 s / +0.2 s [m/s] | Cy err +0.5 s f / r, +2 s r | vY RMS")
     for seed in range(args.first, args.end):
         sim = simulate("snow_sine", seed=seed, sensors=NO_BIAS)
         cfg = eval_config(
-            200, initial_stiffness_factor=args.factor * truth_over_nominal(sim), **SNOW
+            200, initial_stiffness_factor=args.factor * truth_over_nominal(sim), **overrides
         )
         res = run(sim, cfg, 1000 + seed)
         t = res["t_s"]
