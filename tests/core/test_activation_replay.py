@@ -236,3 +236,22 @@ def test_baselines_replay_the_onset_as_algorithm_1() -> None:
     learned = [int(k) for learn, k in log if learn]
     assert 140 < learned[0] <= 150
     assert learned == list(range(learned[0], 300))
+
+
+def test_nothing_below_the_minimum_speed_is_replayed() -> None:
+    # steering from the start, the car at 3 m/s (below min_speed_m_s 5) for 1.5 s, then 20 m/s:
+    # learning starts at the speed step and replays none of the slow samples
+    cfg = StiffnessEstimatorConfig(n_particles=10, activation_replay_s=1.0)
+    est = StiffnessEstimator(cfg, VehicleParams(), np.random.default_rng(0))
+    est.mpf = _RecordingMpf()  # type: ignore[assignment]
+    for k in range(300):
+        t = 1_000_000_000 + k * 10 * MS
+        w = (3.0 if k < 150 else 20.0) / 0.31
+        est.on_wheel_speeds(t, [w, w, w, w])
+        est.on_steering(t + 1, 0.02)
+        est.on_imu(t + 2, [0.0, 0.0, 0.0], [0.0, float(k), 9.81])
+    log = est.mpf.log  # type: ignore[attr-defined]
+    updates = [(learn, k) for kind, learn, k in log if kind == "update"]
+    assert [k for _, k in updates] == [float(k) for k in range(300)]
+    learned = [int(k) for learn, k in updates if learn]
+    assert learned == list(range(150, 300))

@@ -48,8 +48,9 @@ class ActivationReplay(Generic[T, R]):
     """Copies of a filter of type ``T`` and the step records ``R`` after them.
 
     Args:
-        horizon_s: how far back a rewind goes at least, s (0 switches the replay off: nothing
-            is kept and :meth:`rewind` returns ``None``).
+        horizon_s: how far back copies and steps are kept (a rewind goes back at most this
+            plus one copy interval), s (0 switches the replay off: nothing is kept and
+            :meth:`rewind` returns ``None``).
         shared: objects the copies share with the live filter instead of copying them.
     """
 

@@ -1101,7 +1101,10 @@ class BaselineEstimator:
             vx_measured=not have_wheel,
         )
         self.filter.update(meas, self._active, self._cx_active)
-        if not self._active:
+        if speed < c.min_speed_m_s:
+            # nothing below the minimum speed is ever learned, not even in a replay
+            self._replay.clear()
+        elif not self._active:
             self._replay.record(t, (dt, meas, cx_excited), self.filter)
 
     # ------------------------------------------------------------------ outputs

@@ -332,7 +332,10 @@ class StiffnessEstimator:
         if dt is not None:
             self.mpf.predict(dt, self._active, self._cx_active)
         self.mpf.update(y, steer, (wf, wr), self._active, vx_in, self._cx_active)
-        if not self._active:
+        if speed < c.min_speed_m_s:
+            # nothing below the minimum speed is ever learned, not even in a replay
+            self._replay.clear()
+        elif not self._active:
             self._replay.record(t, (dt, y, steer, (wf, wr), vx_in, cx_excited), self.mpf)
 
     def _replay_window(self) -> None:
