@@ -33,14 +33,20 @@ SNOW = {
 }
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def drive_args(description: str) -> tuple[argparse.Namespace, dict[str, object]]:
+    """FACTOR FIRST END [--set FIELD=VALUE ...] of the snow-drive scripts: the arguments and
+    the configuration overrides (SNOW, then ``--set``)."""
+    ap = argparse.ArgumentParser(description=description)
     ap.add_argument("factor", type=float, help="start, fraction of the true stiffness")
     ap.add_argument("first", type=int)
     ap.add_argument("end", type=int)
     ap.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE")
     args = ap.parse_args()
-    overrides = {**SNOW, **parse_set(args.set)}
+    return args, {**SNOW, **parse_set(args.set)}
+
+
+def main() -> None:
+    args, overrides = drive_args(__doc__.splitlines()[0])
     rows = []
     print("seed | vY err -0.5 s / 0 s / +0.2 s [m/s] | Cy err +0.5 s f / r, +2 s r | vY RMS")
     for seed in range(args.first, args.end):

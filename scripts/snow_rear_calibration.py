@@ -13,20 +13,16 @@ RMS of z over the drives (front, rear). An honest filter has RMS z near 1 and me
 
 from __future__ import annotations
 
-import argparse
 from typing import Any, ClassVar
 
 import numpy as np
 
+# the sibling script (its folder is on sys.path when run as python scripts/...)
+from snow_activation_vy import drive_args
+
 import tire_estimation.evaluation.stiffness as ev
 from tire_estimation.core.stiffness_estimator import StiffnessEstimator
 
-SNOW = {
-    "niw_update": "rao_blackwellized",
-    "friction_coefficient": 0.3,
-    "tyre_shape": "magic_formula",
-    "magic_formula_curvature_e": -0.5,
-}
 AFTER_S = (0.25, 0.5, 1.0, 2.0, 3.0)
 
 
@@ -46,13 +42,7 @@ class _Probe(StiffnessEstimator):
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("factor", type=float, help="start, fraction of the true stiffness")
-    ap.add_argument("first", type=int)
-    ap.add_argument("end", type=int)
-    ap.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE")
-    args = ap.parse_args()
-    overrides = {**SNOW, **ev.parse_set(args.set)}
+    args, overrides = drive_args(__doc__.splitlines()[0])
     z_all, gamma_all = [], []
     print("seed | rear z at " + " / ".join(f"+{d} s" for d in AFTER_S) + " | rear mean std [%]")
     for seed in range(args.first, args.end):
