@@ -12,6 +12,7 @@ sample, the Cy front / rear errors 0.5 s and 2 s after it, and the true vY RMS o
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
 
 import numpy as np
 
@@ -33,14 +34,18 @@ SNOW = {
 }
 
 
-def drive_args(description: str) -> tuple[argparse.Namespace, dict[str, object]]:
+def drive_args(
+    description: str, extra: Callable[[argparse.ArgumentParser], None] | None = None
+) -> tuple[argparse.Namespace, dict[str, object]]:
     """FACTOR FIRST END [--set FIELD=VALUE ...] of the snow-drive scripts: the arguments and
-    the configuration overrides (SNOW, then ``--set``)."""
+    the configuration overrides (SNOW, then ``--set``); ``extra`` adds a script's own options."""
     ap = argparse.ArgumentParser(description=description)
     ap.add_argument("factor", type=float, help="start, fraction of the true stiffness")
     ap.add_argument("first", type=int)
     ap.add_argument("end", type=int)
     ap.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE")
+    if extra is not None:
+        extra(ap)
     args = ap.parse_args()
     return args, {**SNOW, **parse_set(args.set)}
 

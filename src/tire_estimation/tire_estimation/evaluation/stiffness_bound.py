@@ -1,0 +1,261 @@
+"""How well could any filter know the cornering stiffnesses of a simulated drive? (issue 5)
+
+A posterior Cramér-Rao bound (Tichavsky et al. 1998; for a linear-Gaussian model it is the
+Kalman filter's covariance) on the stiffness MPF's own single-track model, linearized along the
+simulator's true trajectory. The unknowns are ``z = [vY, r, Cf, Cr]`` (vY at the CG, m/s; yaw
+rate, rad/s; front and rear cornering stiffness, N/rad); vX, the steering and the wheel speeds
+are inputs (the truth), the outputs the lateral accelerometer and the gyro. The model is
+:func:`~tire_estimation.core.stiffness_model.linearize` at the stiffness itself, so with the
+friction-limited tyre its secant is the exact force.
+
+The noise model is the filter's: the accelerometer and gyro noise ``R``, the state jitter, and
+the stiffness noise of the paper's eq. (8): ``w_k ~ N(mu, Sigma)`` drawn afresh at every IMU
+step, which enters the state derivative (``a w``, eq. 9) and the lateral acceleration (``d w``,
+eq. 12). With ``Sigma = 0`` and no jitter the stiffness is a constant and the bound is the
+deterministic Cramér-Rao bound of the drive (:func:`deterministic_crlb`). The gap between the
+two is what the filter's noise model costs; the gap between the bound and the filter's error
+is what the filter loses on its own model.
+
+The truth the bound is linearized on is read from the simulator; this is an evaluation tool.
+Shapes: signals (M,) on the IMU grid; covariances (4, 4) in the order of ``z``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from tire_estimation.core.stiffness_config import StiffnessEstimatorConfig
+from tire_estimation.core.stiffness_model import (
+    SingleTrackParams,
+    linearize,
+    saturation_slip_at,
+)
+from tire_estimation.sim.simulator import SimResult
+
+F64 = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class DriveSignals:
+    """The simulator's truth and inputs on the IMU grid, (M,) each.
+
+    ``t_s`` from the first IMU sample; ``vx_m_s``, ``vy_cg_m_s`` and ``yaw_rate_rad_s`` the true
+    body velocity at the CG and yaw rate; ``delta_rad`` the road-wheel angle; ``wheel_front_m_s``
+    / ``wheel_rear_m_s`` the axle means of the wheel speeds times the radius (as the estimator
+    forms them); ``stiffness_n_rad`` (M, 3) the true [Cx, Cy_front, Cy_rear].
+    """
+
+    t_s: F64
+    vx_m_s: F64
+    vy_cg_m_s: F64
+    yaw_rate_rad_s: F64
+    delta_rad: F64
+    wheel_front_m_s: F64
+    wheel_rear_m_s: F64
+    stiffness_n_rad: F64
+
+
+@dataclass(frozen=True)
+class BoundNoise:
+    """The noise model of the bound (the stiffness MPF's, by default of its configuration).
+
+    ``stiffness_noise_std_n_rad`` (3,): square root of the diagonal of ``Sigma`` (eq. 8);
+    ``jitter_vy_m_s_sqrt_s`` / ``jitter_yaw_rate_rad_s_sqrt_s``: state random walks;
+    ``ay_std_m_s2`` / ``gyro_std_rad_s``: ``R``; ``prior_std`` (4,): std of ``z`` at the start
+    (m/s, rad/s, N/rad, N/rad).
+    """
+
+    stiffness_noise_std_n_rad: F64
+    jitter_vy_m_s_sqrt_s: float
+    jitter_yaw_rate_rad_s_sqrt_s: float
+    ay_std_m_s2: float
+    gyro_std_rad_s: float
+    prior_std: F64
+
+
+def bound_noise(
+    config: StiffnessEstimatorConfig,
+    nominal_n_rad: F64,
+    vy_std_m_s: float,
+    yaw_rate_std_rad_s: float,
+) -> BoundNoise:
+    """The MPF's noise model of ``config`` with ``nominal_n_rad`` (3,) [Cx, Cyf, Cyr]:
+    ``Sigma^0.5`` = ``stiffness_noise_std_fraction`` x nominal, the state jitter, ``R``; the prior
+    of the stiffness ``initial_stiffness_std_fraction`` x nominal (the bound of a linearized
+    model does not depend on where the prior is centred), the states' the given stds."""
+    nominal = np.asarray(nominal_n_rad, dtype=float)
+    c_std = config.initial_stiffness_std_fraction * nominal
+    return BoundNoise(
+        stiffness_noise_std_n_rad=config.stiffness_noise_std_fraction * nominal,
+        jitter_vy_m_s_sqrt_s=config.state_jitter_vy_m_s_sqrt_s,
+        jitter_yaw_rate_rad_s_sqrt_s=config.state_jitter_yaw_rate_rad_s_sqrt_s,
+        ay_std_m_s2=config.accel_noise_std_m_s2,
+        gyro_std_rad_s=config.gyro_noise_std_rad_s,
+        prior_std=np.array([vy_std_m_s, yaw_rate_std_rad_s, c_std[1], c_std[2]]),
+    )
+
+
+def drive_signals(sim: SimResult, wheel_radius_m: float) -> DriveSignals:
+    """The truth and inputs of ``sim`` interpolated on its IMU stamps."""
+    t_ns = np.asarray(sim.imu.t_ns)
+    t_s = (t_ns - t_ns[0]) * 1e-9
+    tr = sim.truth
+    t_tr = (np.asarray(tr.t_ns) - t_ns[0]) * 1e-9
+    r = np.interp(t_s, t_tr, tr.yaw_rate_rad_s)
+    vel = np.asarray(tr.velocity_m_s)
+    # the truth's velocity is at base_link (rear axle): v_cg = v_base + lr r
+    vy_cg = np.interp(t_s, t_tr, vel[:, 1]) + sim.vehicle.lr_m * r
+    t_st = (np.asarray(sim.steering.t_ns) - t_ns[0]) * 1e-9
+    t_ws = (np.asarray(sim.wheel_speeds.t_ns) - t_ns[0]) * 1e-9
+    ws = np.asarray(sim.wheel_speeds.wheel_speed_rad_s) * wheel_radius_m
+    idx = np.clip(np.searchsorted(np.asarray(tr.t_ns), t_ns), 0, len(t_tr) - 1)
+    return DriveSignals(
+        t_s=t_s,
+        vx_m_s=np.interp(t_s, t_tr, vel[:, 0]),
+        vy_cg_m_s=vy_cg,
+        yaw_rate_rad_s=r,
+        delta_rad=np.interp(t_s, t_st, sim.steering.angle_rad),
+        wheel_front_m_s=np.interp(t_s, t_ws, 0.5 * (ws[:, 0] + ws[:, 1])),
+        wheel_rear_m_s=np.interp(t_s, t_ws, 0.5 * (ws[:, 2] + ws[:, 3])),
+        stiffness_n_rad=np.asarray(tr.stiffness, dtype=float)[idx],
+    )
+
+
+def _model(z: F64, k: int, sig: DriveSignals, p: SingleTrackParams) -> tuple[F64, float, F64, F64]:
+    """At sample ``k`` and ``z = [vY, r, Cf, Cr]``: the rate of (vY, r), ay at the IMU, and the
+    stiffness-noise maps ``a`` (2, 3) (rows vY, r of eq. 9) and ``d`` (3,) (ay row of eq. 12)."""
+    vy, r, cf, cr = z
+    nominal = np.asarray(p.nominal, dtype=float)
+    w = np.array([0.0, cf - nominal[1], cr - nominal[2]])
+    sat = saturation_slip_at(p, np.array([cf]), np.array([cr]))
+    x = np.array([[sig.vx_m_s[k], vy, r]])
+    ws = (np.array([sig.wheel_front_m_s[k]]), np.array([sig.wheel_rear_m_s[k]]))
+    lin = linearize(x, float(sig.delta_rad[k]), ws, p, sat)
+    # eq. (9) rate = f + a w; eq. (12) y = h + d w (ay row)
+    rate = lin.rate[0] + lin.a[0] @ w
+    ay = float(lin.h[0, 1] + lin.d[0, 1] @ w)
+    return rate[1:], ay, lin.a[0, 1:, :], lin.d[0, 1, :]
+
+
+def _jacobians(
+    z: F64, k: int, sig: DriveSignals, p: SingleTrackParams
+) -> tuple[F64, F64, F64, F64]:
+    """Central-difference Jacobians of the rate (2, 4) and of [ay, r] (2, 4) at ``z``, and
+    ``a``, ``d`` of :func:`_model`."""
+    steps = np.array([1e-4, 1e-5, 1e-4 * abs(z[2]) + 1e-3, 1e-4 * abs(z[3]) + 1e-3])
+    f_z = np.empty((2, 4))
+    h_z = np.zeros((2, 4))
+    for i, h in enumerate(steps):
+        zp, zm = z.copy(), z.copy()
+        zp[i] += h
+        zm[i] -= h
+        fp, ap, _, _ = _model(zp, k, sig, p)
+        fm, am, _, _ = _model(zm, k, sig, p)
+        f_z[:, i] = (fp - fm) / (2.0 * h)
+        h_z[0, i] = (ap - am) / (2.0 * h)
+    # eq. (12) gyro row: y_r = r
+    h_z[1, 1] = 1.0
+    _, _, a, d = _model(z, k, sig, p)
+    return f_z, h_z, a, d
+
+
+def posterior_bound(
+    sig: DriveSignals,
+    p: SingleTrackParams,
+    k0: int,
+    times_s: Sequence[float],
+    noise: BoundNoise,
+) -> F64:
+    """Bound on the std of [Cf, Cr] (N/rad) at ``times_s`` after sample ``k0``, (len, 2).
+
+    An extended Kalman filter on ``z`` run along the true trajectory (so its covariance is the
+    posterior Cramér-Rao bound of the linearized model): measurement update with ay and the
+    gyro at each sample, then the Euler time update to the next one. The noise of ``w`` enters
+    ay through ``d`` (variance ``d Sigma d^T``) and the state through ``dt a`` (``dt^2 a Sigma
+    a^T``); its correlation between the two is left out (which loosens the bound a little).
+    """
+    sigma = np.diag(np.asarray(noise.stiffness_noise_std_n_rad, dtype=float) ** 2)
+    q_rw = np.array([noise.jitter_vy_m_s_sqrt_s, noise.jitter_yaw_rate_rad_s_sqrt_s]) ** 2
+    cov = np.diag(np.asarray(noise.prior_std, dtype=float) ** 2)
+    wanted = sorted(float(t) for t in times_s)
+    out = np.full((len(wanted), 2), np.nan)
+    t0 = sig.t_s[k0]
+    j = 0
+    k = k0
+    while j < len(wanted) and k + 1 < len(sig.t_s):
+        z = np.array(
+            [
+                sig.vy_cg_m_s[k],
+                sig.yaw_rate_rad_s[k],
+                sig.stiffness_n_rad[k, 1],
+                sig.stiffness_n_rad[k, 2],
+            ]
+        )
+        f_z, h_z, a, d = _jacobians(z, k, sig, p)
+        # measurement update: R = diag(sigma_ay^2 + d Sigma d^T, sigma_r^2)
+        r_cov = np.diag([noise.ay_std_m_s2**2 + d @ sigma @ d, noise.gyro_std_rad_s**2])
+        s = h_z @ cov @ h_z.T + r_cov
+        gain = cov @ h_z.T @ np.linalg.inv(s)
+        cov = cov - gain @ h_z @ cov
+        cov = 0.5 * (cov + cov.T)
+        while j < len(wanted) and sig.t_s[k] - t0 >= wanted[j] - 1e-9:
+            out[j] = np.sqrt(np.diag(cov)[2:])
+            j += 1
+        # time update: z+ = z + dt (f(z) + a w), Q = dt q_rw + dt^2 a Sigma a^T (states only)
+        dt = float(sig.t_s[k + 1] - sig.t_s[k])
+        phi = np.eye(4)
+        phi[:2, :] += dt * f_z
+        q = np.zeros((4, 4))
+        q[:2, :2] = dt * np.diag(q_rw) + dt * dt * (a @ sigma @ a.T)
+        cov = phi @ cov @ phi.T + q
+        k += 1
+    return out
+
+
+def deterministic_crlb(
+    sig: DriveSignals,
+    p: SingleTrackParams,
+    k0: int,
+    duration_s: float,
+    ay_std_m_s2: float,
+    gyro_std_rad_s: float,
+) -> F64:
+    """Cramér-Rao bound (4, 4) of ``[vY0, r0, Cf, Cr]`` from ``duration_s`` of ay and gyro
+    after sample ``k0``, with a constant stiffness and no process noise (no prior).
+
+    The outputs are simulated from ``z`` at ``k0`` with the model of :func:`posterior_bound`
+    (Euler on the IMU grid); the Fisher information ``J^T R^-1 J`` with ``J`` by central
+    differences. The check of :func:`posterior_bound` with zero process noise.
+    """
+    k1 = min(k0 + round(duration_s / float(np.median(np.diff(sig.t_s)))), len(sig.t_s) - 1)
+    z0 = np.array(
+        [
+            sig.vy_cg_m_s[k0],
+            sig.yaw_rate_rad_s[k0],
+            sig.stiffness_n_rad[k0, 1],
+            sig.stiffness_n_rad[k0, 2],
+        ]
+    )
+
+    def outputs(z_start: F64) -> F64:
+        z = z_start.copy()
+        ys = np.empty((k1 - k0, 2))
+        for i, k in enumerate(range(k0, k1)):
+            rate, ay, _, _ = _model(z, k, sig, p)
+            ys[i] = (ay / ay_std_m_s2, z[1] / gyro_std_rad_s)
+            z[:2] += float(sig.t_s[k + 1] - sig.t_s[k]) * rate
+        return ys
+
+    steps = np.array([1e-4, 1e-5, 1e-4 * abs(z0[2]), 1e-4 * abs(z0[3])])
+    jac = np.empty((k1 - k0, 2, 4))
+    for i, h in enumerate(steps):
+        zp, zm = z0.copy(), z0.copy()
+        zp[i] += h
+        zm[i] -= h
+        jac[:, :, i] = (outputs(zp) - outputs(zm)) / (2.0 * h)
+    fisher = np.einsum("kai,kaj->ij", jac, jac)
+    return np.asarray(np.linalg.inv(fisher), dtype=float)
