@@ -1,7 +1,7 @@
 """Information bound on the cornering stiffnesses (``evaluation/stiffness_bound.py``, issue 5).
 
 Measured on snow drives 0-1 from their activation (docs/results.md section 6): rear 2.0 % after
-1 s and 1.1 % after 2 s with a constant stiffness; 4.2 % and 2.5 % with the filter's noise model
+1 s and 1.1 % after 2 s with a constant stiffness; 4.1 % and 2.5 % with the filter's noise model
 (``stiffness_noise_std_fraction`` 0.03).
 """
 

@@ -5,16 +5,18 @@ Kalman filter's covariance) on the stiffness MPF's own single-track model, linea
 simulator's true trajectory. The unknowns are ``z = [vY, r, Cf, Cr]`` (vY at the CG, m/s; yaw
 rate, rad/s; front and rear cornering stiffness, N/rad); vX, the steering and the wheel speeds
 are inputs (the truth), the outputs the lateral accelerometer and the gyro. The model is
-:func:`~tire_estimation.core.stiffness_model.linearize` at the stiffness itself, so with the
-friction-limited tyre its secant is the exact force.
+:func:`~tire_estimation.core.stiffness_model.linearize` at the stiffness itself (so with the
+friction-limited tyre the force is exact), differentiated as the EKF baseline does
+(:func:`~tire_estimation.core.stiffness_baselines.model_jacobian`).
 
 The noise model is the filter's: the accelerometer and gyro noise ``R``, the state jitter, and
 the stiffness noise of the paper's eq. (8): ``w_k ~ N(mu, Sigma)`` drawn afresh at every IMU
 step, which enters the state derivative (``a w``, eq. 9) and the lateral acceleration (``d w``,
-eq. 12). With ``Sigma = 0`` and no jitter the stiffness is a constant and the bound is the
-deterministic Cramér-Rao bound of the drive (:func:`deterministic_crlb`). The gap between the
-two is what the filter's noise model costs; the gap between the bound and the filter's error
-is what the filter loses on its own model.
+eq. 12); ``a`` and ``d`` are taken here as the model's derivatives in ``w`` (with the
+friction-limited tyre, not the secants of ``linearize``). With ``Sigma = 0`` and no jitter the
+stiffness is a constant and the bound is the deterministic Cramér-Rao bound of the drive
+(:func:`deterministic_crlb`). The gap between the two is what the filter's noise model costs;
+the gap between the bound and the filter's error is what the filter loses on its own model.
 
 The truth the bound is linearized on is read from the simulator; this is an evaluation tool.
 Shapes: signals (M,) on the IMU grid; covariances (4, 4) in the order of ``z``.
@@ -28,12 +30,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from tire_estimation.core.stiffness_baselines import model, model_jacobian
 from tire_estimation.core.stiffness_config import StiffnessEstimatorConfig
-from tire_estimation.core.stiffness_model import (
-    SingleTrackParams,
-    linearize,
-    saturation_slip_at,
-)
+from tire_estimation.core.stiffness_model import SingleTrackParams
 from tire_estimation.sim.simulator import SimResult
 
 F64 = NDArray[np.float64]
@@ -125,42 +124,34 @@ def drive_signals(sim: SimResult, wheel_radius_m: float) -> DriveSignals:
     )
 
 
-def _model(z: F64, k: int, sig: DriveSignals, p: SingleTrackParams) -> tuple[F64, float, F64, F64]:
-    """At sample ``k`` and ``z = [vY, r, Cf, Cr]``: the rate of (vY, r), ay at the IMU, and the
-    stiffness-noise maps ``a`` (2, 3) (rows vY, r of eq. 9) and ``d`` (3,) (ay row of eq. 12)."""
-    vy, r, cf, cr = z
+def _x_w(z: F64, k: int, sig: DriveSignals, p: SingleTrackParams) -> tuple[F64, F64]:
+    """The model's state ``[vX, vY, r]`` and stiffness deviation ``w`` (eq. 7) at ``z``."""
     nominal = np.asarray(p.nominal, dtype=float)
-    w = np.array([0.0, cf - nominal[1], cr - nominal[2]])
-    sat = saturation_slip_at(p, np.array([cf]), np.array([cr]))
-    x = np.array([[sig.vx_m_s[k], vy, r]])
-    ws = (np.array([sig.wheel_front_m_s[k]]), np.array([sig.wheel_rear_m_s[k]]))
-    lin = linearize(x, float(sig.delta_rad[k]), ws, p, sat)
-    # eq. (9) rate = f + a w; eq. (12) y = h + d w (ay row)
-    rate = lin.rate[0] + lin.a[0] @ w
-    ay = float(lin.h[0, 1] + lin.d[0, 1] @ w)
-    return rate[1:], ay, lin.a[0, 1:, :], lin.d[0, 1, :]
+    x = np.array([sig.vx_m_s[k], z[0], z[1]])
+    w = np.array([0.0, z[2] - nominal[1], z[3] - nominal[2]])
+    return x, w
+
+
+def _wheels(k: int, sig: DriveSignals) -> tuple[float, float]:
+    return float(sig.wheel_front_m_s[k]), float(sig.wheel_rear_m_s[k])
 
 
 def _jacobians(
     z: F64, k: int, sig: DriveSignals, p: SingleTrackParams
 ) -> tuple[F64, F64, F64, F64]:
-    """Central-difference Jacobians of the rate (2, 4) and of [ay, r] (2, 4) at ``z``, and
-    ``a``, ``d`` of :func:`_model`."""
-    steps = np.array([1e-4, 1e-5, 1e-4 * abs(z[2]) + 1e-3, 1e-4 * abs(z[3]) + 1e-3])
-    f_z = np.empty((2, 4))
-    h_z = np.zeros((2, 4))
-    for i, h in enumerate(steps):
-        zp, zm = z.copy(), z.copy()
-        zp[i] += h
-        zm[i] -= h
-        fp, ap, _, _ = _model(zp, k, sig, p)
-        fm, am, _, _ = _model(zm, k, sig, p)
-        f_z[:, i] = (fp - fm) / (2.0 * h)
-        h_z[0, i] = (ap - am) / (2.0 * h)
-    # eq. (12) gyro row: y_r = r
-    h_z[1, 1] = 1.0
-    _, _, a, d = _model(z, k, sig, p)
-    return f_z, h_z, a, d
+    """Jacobians at sample ``k`` and ``z = [vY, r, Cf, Cr]``: of the rate of (vY, r) (2, 4) and
+    of [ay, r] (2, 4) in ``z``, and the maps of the stiffness noise into the rate (2, 3) and into
+    ay (3,) (the model and its central differences: ``stiffness_baselines.model_jacobian``, the
+    EKF baseline's)."""
+    x, w = _x_w(z, k, sig, p)
+    _, _, rate_x, meas_x, rate_w, meas_w = model_jacobian(
+        x, w, float(sig.delta_rad[k]), _wheels(k, sig), p
+    )
+    # z = [vY, r, Cf, Cr]: columns 1-2 of the x Jacobian, 1-2 of the w Jacobian (dC = dw)
+    f_z = np.hstack([rate_x[1:, 1:], rate_w[1:, 1:]])
+    # eq. (12) rows ay and gyro
+    h_z = np.hstack([meas_x[1:, 1:], meas_w[1:, 1:]])
+    return f_z, h_z, rate_w[1:, :], meas_w[1, :]
 
 
 def posterior_bound(
@@ -245,9 +236,12 @@ def deterministic_crlb(
         z = z_start.copy()
         ys = np.empty((k1 - k0, 2))
         for i, k in enumerate(range(k0, k1)):
-            rate, ay, _, _ = _model(z, k, sig, p)
-            ys[i] = (ay / ay_std_m_s2, z[1] / gyro_std_rad_s)
-            z[:2] += float(sig.t_s[k + 1] - sig.t_s[k]) * rate
+            x, w = _x_w(z, k, sig, p)
+            rate, y_hat, _, _ = model(
+                x[None, :], w[None, :], float(sig.delta_rad[k]), _wheels(k, sig), p
+            )
+            ys[i] = (y_hat[0, 1] / ay_std_m_s2, y_hat[0, 2] / gyro_std_rad_s)
+            z[:2] += float(sig.t_s[k + 1] - sig.t_s[k]) * rate[0, 1:]
         return ys
 
     steps = np.array([1e-4, 1e-5, 1e-4 * abs(z0[2]), 1e-4 * abs(z0[3])])
