@@ -93,3 +93,18 @@ def test_the_bound_narrows_with_time_and_widens_with_the_stiffness_noise(snow: t
     # rear, % of the truth, after 2 s: the filter's own noise model allows no better than ~2.5 %
     rear_2s = 100.0 * std[0.03][2, 1] / sig.stiffness_n_rad[k0, 2]
     assert 1.5 < rear_2s < 4.0
+
+
+def test_bad_input_is_refused_with_the_name_of_the_value(snow: tuple) -> None:
+    cfg, p, sig, k0 = snow
+    noise = bound_noise(cfg, np.asarray(p.nominal), 0.3, 0.0175)
+    with pytest.raises(ValueError, match="k0"):
+        posterior_bound(sig, p, len(sig.t_s), [1.0], noise)
+    with pytest.raises(ValueError, match="prior_std"):
+        posterior_bound(sig, p, k0, [1.0], dataclasses.replace(noise, prior_std=np.zeros(4)))
+    with pytest.raises(ValueError, match="duration_s"):
+        deterministic_crlb(sig, p, k0, 0.0, 0.05, 0.00175)
+    # a time after the end of the drive is NaN, the others are given in ascending order
+    late = posterior_bound(sig, p, len(sig.t_s) - 300, [1.0, 0.5, 100.0], noise)
+    assert np.all(np.isfinite(late[:2])) and np.all(np.isnan(late[2]))
+    assert np.all(late[1] <= late[0]) and late[1, 0] < late[0, 0]

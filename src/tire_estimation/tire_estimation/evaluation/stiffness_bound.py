@@ -85,7 +85,8 @@ def bound_noise(
     """The MPF's noise model of ``config`` with ``nominal_n_rad`` (3,) [Cx, Cyf, Cyr]:
     ``Sigma^0.5`` = ``stiffness_noise_std_fraction`` x nominal, the state jitter, ``R``; the prior
     of the stiffness ``initial_stiffness_std_fraction`` x nominal (the bound of a linearized
-    model does not depend on where the prior is centred), the states' the given stds."""
+    model does not depend on where the prior is centred), and the given stds of vY and the yaw
+    rate."""
     nominal = np.asarray(nominal_n_rad, dtype=float)
     c_std = config.initial_stiffness_std_fraction * nominal
     return BoundNoise(
@@ -122,6 +123,11 @@ def drive_signals(sim: SimResult, wheel_radius_m: float) -> DriveSignals:
         wheel_rear_m_s=np.interp(t_s, t_ws, 0.5 * (ws[:, 2] + ws[:, 3])),
         stiffness_n_rad=np.asarray(tr.stiffness, dtype=float)[idx],
     )
+
+
+def _check_start(sig: DriveSignals, k0: int) -> None:
+    if not 0 <= k0 < len(sig.t_s) - 1:
+        raise ValueError(f"k0 must be a sample of the drive (0 .. {len(sig.t_s) - 2}), got {k0}")
 
 
 def _x_w(z: F64, k: int, sig: DriveSignals, p: SingleTrackParams) -> tuple[F64, F64]:
@@ -161,14 +167,19 @@ def posterior_bound(
     times_s: Sequence[float],
     noise: BoundNoise,
 ) -> F64:
-    """Bound on the std of [Cf, Cr] (N/rad) at ``times_s`` after sample ``k0``, (len, 2).
+    """Bound on the std of [Cf, Cr] (N/rad) at ``times_s`` after sample ``k0``, (len, 2), in
+    ascending order of ``times_s``; NaN for a time after the end of the drive.
 
     An extended Kalman filter on ``z`` run along the true trajectory (so its covariance is the
     posterior Cramér-Rao bound of the linearized model): measurement update with ay and the
     gyro at each sample, then the Euler time update to the next one. The noise of ``w`` enters
     ay through ``d`` (variance ``d Sigma d^T``) and the state through ``dt a`` (``dt^2 a Sigma
     a^T``); its correlation between the two is left out (which loosens the bound a little).
+    ``ValueError`` for a ``k0`` outside the drive or a prior std that is not (4,) and > 0.
     """
+    _check_start(sig, k0)
+    if np.shape(noise.prior_std) != (4,) or not np.all(np.asarray(noise.prior_std) > 0.0):
+        raise ValueError(f"noise.prior_std must be 4 values > 0, got {noise.prior_std!r}")
     sigma = np.diag(np.asarray(noise.stiffness_noise_std_n_rad, dtype=float) ** 2)
     q_rw = np.array([noise.jitter_vy_m_s_sqrt_s, noise.jitter_yaw_rate_rad_s_sqrt_s]) ** 2
     cov = np.diag(np.asarray(noise.prior_std, dtype=float) ** 2)
@@ -220,8 +231,12 @@ def deterministic_crlb(
 
     The outputs are simulated from ``z`` at ``k0`` with the model of :func:`posterior_bound`
     (Euler on the IMU grid); the Fisher information ``J^T R^-1 J`` with ``J`` by central
-    differences. The check of :func:`posterior_bound` with zero process noise.
+    differences. The check of :func:`posterior_bound` with zero process noise. ``ValueError``
+    for a ``k0`` outside the drive or a ``duration_s`` that is not > 0.
     """
+    _check_start(sig, k0)
+    if not duration_s > 0.0:
+        raise ValueError(f"duration_s must be > 0, got {duration_s!r}")
     k1 = min(k0 + round(duration_s / float(np.median(np.diff(sig.t_s)))), len(sig.t_s) - 1)
     z0 = np.array(
         [
