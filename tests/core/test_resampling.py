@@ -2,10 +2,17 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 
-from tire_estimation.core.resampling import RESAMPLERS, ess, normalize_log_weights
+from tire_estimation.core.resampling import (
+    RESAMPLERS,
+    ess,
+    log_of_weights,
+    normalize_log_weights,
+)
 
 
 @pytest.mark.parametrize("name", sorted(RESAMPLERS))
@@ -55,3 +62,15 @@ def test_ess_and_log_weight_normalization():
     assert lz == pytest.approx(-1000.0 + np.log(4.0))
     w, _ = normalize_log_weights(np.array([np.nan, -np.inf]))
     np.testing.assert_allclose(w, [0.5, 0.5])
+
+
+def test_log_of_weights_gives_minus_inf_for_a_zero_weight_without_a_warning() -> None:
+    weights = np.array([0.0, 0.25, 0.75])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        log_w = log_of_weights(weights)
+    assert log_w[0] == -np.inf
+    np.testing.assert_allclose(log_w[1:], np.log([0.25, 0.75]))
+    # such a particle keeps weight zero through the normalization
+    w, _ = normalize_log_weights(log_w)
+    np.testing.assert_allclose(w, weights)

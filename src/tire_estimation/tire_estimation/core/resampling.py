@@ -38,6 +38,14 @@ def normalize_log_weights(log_w: F64) -> tuple[F64, float]:
     return w / s, float(m + np.log(s))
 
 
+def log_of_weights(weights: F64) -> F64:
+    """``log(weights)`` (N,) with ``-inf`` for a weight that underflowed to zero, without the
+    divide-by-zero warning: :func:`normalize_log_weights` gives such a particle weight zero.
+    """
+    with np.errstate(divide="ignore"):
+        return np.log(weights)
+
+
 def _inverse_cdf(weights: F64, u: F64) -> IDX:
     """Indices ``j`` with ``cumsum(w)[j-1] <= u < cumsum(w)[j]`` for sorted uniforms ``u``."""
     cdf = np.cumsum(weights)

@@ -582,7 +582,7 @@ class AugPf(BaselineFilter):
             self.rate = self.rate[idx]
             self.weights = np.full(self.n, 1.0 / self.n)
             self.resample_count += 1
-        self.log_w = np.log(self.weights)
+        self.log_w = resampling.log_of_weights(self.weights)
 
     def estimate(self) -> FilterEstimate:
         """Weighted means and covariances of the particles."""

@@ -741,7 +741,7 @@ class StiffnessMpf:
             maha = maha[idx]
             self.weights = np.full(self.n, 1.0 / self.n)
             self.resample_count += 1
-        self.log_w = np.log(self.weights)
+        self.log_w = resampling.log_of_weights(self.weights)
         # line 17: sample w_k from the conditional predictive (39)-(41)
         cp = conditional_predictive(self.stats, lin.d, e_bar, lp, maha, n_meas)
         w = sample_student_t(cp, self.rng)
@@ -840,7 +840,7 @@ class StiffnessMpf:
             idx = self._resample(self.weights, self.rng)
             self.weights = np.full(self.n, 1.0 / self.n)
             self.resample_count += 1
-        self.log_w = np.log(self.weights)
+        self.log_w = resampling.log_of_weights(self.weights)
         # eq. (30) on straight driving; while learning only when the particles' yaw rate plus
         # bias agrees with the gyro (else the bias filters absorb the yaw-rate model error)
         self.bias_updated = self.bias_gate_open(learn)
