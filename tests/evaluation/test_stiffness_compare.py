@@ -22,7 +22,11 @@ def test_configs_share_fields_and_take_per_method_overrides() -> None:
         None,
         friction_coefficient=0.3,
         initial_stiffness_factor=0.75,
-        **{"augpf.stiffness_walk_std_fraction_sqrt_s": 0.05, "ekf.process_vy_m_s_sqrt_s": 0.01},
+        **{
+            "augpf.stiffness_walk_std_fraction_sqrt_s": 0.05,
+            "ekf.process_vy_m_s_sqrt_s": 0.01,
+            "grid.grid_points": 15,
+        },
     )
     for m in METHODS:
         assert cfg[m].friction_coefficient == 0.3
@@ -30,6 +34,7 @@ def test_configs_share_fields_and_take_per_method_overrides() -> None:
     assert cfg["augpf"].n_particles == 40
     assert cfg["augpf"].stiffness_walk_std_fraction_sqrt_s == 0.05
     assert cfg["ekf"].process_vy_m_s_sqrt_s == 0.01
+    assert cfg["grid"].grid_points == 15
     # the per-method keys do not leak into the other methods
     assert cfg["ekf"].stiffness_walk_std_fraction_sqrt_s != 0.05
     assert cfg["rls"].process_vy_m_s_sqrt_s != 0.01

@@ -205,6 +205,12 @@ class StiffnessEstimatorConfig:
             learning on, so it learns from the onset of the excitation that the window measure
             sees only later; not in the paper (:mod:`~tire_estimation.core.activation_replay`;
             experimental, docs/results.md section 6), s (default 0 = off; at most 10).
+        activation_restart_s: this long after learning first starts (after the initialization
+            or a reset), the filter goes back to a copy of itself taken when learning started,
+            moves the prior mean of the stiffness statistics to the estimate learned so far
+            (the prior's width, ``initial_stiffness_std_fraction``, is kept), and runs the steps
+            since again: the estimate then no longer carries the initial guess
+            (empirical-Bayes recentring; not in the paper), s (default 0 = off; at most 10).
         activation_accel_x_window_s: length of the sliding window of the longitudinal
             excitation measure, s (default 3.0).
         activation_accel_x_std_m_s2: minimum standard deviation of the measured longitudinal
@@ -267,6 +273,7 @@ class StiffnessEstimatorConfig:
     activation_window_s: float = 1.0
     activation_steer_rad: float = 0.003
     activation_replay_s: float = 0.0
+    activation_restart_s: float = 0.0
     activation_accel_x_window_s: float = 3.0
     activation_accel_x_std_m_s2: float = 0.2
     max_gap_s: float = 0.5
@@ -275,6 +282,7 @@ class StiffnessEstimatorConfig:
     def __post_init__(self) -> None:
         require_int_range("n_particles", self.n_particles, 1, 1_000_000)
         require_range("activation_replay_s", self.activation_replay_s, 0.0, 10.0)
+        require_range("activation_restart_s", self.activation_restart_s, 0.0, 10.0)
         require_range("forgetting", self.forgetting, 0.5, 1.0)
         require_range("resample_threshold", self.resample_threshold, 0.0, 1.0)
         require_choice("resampler", self.resampler, RESAMPLERS)

@@ -8,6 +8,7 @@ dropped and counted in :attr:`StiffnessEstimator.stats`.
 
 from __future__ import annotations
 
+import copy
 import math
 from collections import deque
 from collections.abc import Mapping
@@ -167,6 +168,9 @@ class StiffnessEstimator:
         self.stats: dict[str, int] = {}
         #: times learning started with a replay of the window before it
         self.replay_count = 0
+        #: times the filter restarted from the start of learning with a recentred prior
+        #: (``activation_restart_s``)
+        self.restart_count = 0
         self.reset()
 
     def reset(self) -> None:
@@ -190,6 +194,12 @@ class StiffnessEstimator:
         self._cx_active = False
         self._reason = "not initialized"
         self._t_ns = 0
+        # activation_restart_s: armed while the statistics are the prior's; the copy of the
+        # filter taken when learning started, its stamp, and the learning steps since
+        self._restart_armed = self.config.activation_restart_s > 0.0
+        self._restart_copy: StiffnessMpf | None = None
+        self._restart_t0_ns = 0
+        self._restart_steps: list[_Step] = []
 
     # ------------------------------------------------------------------ helpers
     def _drop(self, kind: str) -> None:
@@ -308,6 +318,8 @@ class StiffnessEstimator:
             self._steer_window.reset()
             self._accel_x_window.reset()
             self._replay.clear()
+            # a restart must not bring back the state from before the re-initialization
+            self._abandon_restart()
             self._active = False
             dt = None
         was_active = self._active
@@ -328,30 +340,80 @@ class StiffnessEstimator:
             why = "no wheel speeds" if vx_in is not None else "no longitudinal excitation"
             self._reason = f"excited (Cx frozen: {why})"
         if self._active and not was_active:
-            self._replay_window()
+            self._start_learning(t)
+        elif not self._active:
+            # learning stopped before the restart: the statistics are no longer the prior's
+            self._abandon_restart()
         if dt is not None:
             self.mpf.predict(dt, self._active, self._cx_active)
         self.mpf.update(y, steer, (wf, wr), self._active, vx_in, self._cx_active)
+        if self._restart_copy is not None:
+            self._restart_steps.append((dt, y, steer, (wf, wr), vx_in, self._cx_active))
+            if (t - self._restart_t0_ns) * 1e-9 >= c.activation_restart_s:
+                self._restart()
         if speed < c.min_speed_m_s:
             # nothing below the minimum speed is ever learned, not even in a replay
             self._replay.clear()
         elif not self._active:
             self._replay.record(t, (dt, y, steer, (wf, wr), vx_in, cx_excited), self.mpf)
 
-    def _replay_window(self) -> None:
+    def _start_learning(self, t_ns: int) -> None:
+        """Learning starts at ``t_ns``: rewind (``activation_replay_s``), keep the copy for a
+        restart (``activation_restart_s``), run the rewound steps with learning on."""
+        steps = self._replay_window()
+        if self._restart_armed:
+            memo = {id(obj): obj for obj in (self.rng, self.config, self.params)}
+            self._restart_copy = copy.deepcopy(self.mpf, memo)
+            self._restart_t0_ns = t_ns
+            self._restart_steps = list(steps)
+        self._learn_steps(steps)
+
+    def _replay_window(self) -> list[_Step]:
         """Learning starts: rewind the MPF to before the first step of the last
-        ``activation_replay_s`` with a steering angle of at least ``activation_steer_rad``, and
-        run the steps since again with learning on (:mod:`~.activation_replay`)."""
+        ``activation_replay_s`` with a steering angle of at least ``activation_steer_rad``
+        (:mod:`~.activation_replay`); returns the steps since, to be run again with learning on
+        (none without a rewind)."""
         threshold = self.config.activation_steer_rad
         got = self._replay.rewind(excited=lambda step: abs(step[2]) >= threshold)
         if got is None:
-            return
+            return []
         self.mpf, steps = got
+        self.replay_count += 1
+        return steps
+
+    def _learn_steps(self, steps: list[_Step]) -> None:
+        """Run recorded IMU steps on the MPF with learning on."""
         for dt_s, y, steer, speeds, vx_in, cx_excited in steps:
             if dt_s is not None:
                 self.mpf.predict(dt_s, True, cx_excited)
             self.mpf.update(y, steer, speeds, True, vx_in, cx_excited)
-        self.replay_count += 1
+
+    def _abandon_restart(self) -> None:
+        """No restart of this learning phase (learning stopped, or the filter re-initialized
+        before ``activation_restart_s``); none later either, once anything was learned."""
+        if self._restart_copy is not None:
+            self._restart_armed = False
+        self._restart_copy = None
+        self._restart_steps = []
+
+    def _restart(self) -> None:
+        """``activation_restart_s`` after learning started: go back to the copy taken then,
+        move its prior mean to the current estimate and learn the steps since again.
+
+        Empirical Bayes (not in the paper): the prior keeps its width (``gamma_0 E[Sigma]``,
+        ``initial_stiffness_std_fraction`` of nominal), only its centre moves from the initial
+        guess to what the first seconds of excitation say, so the estimate no longer carries
+        the initial guess once the filter's statistics have narrowed.
+        """
+        restart, steps = self._restart_copy, self._restart_steps
+        assert restart is not None
+        # eq. (27a) mu_hat = sum q_i mu_i: the new centre of every particle's prior mean
+        restart.stats.mean[...] = self.mpf.weights @ self.mpf.stats.mean
+        self.mpf = restart
+        self._restart_copy, self._restart_steps = None, []
+        self._restart_armed = False
+        self._learn_steps(steps)
+        self.restart_count += 1
 
     # ------------------------------------------------------------------ outputs
     def estimate(self) -> StiffnessEstimate:
@@ -425,6 +487,9 @@ class StiffnessEstimator:
         self.mpf.stats = stats
         # a copy taken before would bring the old statistics back on the next activation
         self._replay.clear()
+        # restored statistics are learned, not a prior to recentre
+        self._restart_copy, self._restart_steps = None, []
+        self._restart_armed = False
 
 
 __all__ = ["StiffnessEstimate", "StiffnessEstimator"]

@@ -1,16 +1,17 @@
-"""Algorithm 1 against AUGPF, EKF and KF + RLS on ``stiffness_step`` and the sine drives (issue 5).
+"""Algorithm 1 against AUGPF, EKF, KF + RLS and the grid on ``stiffness_step`` and the sine drives.
 
 Berntorp & Di Cairano, IEEE TCST 2018, Sec. VI: the same bias-free ``stiffness_step`` drives
 (simulator seeds) go through Algorithm 1 (:class:`StiffnessEstimator` with
 :func:`~tire_estimation.evaluation.stiffness.eval_config`, initial stiffness 0.7 of nominal)
-and the baselines of :mod:`tire_estimation.core.stiffness_baselines`, which share every
-setting of the same name with that configuration (``BaselineConfig.sharing``)::
+and the baselines of :mod:`tire_estimation.core.stiffness_baselines`, and the point-mass filter
+of :mod:`tire_estimation.core.stiffness_grid` (not in the paper), which share every setting of
+the same name with that configuration (``BaselineConfig.sharing``)::
 
     python -m tire_estimation.evaluation.stiffness_compare --out DIR --runs R \\
         --particles 50 100 200 500 [--seeds S ...] [--jobs J]
 
 writes ``compare.json`` (per run and summary), ``fig5_vy_rmse.png`` (time-averaged RMSE of vY
-at the CG against N for Algorithm 1 and AUGPF, EKF and RLS as horizontal lines),
+at the CG against N for Algorithm 1 and AUGPF, EKF, RLS and the grid as horizontal lines),
 ``fig6_cy_front.png`` (histograms over the runs of the steady-state mean relative error of
 Cy_front and of its reported std relative to the truth, at the largest N) and
 ``timing.png`` (time per IMU step). Steady state as :mod:`~tire_estimation.evaluation.stiffness`:
@@ -58,6 +59,7 @@ from tire_estimation.core.stiffness_baselines import (
     RlsEstimator,
 )
 from tire_estimation.core.stiffness_estimator import StiffnessEstimate, StiffnessEstimator
+from tire_estimation.core.stiffness_grid import GridConfig, GridEstimator
 from tire_estimation.evaluation.stiffness import (
     NO_BIAS,
     eval_config,
@@ -76,8 +78,18 @@ FILTER_SEED_OFFSET = 100
 SINE_FILTER_SEED_OFFSET = 1000
 #: A run with a vY RMSE above this diverged (counted in the summary), m/s.
 DIVERGED_VY_RMSE_M_S = 1.0
-METHODS = ("alg1", "augpf", "ekf", "rls")
-LABELS = {"alg1": "Algorithm 1", "augpf": "AUGPF", "ekf": "EKF", "rls": "KF + RLS"}
+METHODS = ("alg1", "augpf", "ekf", "rls", "grid")
+LABELS = {
+    "alg1": "Algorithm 1",
+    "augpf": "AUGPF",
+    "ekf": "EKF",
+    "rls": "KF + RLS",
+    "grid": "grid + EKFs",
+}
+#: Methods with one run per drive (no particle count), their plot colours.
+DETERMINISTIC = (("ekf", "C2"), ("rls", "C1"), ("grid", "C4"))
+#: Methods that do not estimate Cx (held at the initial guess).
+NO_CX = ("rls", "grid")
 
 
 class Estimator(Protocol):
@@ -178,13 +190,13 @@ def configs(n: int, initial_vy_std_m_s: float | None, **overrides: Any) -> dict[
 
     ``overrides``: ``StiffnessEstimatorConfig`` fields of Algorithm 1 (after the initial factor
     and ``initial_vy_std_m_s``); the baselines take those they share (``BaselineConfig``). A
-    key ``augpf.FIELD``, ``ekf.FIELD`` or ``rls.FIELD`` sets a field of that baseline only
-    (e.g. ``augpf.stiffness_walk_std_fraction_sqrt_s``).
+    key ``augpf.FIELD``, ``ekf.FIELD``, ``rls.FIELD`` or ``grid.FIELD`` sets a field of that
+    method only (e.g. ``augpf.stiffness_walk_std_fraction_sqrt_s``, ``grid.grid_points``).
     """
     extra: dict[str, Any] = {"initial_stiffness_factor": INITIAL_STIFFNESS_FACTOR}
     if initial_vy_std_m_s is not None:
         extra["initial_vy_std_m_s"] = initial_vy_std_m_s
-    own: dict[str, dict[str, Any]] = {"augpf": {}, "ekf": {}, "rls": {}}
+    own: dict[str, dict[str, Any]] = {"augpf": {}, "ekf": {}, "rls": {}, "grid": {}}
     for key, value in overrides.items():
         method, dot, field = key.partition(".")
         if dot and method in own:
@@ -197,6 +209,7 @@ def configs(n: int, initial_vy_std_m_s: float | None, **overrides: Any) -> dict[
         "augpf": AugPfConfig.sharing(alg1, **{"n_particles": n, **own["augpf"]}),
         "ekf": EkfConfig.sharing(alg1, **own["ekf"]),
         "rls": RlsConfig.sharing(alg1, **own["rls"]),
+        "grid": GridConfig.sharing(alg1, **own["grid"]),
     }
 
 
@@ -216,6 +229,8 @@ def run_seed(seed: int, particles: list[int], initial_vy_std_m_s: float | None) 
     out["ekf"]["-"] = scores(replay(sim, ekf, lambda: ekf.initialized))
     rls = RlsEstimator(cfg["rls"], sim.vehicle)
     out["rls"]["-"] = scores(replay(sim, rls, lambda: rls.initialized))
+    grid = GridEstimator(cfg["grid"], sim.vehicle)
+    out["grid"]["-"] = scores(replay(sim, grid, lambda: grid.initialized))
     return out
 
 
@@ -251,11 +266,13 @@ def run_sine_seed(
     aug = AugPfEstimator(cfg["augpf"], sim.vehicle, np.random.default_rng(fseed))
     ekf = EkfEstimator(cfg["ekf"], sim.vehicle)
     rls = RlsEstimator(cfg["rls"], sim.vehicle)
+    grid = GridEstimator(cfg["grid"], sim.vehicle)
     return {
         "alg1": sine_scores(replay(sim, alg1, lambda: alg1.mpf.initialized)),
         "augpf": sine_scores(replay(sim, aug, lambda: aug.initialized)),
         "ekf": sine_scores(replay(sim, ekf, lambda: ekf.initialized)),
         "rls": sine_scores(replay(sim, rls, lambda: rls.initialized)),
+        "grid": sine_scores(replay(sim, grid, lambda: grid.initialized)),
     }
 
 
@@ -333,7 +350,7 @@ def _summary(per_run: dict[str, dict[str, Any]]) -> dict[str, Any]:
                 "cy_front_reported_std_mean_pct": float(np.mean(sd[:, 1])),
                 "cy_rear_steady_abs_error_mean_pct": float(np.mean(np.abs(err[:, 2]))),
                 "cx_steady_abs_error_mean_pct": (
-                    None if m == "rls" else float(np.mean(np.abs(err[:, 0])))
+                    None if m in NO_CX else float(np.mean(np.abs(err[:, 0])))
                 ),
                 "step_ms_mean": float(np.mean([r["step_ms"] for r in rows])),
             }
@@ -349,7 +366,7 @@ def plot_fig5(path: Path, summary: dict[str, Any], particles: list[int]) -> None
         med = [summary[m][str(n)]["vy_rmse_median_m_s"] for n in particles]
         ax.plot(ns, mean, "o-", color=color, label=f"{LABELS[m]} (mean)")
         ax.plot(ns, med, "s--", color=color, alpha=0.6, label=f"{LABELS[m]} (median)")
-    for m, color in (("ekf", "C2"), ("rls", "C1")):
+    for m, color in DETERMINISTIC:
         v = summary[m]["-"]["vy_rmse_mean_m_s"]
         ax.axhline(v, color=color, ls=":", label=f"{LABELS[m]} (mean)")
     ax.set_xscale("log")
@@ -370,8 +387,8 @@ def plot_fig5(path: Path, summary: dict[str, Any], particles: list[int]) -> None
 def plot_fig6(path: Path, per_run: dict[str, dict[str, Any]], n_max: int) -> None:
     """Histograms of the steady mean error of Cy_front and of its reported std (Fig. 6 style)."""
     runs = list(per_run.values())
-    keys = {"alg1": str(n_max), "augpf": str(n_max), "ekf": "-", "rls": "-"}
-    colors = {"alg1": "C3", "augpf": "C0", "ekf": "C2", "rls": "C1"}
+    keys = {"alg1": str(n_max), "augpf": str(n_max), **{m: "-" for m, _ in DETERMINISTIC}}
+    colors = {"alg1": "C3", "augpf": "C0", **dict(DETERMINISTIC)}
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
     for i, (field, title) in enumerate(
         (
@@ -417,7 +434,7 @@ def plot_timing(path: Path, summary: dict[str, Any], particles: list[int]) -> No
             color=color,
             label=LABELS[m],
         )
-    for m, color in (("ekf", "C2"), ("rls", "C1")):
+    for m, color in DETERMINISTIC:
         ax.axhline(summary[m]["-"]["step_ms_mean"], color=color, ls=":", label=LABELS[m])
     ax.set_xlabel("number of particles N")
     ax.set_ylabel("time per IMU step [ms] (Python, shared machine)")
@@ -527,6 +544,7 @@ def main(argv: list[str] | None = None) -> None:
             "steady": "15-29.5 s and after 45 s; errors relative to the true stiffness",
             "std": "alg1: std of the stiffness noise w (eq. 27b); baselines: posterior std",
             "rls": "Cx not estimated (fixed at the initial guess)",
+            "grid": "point-mass filter with an EKF per cell; Cx not estimated (initial guess)",
             "timing": "wall time of on_imu per IMU step, ms, with --jobs workers running",
         },
         "configs": _config_record(args.initial_vy_std, particles[-1]),

@@ -581,6 +581,7 @@ class EstimatorNode(Node):
             "effective_sample_size": f"{float(est.n_eff):.1f}",
             "resample_count": str(int(stiffness.mpf.resample_count)),
             "activation_replays": str(stiffness.replay_count),
+            "activation_restarts": str(stiffness.restart_count),
             "particles": str(stiffness.config.n_particles),
             "gyro_bias_z_rad_s": f"{float(est.gyro_bias_rad_s[2]):.5f}",
             "received.velocity": str(self.received.get("velocity", 0)),

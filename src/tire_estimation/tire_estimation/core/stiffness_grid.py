@@ -1,0 +1,364 @@
+"""Point-mass filter on the cornering stiffnesses with an EKF on the vehicle state per cell.
+
+A method beside Algorithm 1 (Berntorp & Di Cairano, IEEE TCST 2018) and its baselines
+(:mod:`.stiffness_baselines`), not in the paper. Algorithm 1 samples the vehicle state and
+marginalizes the stiffness (Normal-inverse-Wishart statistics of ``w`` per particle); this filter
+does it the other way round. The stiffness is a parameter, constant over a step, gridded over
+``(Cy_f, Cy_r)``; given a cell's stiffness the single-track model (eq. 1-12, the same
+``stiffness_baselines.model``) is a smooth system in ``[vX, vY, r]``, and an extended Kalman
+filter per cell carries that state and the cell's predictive density of every IMU sample. The
+cell weights are the posterior of the stiffness (Bayes' rule on the grid: point-mass filter,
+Bucy & Senne 1971), the per-cell EKF the Rao-Blackwellized part (a bank of Kalman filters, as in
+multiple-model adaptive estimation, Magill 1965).
+
+Why: on the snow sine drives the friction-limited tyre explains nearly the same lateral
+acceleration and yaw rate with a larger stiffness at smaller slip angles, so the common scale of
+the two stiffnesses is weakly observable and Algorithm 1's statistics narrow on it early
+(docs/results.md section 6, nineteenth to twenty-first sessions); an EKF on the augmented state
+diverges from a start at 150 % (the model is far from linear in the stiffness over the prior).
+On a grid the stiffness enters the model exactly; only the state, which the IMU pins within
+millimetres per second, is linearized.
+
+The grid follows the posterior. It starts as ``grid_points`` x ``grid_points`` cells over the
+prior (``initial_stiffness_factor`` +- ``grid_span_sigma`` ``initial_stiffness_std_fraction``
+of nominal, cells outside the projection bounds weightless). When the posterior's std along
+its narrowest principal axis falls below ``regrid_min_cells`` cell spacings, or more than
+``regrid_edge_mass`` of it lies on the grid's boundary ring, a new grid of the same size is laid
+along the posterior's principal axes over +- ``grid_span_sigma`` std around its mean; each new
+cell takes the EKF of the nearest old cell and the weight of the Gaussian with the posterior's
+mean and covariance. ``forgetting`` lambda flattens the log-weights at every learning step
+(``log q <- lambda log q``), so that the posterior keeps a memory of about ``1 / (1 - lambda)``
+steps and follows a change of the road.
+
+Left out: ``Cx`` is not estimated (held at the prior: the sine drives do not excite it, and
+Algorithm 1 freezes it there as well), and the IMU biases are not estimated (as the other
+baselines). Not wired into the estimator node; it runs behind the baselines' front-end
+(:class:`~.stiffness_baselines.BaselineEstimator`) in the evaluations.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from tire_estimation.core import resampling
+from tire_estimation.core.stiffness_baselines import (
+    JACOBIAN_STEP,
+    BaselineConfig,
+    BaselineEstimator,
+    BaselineFilter,
+    FilterEstimate,
+    Measurement,
+    _r_cov,
+    _stiffness_bounds,
+    measurement_cov,
+    model,
+)
+from tire_estimation.core.stiffness_model import SingleTrackParams
+from tire_estimation.core.validation import (
+    require_int_range,
+    require_non_negative,
+    require_positive,
+    require_range,
+)
+from tire_estimation.core.vehicle import VehicleParams
+
+F64 = NDArray[np.float64]
+_LOG_2PI = math.log(2.0 * math.pi)
+
+
+@dataclass(frozen=True)
+class GridConfig(BaselineConfig):
+    """Point-mass filter on ``(Cy_f, Cy_r)`` with an EKF on ``[vX, vY, r]`` per cell.
+
+    Attributes:
+        grid_points: cells per axis G (G x G cells), 1 (default 25).
+        grid_span_sigma: half-width of the grid in posterior (initially prior) std along each
+            principal axis, 1 (default 4.0).
+        regrid_min_cells: a new grid is laid when the posterior std along its narrowest
+            principal axis is below this many cell spacings, 1 (default 1.5).
+        regrid_edge_mass: ... or when more than this share of the posterior lies on the grid's
+            boundary ring, 1 (default 1e-3).
+        forgetting: exponent lambda of the log-weights per learning step (1 = a constant
+            stiffness, no forgetting), 1 (default 0.999: a memory of about 1000 IMU steps).
+        state_jitter_vx_m_s_sqrt_s: process noise of vX in each EKF, m/s/sqrt(s) (default
+            0.015, Algorithm 1's state jitter).
+        state_jitter_vy_m_s_sqrt_s: process noise of vY, m/s/sqrt(s) (default 0.006).
+        state_jitter_yaw_rate_rad_s_sqrt_s: process noise of the yaw rate, rad/s/sqrt(s)
+            (default 0.0006).
+    """
+
+    grid_points: int = 25
+    grid_span_sigma: float = 4.0
+    regrid_min_cells: float = 1.5
+    regrid_edge_mass: float = 1e-3
+    forgetting: float = 0.999
+    state_jitter_vx_m_s_sqrt_s: float = 0.015
+    state_jitter_vy_m_s_sqrt_s: float = 0.006
+    state_jitter_yaw_rate_rad_s_sqrt_s: float = 0.0006
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        require_int_range("grid_points", self.grid_points, 5, 201)
+        require_range("grid_span_sigma", self.grid_span_sigma, 1.0, 20.0)
+        require_range("regrid_min_cells", self.regrid_min_cells, 0.1, 100.0)
+        require_range("regrid_edge_mass", self.regrid_edge_mass, 0.0, 1.0)
+        require_range("forgetting", self.forgetting, 0.5, 1.0)
+        for name in (
+            "state_jitter_vx_m_s_sqrt_s",
+            "state_jitter_vy_m_s_sqrt_s",
+            "state_jitter_yaw_rate_rad_s_sqrt_s",
+        ):
+            require_non_negative(name, getattr(self, name))
+        require_positive("initial_stiffness_std_fraction", self.initial_stiffness_std_fraction)
+
+
+def lattice(points: int) -> F64:
+    """Unit lattice ``u`` (G^2, 2) over [-1, 1]^2, row-major (axis 0 slow)."""
+    g = np.linspace(-1.0, 1.0, points)
+    u0, u1 = np.meshgrid(g, g, indexing="ij")
+    return np.column_stack([u0.ravel(), u1.ravel()])
+
+
+def gaussian_fit(cells: F64, q: F64) -> tuple[F64, F64]:
+    """Weighted mean (2,) and covariance (2, 2) of the cells (K, 2) with weights ``q`` (K,)."""
+    m = q @ cells
+    dev = cells - m
+    return m, np.einsum("k,ki,kj->ij", q, dev, dev)
+
+
+def principal_axes(cov: F64, floor: F64) -> F64:
+    """``L`` (2, 2) with ``L L^T = cov``, columns along the principal axes; each std at least
+    ``floor`` (2,) projected on its axis (a grid never narrower than that)."""
+    s2, u = np.linalg.eigh(0.5 * (cov + cov.T))
+    # the floor of each axis: the floor ellipse's std along it
+    floor2 = (u * u).T @ (floor * floor)
+    s = np.sqrt(np.maximum(s2, floor2))
+    return u * s[None, :]
+
+
+class GridEkf(BaselineFilter):
+    """Point-mass filter on ``(Cy_f, Cy_r)``, one EKF on ``[vX, vY, r]`` per cell, vectorized.
+
+    Args:
+        config: :class:`GridConfig`.
+        params: single-track parameters (nominal stiffness, geometry, tyre).
+    """
+
+    def __init__(self, config: GridConfig, params: SingleTrackParams) -> None:
+        self.config = config
+        self.params = params
+        self.nominal = np.asarray(params.nominal, dtype=float)
+        self.lower, self.upper = _stiffness_bounds(config, self.nominal)
+        self.r_cov = _r_cov(config)
+        self.q_rate = (
+            np.array(
+                [
+                    config.state_jitter_vx_m_s_sqrt_s,
+                    config.state_jitter_vy_m_s_sqrt_s,
+                    config.state_jitter_yaw_rate_rad_s_sqrt_s,
+                ]
+            )
+            ** 2
+        )
+        self.u = lattice(config.grid_points)
+        self.k = self.u.shape[0]
+        #: the smallest posterior std a grid is laid for, N/rad (1e-4 of nominal)
+        self.floor = 1e-4 * self.nominal[1:]
+        self.initialized = False
+        self.regrid_count = 0
+        self.centre = np.zeros(2)
+        self.axes = np.eye(2)
+        self.w = np.zeros((self.k, 3))
+        self.x = np.zeros((self.k, 3))
+        self.p = np.zeros((self.k, 3, 3))
+        self.log_q = np.zeros(self.k)
+        self.q = np.full(self.k, 1.0 / self.k)
+        self._rate: F64 | None = None
+        self._jac: F64 | None = None
+
+    # ------------------------------------------------------------------ grid
+    def _cells(self, centre: F64, axes: F64) -> tuple[F64, F64]:
+        """Stiffness deviations ``w`` (K, 3) of the grid ``centre + axes u`` and a log-weight
+        offset (K,) that is -inf outside the projection bounds."""
+        c = centre[None, :] + self.u @ axes.T
+        w = np.empty((self.k, 3))
+        w[:, 0] = (self.config.initial_stiffness_factor - 1.0) * self.nominal[0]
+        w[:, 1:] = c
+        inside = np.all((c >= self.lower[1:]) & (c <= self.upper[1:]), axis=1)
+        return w, np.where(inside, 0.0, -np.inf)
+
+    def _spacing_in_std(self, cov: F64) -> float:
+        """Posterior std along its narrowest principal axis, in cell spacings of this grid."""
+        h = 2.0 / (self.config.grid_points - 1)
+        # the posterior covariance in lattice units: A^-1 V A^-T
+        a_inv = np.linalg.inv(self.axes)
+        cov_u = a_inv @ cov @ a_inv.T
+        return float(np.sqrt(max(np.linalg.eigvalsh(0.5 * (cov_u + cov_u.T))[0], 0.0)) / h)
+
+    def _edge_mass(self) -> float:
+        edge = np.any(np.abs(self.u) >= 1.0 - 1e-12, axis=1)
+        return float(self.q[edge].sum())
+
+    def regrid(self) -> None:
+        """Lay a new grid along the posterior's principal axes (see the module doc)."""
+        c = self.config
+        cells = self.w[:, 1:]
+        m, cov = gaussian_fit(cells, self.q)
+        axes = c.grid_span_sigma * principal_axes(cov, self.floor)
+        w_new, outside = self._cells(m, axes)
+        # nearest old cell: lattice coordinates in the old grid, rounded to its points
+        h = 2.0 / (c.grid_points - 1)
+        u_old = (w_new[:, 1:] - self.centre) @ np.linalg.inv(self.axes).T
+        idx = np.clip(np.rint((u_old + 1.0) / h), 0, c.grid_points - 1).astype(np.intp)
+        nearest = idx[:, 0] * c.grid_points + idx[:, 1]
+        dev = w_new[:, 1:] - m
+        cov_inv = np.linalg.inv(axes @ axes.T / c.grid_span_sigma**2)
+        # Gaussian N(m, V) of the posterior at the new cells
+        self.log_q = -0.5 * np.einsum("ki,ij,kj->k", dev, cov_inv, dev) + outside
+        self.x = self.x[nearest]
+        self.p = self.p[nearest]
+        if self._rate is not None and self._jac is not None:
+            self._rate = self._rate[nearest]
+            self._jac = self._jac[nearest]
+        self.w = w_new
+        self.centre, self.axes = m, axes
+        self.q, _ = resampling.normalize_log_weights(self.log_q)
+        self.regrid_count += 1
+
+    # ------------------------------------------------------------------ filter
+    def initialize(self, x0: F64, x0_std: F64) -> None:
+        """Grid over the prior, every cell's EKF at ``x0`` with ``diag(x0_std^2)``."""
+        c = self.config
+        std0 = c.initial_stiffness_std_fraction * self.nominal[1:]
+        self.centre = (c.initial_stiffness_factor - 1.0) * self.nominal[1:]
+        self.axes = np.diag(c.grid_span_sigma * std0)
+        self.w, outside = self._cells(self.centre, self.axes)
+        # the prior N(f0 C_n, (s0 C_n)^2) per cornering stiffness
+        z = (self.w[:, 1:] - self.centre) / std0
+        self.log_q = -0.5 * np.sum(z * z, axis=1) + outside
+        self.q, _ = resampling.normalize_log_weights(self.log_q)
+        self.x = np.tile(x0, (self.k, 1))
+        self.p = np.tile(np.diag(np.asarray(x0_std, dtype=float) ** 2), (self.k, 1, 1))
+        self._rate = self._jac = None
+        self.initialized = True
+
+    def predict(self, dt_s: float, learn: bool, learn_cx: bool) -> None:
+        """EKF time update of every cell with the inputs of the last update (eq. 9)."""
+        if self._rate is None or self._jac is None:
+            return
+        # eq. (9) x_{k+1} = x_k + Ts f(x_k, C), F = I + Ts df/dx
+        self.x += dt_s * self._rate
+        self.x[:, 0] = np.maximum(self.x[:, 0], 0.0)
+        f = np.eye(3)[None, :, :] + dt_s * self._jac
+        # P_{k+1|k} = F P F^T + Q Ts
+        self.p = f @ self.p @ np.transpose(f, (0, 2, 1)) + np.diag(self.q_rate * dt_s)
+
+    def update(self, meas: Measurement, learn: bool, learn_cx: bool) -> None:
+        """EKF update of every cell; with ``learn`` the cell weights take its predictive
+        density of ``y`` (Bayes on the grid); the next step's derivative and Jacobian."""
+        if meas.vx_measured:
+            self.x[:, 0] = meas.speed_m_s
+            self.p[:, 0, :] = 0.0
+            self.p[:, :, 0] = 0.0
+            self.p[:, 0, 0] = self.config.wheel_speed_noise_std_m_s**2 + 1e-6
+        k = self.k
+        eye = np.diag(JACOBIAN_STEP)
+        xs = np.concatenate([self.x] + [self.x + eye[j] for j in range(3)])
+        xs = np.concatenate([xs] + [self.x - eye[j] for j in range(3)])
+        rate, y_hat, _, _ = model(
+            xs, np.tile(self.w, (7, 1)), meas.delta_rad, meas.wheel_speed_m_s, self.params
+        )
+        rate = rate.reshape(7, k, 3)
+        y_hat = y_hat.reshape(7, k, 3)
+        # central differences: column j = (g(x + h_j e_j) - g(x - h_j e_j)) / (2 h_j)
+        two_h = 2.0 * JACOBIAN_STEP
+        h_jac = np.stack([(y_hat[1 + j] - y_hat[4 + j]) / two_h[j] for j in range(3)], axis=-1)
+        f_jac = np.stack([(rate[1 + j] - rate[4 + j]) / two_h[j] for j in range(3)], axis=-1)
+        r = measurement_cov(
+            self.r_cov,
+            self.x,
+            meas.delta_rad,
+            meas.wheel_speed_m_s,
+            self.params,
+            self.nominal[0] + self.w[:, 0],
+            self.config.wheel_speed_noise_std_m_s,
+        )
+        # eq. (12) linearized per cell: S = H P H^T + R, K = P H^T S^-1
+        ph_t = self.p @ np.transpose(h_jac, (0, 2, 1))
+        s = h_jac @ ph_t + r
+        chol = np.linalg.cholesky(s)
+        nu = meas.y[None, :] - y_hat[0]
+        if learn:
+            # predictive density N(y; y_hat, S) of each cell: the likelihood of its stiffness
+            z = np.linalg.solve(chol, nu[..., None])[..., 0]
+            log_det = 2.0 * np.sum(np.log(np.diagonal(chol, axis1=-2, axis2=-1)), axis=-1)
+            log_lik = -0.5 * (np.sum(z * z, axis=-1) + log_det + 3.0 * _LOG_2PI)
+            # forgetting: log q <- lambda log q (relative to the best cell), then Bayes
+            finite = np.isfinite(self.log_q)
+            top = np.max(self.log_q[finite])
+            self.log_q = np.where(
+                finite, self.config.forgetting * (self.log_q - top) + log_lik, -np.inf
+            )
+            self.q, _ = resampling.normalize_log_weights(self.log_q)
+        gain = np.transpose(np.linalg.solve(s, np.transpose(ph_t, (0, 2, 1))), (0, 2, 1))
+        dx = np.einsum("kij,kj->ki", gain, nu)
+        self.x += dx
+        # Joseph form P = (I - K H) P (I - K H)^T + K R K^T
+        ikh = np.eye(3)[None, :, :] - gain @ h_jac
+        self.p = ikh @ self.p @ np.transpose(ikh, (0, 2, 1))
+        self.p += gain @ r @ np.transpose(gain, (0, 2, 1))
+        self.p = 0.5 * (self.p + np.transpose(self.p, (0, 2, 1)))
+        # derivative at the updated state to first order: f(x + dx) = f(x) + F dx
+        self._rate = rate[0] + np.einsum("kij,kj->ki", f_jac, dx)
+        self._jac = f_jac
+        if learn:
+            _, cov = gaussian_fit(self.w[:, 1:], self.q)
+            c = self.config
+            if (
+                self._spacing_in_std(cov) < c.regrid_min_cells
+                or self._edge_mass() > c.regrid_edge_mass
+            ):
+                self.regrid()
+
+    def estimate(self) -> FilterEstimate:
+        """Posterior mean and std of the stiffness (Cx: the prior), mixture mean and
+        covariance of the state."""
+        q = self.q
+        m, cov = gaussian_fit(self.w[:, 1:], q)
+        std = np.empty(3)
+        std[0] = self.config.initial_stiffness_std_fraction * self.nominal[0]
+        std[1:] = np.sqrt(np.maximum(np.diag(cov), 0.0))
+        xm = q @ self.x
+        dx = self.x - xm
+        return FilterEstimate(
+            stiffness=self.nominal + np.concatenate([[self.w[0, 0]], m]),
+            stiffness_std=std,
+            state=xm,
+            state_cov=np.einsum("k,kij->ij", q, self.p) + np.einsum("k,ki,kj->ij", q, dx, dx),
+            n_eff=resampling.ess(q),
+        )
+
+
+class GridEstimator(BaselineEstimator):
+    """:class:`GridEkf` behind the baselines' front-end (deterministic)."""
+
+    config: GridConfig
+
+    def __init__(
+        self,
+        config: GridConfig,
+        vehicle: VehicleParams,
+        rng: np.random.Generator | None = None,
+    ) -> None:
+        super().__init__(config, vehicle, rng)
+
+    def make_filter(self) -> BaselineFilter:
+        """A fresh :class:`GridEkf`."""
+        return GridEkf(self.config, self.params)
+
+
+__all__ = ["GridConfig", "GridEkf", "GridEstimator", "gaussian_fit", "lattice", "principal_axes"]
