@@ -105,7 +105,7 @@ def test_regrid_keeps_the_posterior_moments_and_takes_the_nearest_cells_state() 
 
 
 def test_weights_change_only_while_learning() -> None:
-    f = _filter(initial_stiffness_factor=0.8)
+    f = _filter(initial_stiffness_factor=0.8, learn_hold_s=0.0)
     meas = sb.Measurement(
         y=np.array([0.0, 1.5, 0.08]),
         delta_rad=0.02,
@@ -119,6 +119,58 @@ def test_weights_change_only_while_learning() -> None:
     np.testing.assert_array_equal(f.q, q0)
     # the EKFs still take the measurement (each with its own stiffness)
     assert not np.allclose(f.x, x0)
+    f.predict(0.01, True, False)
+    f.update(meas, True, False)
+    assert not np.allclose(f.q, q0)
+
+
+def _straight(y: list[float]) -> sb.Measurement:
+    return sb.Measurement(
+        y=np.array(y),
+        delta_rad=0.0,
+        wheel_speed_m_s=(20.0, 20.0),
+        speed_m_s=20.0,
+        vx_measured=False,
+    )
+
+
+def test_the_ekfs_carry_the_imu_biases_when_their_prior_is_not_zero() -> None:
+    # straight at 20 m/s, ay 0 and a gyro reading 0.01 rad/s: a yaw rate of 0.01 would need ay
+    # = vX r = 0.2 m/s^2, so the reading is a gyro bias
+    f = _filter(grid_points=9)
+    assert f.nx == 6
+    meas = _straight([0.0, 0.0, 0.01])
+    for k in range(500):
+        if k:
+            f.predict(0.01, False, False)
+        f.update(meas, False, False)
+    e = f.estimate()
+    assert e.bias is not None
+    assert abs(e.bias[2] - 0.01) < 5e-4
+    assert abs(e.state[2]) < 5e-4
+    # without a bias prior the state has no bias part and the reading is a yaw rate
+    g = _filter(grid_points=9, accel_bias_std_m_s2=0.0, gyro_bias_std_rad_s=0.0)
+    assert g.nx == 3 and g.estimate().bias is None
+    # sharing takes Algorithm 1's bias settings (the evaluation's bias-free ones: no states)
+    alg1 = eval_config(50)
+    assert GridConfig.sharing(alg1).accel_bias_std_m_s2 == alg1.accel_bias_std_m_s2 == 0.0
+
+
+def test_no_learning_within_the_hold_after_initialization() -> None:
+    f = _filter(initial_stiffness_factor=0.8, learn_hold_s=0.5)
+    meas = sb.Measurement(
+        y=np.array([0.0, 1.5, 0.08]),
+        delta_rad=0.02,
+        wheel_speed_m_s=(20.0, 20.0),
+        speed_m_s=20.0,
+        vx_measured=False,
+    )
+    q0 = f.q.copy()
+    f.update(meas, True, False)
+    for _ in range(49):
+        f.predict(0.01, True, False)
+        f.update(meas, True, False)
+    np.testing.assert_array_equal(f.q, q0)
     f.predict(0.01, True, False)
     f.update(meas, True, False)
     assert not np.allclose(f.q, q0)
@@ -156,3 +208,9 @@ def test_grid_config_is_validated() -> None:
         GridConfig(regrid_edge_mass=float("nan"))
     with pytest.raises(ConfigError, match="state_jitter_vy_m_s_sqrt_s"):
         GridConfig(state_jitter_vy_m_s_sqrt_s=-1.0)
+    with pytest.raises(ConfigError, match="gyro_bias_std_rad_s"):
+        GridConfig(gyro_bias_std_rad_s=-0.1)
+    with pytest.raises(ConfigError, match="learn_hold_s"):
+        GridConfig(learn_hold_s=-1.0)
+    with pytest.raises(ConfigError, match="fit_window_s"):
+        GridConfig(fit_window_s=0.0)

@@ -344,6 +344,7 @@ class FilterEstimate:
         state: [vX, vY, r], (3,).
         state_cov: covariance of the state, (3, 3).
         n_eff: effective sample size (nan for the Kalman filters).
+        bias: [b_ax, b_ay, b_r] where the filter estimates the IMU biases, else None.
     """
 
     stiffness: F64
@@ -351,6 +352,7 @@ class FilterEstimate:
     state: F64
     state_cov: F64
     n_eff: float
+    bias: F64 | None = None
 
 
 def friction_saturation(p: SingleTrackParams, w: F64) -> tuple[F64, F64] | None:
@@ -1109,9 +1111,10 @@ class BaselineEstimator:
 
     # ------------------------------------------------------------------ outputs
     def estimate(self) -> StiffnessEstimate:
-        """Current estimate; biases are zero (not estimated), ``n_eff`` nan for the KFs."""
+        """Current estimate; biases zero where not estimated, ``n_eff`` nan for the KFs."""
         e = self.filter.estimate()
         vx, vy, r = (float(v) for v in e.state)
+        bias = np.zeros(3) if e.bias is None else np.asarray(e.bias, dtype=float)
         return StiffnessEstimate(
             t_ns=self._t_ns,
             names=NAMES,
@@ -1121,8 +1124,8 @@ class BaselineEstimator:
             active=self._active,
             cx_active=self._cx_active,
             reason=self._reason,
-            gyro_bias_rad_s=np.zeros(3),
-            accel_bias_m_s2=np.zeros(3),
+            gyro_bias_rad_s=np.array([0.0, 0.0, bias[2]]),
+            accel_bias_m_s2=np.array([bias[0], bias[1], 0.0]),
             n_eff=e.n_eff,
             vx_m_s=vx,
             vy_m_s=vy,

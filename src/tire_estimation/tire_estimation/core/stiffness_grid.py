@@ -30,16 +30,21 @@ mean and covariance. ``forgetting`` lambda flattens the log-weights at every lea
 (``log q <- lambda log q``), so that the posterior keeps a memory of about ``1 / (1 - lambda)``
 steps and follows a change of the road.
 
+IMU biases: with a non-zero ``accel_bias_std_m_s2`` or ``gyro_bias_std_rad_s`` (Algorithm 1's
+fields and defaults, eq. 11-12) each cell's EKF carries ``[b_ax, b_ay, b_r]`` as random-walk
+states beside the vehicle state; they enter the measurement additively, so given the cell they
+are linear, as in Algorithm 1's per-particle bias Kalman filters (eq. 29-30).
+
 Left out: ``Cx`` is not estimated (held at the prior: the sine drives do not excite it, and
-Algorithm 1 freezes it there as well), and the IMU biases are not estimated (as the other
-baselines). Not wired into the estimator node; it runs behind the baselines' front-end
-(:class:`~.stiffness_baselines.BaselineEstimator`) in the evaluations.
+Algorithm 1 freezes it there as well). Not wired into the estimator node; it runs behind the
+baselines' front-end (:class:`~.stiffness_baselines.BaselineEstimator`) in the evaluations.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -89,7 +94,29 @@ class GridConfig(BaselineConfig):
         state_jitter_vy_m_s_sqrt_s: process noise of vY, m/s/sqrt(s) (default 0.006).
         state_jitter_yaw_rate_rad_s_sqrt_s: process noise of the yaw rate, rad/s/sqrt(s)
             (default 0.0006).
+        accel_bias_std_m_s2: prior std of the accelerometer biases b_ax, b_ay (eq. 11), m/s^2
+            (default 0.1, as Algorithm 1); 0 with ``gyro_bias_std_rad_s`` 0: no bias states.
+        gyro_bias_std_rad_s: prior std of the gyro bias b_r, rad/s (default 0.005).
+        accel_bias_walk_m_s2_sqrt_s: random walk of the accelerometer biases, m/s^2/sqrt(s)
+            (default 0.0005).
+        gyro_bias_walk_rad_s_sqrt_s: random walk of the gyro bias, rad/s/sqrt(s) (default
+            0.0001).
+        learn_hold_s: the weights are not updated within this time of the initialization,
+            while the EKFs' state converges from its prior (a start in a turn would otherwise
+            be taken as stiffness), s (default 2.0).
+        fit_window_s: time constant of :attr:`GridEkf.nis_mean`, the exponential mean of the
+            weighted normalized innovation squared (a diagnostic: about 3 while the model fits
+            the data), s (default 1.0).
     """
+
+    #: fields :meth:`sharing` copies from Algorithm 1's configuration besides the
+    #: :class:`BaselineConfig` ones (same meaning and unit there)
+    SHARED_WITH_ALGORITHM_1: ClassVar[tuple[str, ...]] = (
+        "accel_bias_std_m_s2",
+        "gyro_bias_std_rad_s",
+        "accel_bias_walk_m_s2_sqrt_s",
+        "gyro_bias_walk_rad_s_sqrt_s",
+    )
 
     grid_points: int = 25
     grid_span_sigma: float = 4.0
@@ -99,6 +126,28 @@ class GridConfig(BaselineConfig):
     state_jitter_vx_m_s_sqrt_s: float = 0.015
     state_jitter_vy_m_s_sqrt_s: float = 0.006
     state_jitter_yaw_rate_rad_s_sqrt_s: float = 0.0006
+    accel_bias_std_m_s2: float = 0.1
+    gyro_bias_std_rad_s: float = 0.005
+    accel_bias_walk_m_s2_sqrt_s: float = 0.0005
+    gyro_bias_walk_rad_s_sqrt_s: float = 0.0001
+    learn_hold_s: float = 2.0
+    fit_window_s: float = 1.0
+
+    @classmethod
+    def sharing(cls, other: Any, **overrides: Any) -> GridConfig:
+        """:meth:`BaselineConfig.sharing`, plus the bias fields of Algorithm 1's configuration
+        (:attr:`SHARED_WITH_ALGORITHM_1`) where ``other`` has them."""
+        extra = {
+            name: getattr(other, name)
+            for name in cls.SHARED_WITH_ALGORITHM_1
+            if hasattr(other, name)
+        }
+        return super().sharing(other, **{**extra, **overrides})
+
+    @property
+    def estimates_bias(self) -> bool:
+        """The EKFs carry the IMU biases (a non-zero prior std)."""
+        return self.accel_bias_std_m_s2 > 0.0 or self.gyro_bias_std_rad_s > 0.0
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -107,10 +156,13 @@ class GridConfig(BaselineConfig):
         require_range("regrid_min_cells", self.regrid_min_cells, 0.1, 100.0)
         require_range("regrid_edge_mass", self.regrid_edge_mass, 0.0, 1.0)
         require_range("forgetting", self.forgetting, 0.5, 1.0)
+        require_range("learn_hold_s", self.learn_hold_s, 0.0, 600.0)
+        require_positive("fit_window_s", self.fit_window_s)
         for name in (
             "state_jitter_vx_m_s_sqrt_s",
             "state_jitter_vy_m_s_sqrt_s",
             "state_jitter_yaw_rate_rad_s_sqrt_s",
+            *self.SHARED_WITH_ALGORITHM_1,
         ):
             require_non_negative(name, getattr(self, name))
         require_positive("initial_stiffness_std_fraction", self.initial_stiffness_std_fraction)
@@ -154,27 +206,34 @@ class GridEkf(BaselineFilter):
         self.nominal = np.asarray(params.nominal, dtype=float)
         self.lower, self.upper = _stiffness_bounds(config, self.nominal)
         self.r_cov = _r_cov(config)
-        self.q_rate = (
-            np.array(
-                [
-                    config.state_jitter_vx_m_s_sqrt_s,
-                    config.state_jitter_vy_m_s_sqrt_s,
-                    config.state_jitter_yaw_rate_rad_s_sqrt_s,
-                ]
-            )
-            ** 2
-        )
+        c = config
+        jitter = [
+            c.state_jitter_vx_m_s_sqrt_s,
+            c.state_jitter_vy_m_s_sqrt_s,
+            c.state_jitter_yaw_rate_rad_s_sqrt_s,
+        ]
+        #: EKF state [vX, vY, r] or, with the biases, [vX, vY, r, b_ax, b_ay, b_r]
+        self.nx = 6 if c.estimates_bias else 3
+        walk = [c.accel_bias_walk_m_s2_sqrt_s] * 2 + [c.gyro_bias_walk_rad_s_sqrt_s]
+        #: process noise per second, diag Q / Ts (eq. 9 jitter and eq. 29 bias walk)
+        self.q_rate = np.array(jitter + (walk if self.nx == 6 else [])) ** 2
+        self.bias_var0 = np.array([c.accel_bias_std_m_s2] * 2 + [c.gyro_bias_std_rad_s]) ** 2
         self.u = lattice(config.grid_points)
         self.k = self.u.shape[0]
         #: the smallest posterior std a grid is laid for, N/rad (1e-4 of nominal)
         self.floor = 1e-4 * self.nominal[1:]
         self.initialized = False
         self.regrid_count = 0
+        #: exponential mean of the weighted NIS (``fit_window_s``), 1
+        self.nis_mean = 3.0
+        #: time since the initialization, s (``learn_hold_s``)
+        self.since_start_s = 0.0
+        self._dt_s = 0.0
         self.centre = np.zeros(2)
         self.axes = np.eye(2)
         self.w = np.zeros((self.k, 3))
-        self.x = np.zeros((self.k, 3))
-        self.p = np.zeros((self.k, 3, 3))
+        self.x = np.zeros((self.k, self.nx))
+        self.p = np.zeros((self.k, self.nx, self.nx))
         self.log_q = np.zeros(self.k)
         self.q = np.full(self.k, 1.0 / self.k)
         self._rate: F64 | None = None
@@ -231,7 +290,8 @@ class GridEkf(BaselineFilter):
 
     # ------------------------------------------------------------------ filter
     def initialize(self, x0: F64, x0_std: F64) -> None:
-        """Grid over the prior, every cell's EKF at ``x0`` with ``diag(x0_std^2)``."""
+        """Grid over the prior, every cell's EKF at ``x0`` with ``diag(x0_std^2)`` (biases at 0
+        with their prior variance)."""
         c = self.config
         std0 = c.initial_stiffness_std_fraction * self.nominal[1:]
         self.centre = (c.initial_stiffness_factor - 1.0) * self.nominal[1:]
@@ -241,21 +301,30 @@ class GridEkf(BaselineFilter):
         z = (self.w[:, 1:] - self.centre) / std0
         self.log_q = -0.5 * np.sum(z * z, axis=1) + outside
         self.q, _ = resampling.normalize_log_weights(self.log_q)
+        var0 = np.asarray(x0_std, dtype=float) ** 2
+        if self.nx == 6:
+            x0 = np.concatenate([x0, np.zeros(3)])
+            var0 = np.concatenate([var0, self.bias_var0])
         self.x = np.tile(x0, (self.k, 1))
-        self.p = np.tile(np.diag(np.asarray(x0_std, dtype=float) ** 2), (self.k, 1, 1))
+        self.p = np.tile(np.diag(var0), (self.k, 1, 1))
         self._rate = self._jac = None
+        self.nis_mean = 3.0
+        self.since_start_s = 0.0
         self.initialized = True
 
     def predict(self, dt_s: float, learn: bool, learn_cx: bool) -> None:
         """EKF time update of every cell with the inputs of the last update (eq. 9)."""
         if self._rate is None or self._jac is None:
             return
-        # eq. (9) x_{k+1} = x_k + Ts f(x_k, C), F = I + Ts df/dx
-        self.x += dt_s * self._rate
+        # eq. (9) x_{k+1} = x_k + Ts f(x_k, C), F = I + Ts df/dx; eq. (29) b_{k+1} = b_k
+        self.x[:, :3] += dt_s * self._rate
         self.x[:, 0] = np.maximum(self.x[:, 0], 0.0)
-        f = np.eye(3)[None, :, :] + dt_s * self._jac
+        f = np.tile(np.eye(self.nx), (self.k, 1, 1))
+        f[:, :3, :3] += dt_s * self._jac
         # P_{k+1|k} = F P F^T + Q Ts
         self.p = f @ self.p @ np.transpose(f, (0, 2, 1)) + np.diag(self.q_rate * dt_s)
+        self.since_start_s += dt_s
+        self._dt_s = dt_s
 
     def update(self, meas: Measurement, learn: bool, learn_cx: bool) -> None:
         """EKF update of every cell; with ``learn`` the cell weights take its predictive
@@ -267,8 +336,9 @@ class GridEkf(BaselineFilter):
             self.p[:, 0, 0] = self.config.wheel_speed_noise_std_m_s**2 + 1e-6
         k = self.k
         eye = np.diag(JACOBIAN_STEP)
-        xs = np.concatenate([self.x] + [self.x + eye[j] for j in range(3)])
-        xs = np.concatenate([xs] + [self.x - eye[j] for j in range(3)])
+        xv = self.x[:, :3]
+        xs = np.concatenate([xv] + [xv + eye[j] for j in range(3)])
+        xs = np.concatenate([xs] + [xv - eye[j] for j in range(3)])
         rate, y_hat, _, _ = model(
             xs, np.tile(self.w, (7, 1)), meas.delta_rad, meas.wheel_speed_m_s, self.params
         )
@@ -276,11 +346,18 @@ class GridEkf(BaselineFilter):
         y_hat = y_hat.reshape(7, k, 3)
         # central differences: column j = (g(x + h_j e_j) - g(x - h_j e_j)) / (2 h_j)
         two_h = 2.0 * JACOBIAN_STEP
-        h_jac = np.stack([(y_hat[1 + j] - y_hat[4 + j]) / two_h[j] for j in range(3)], axis=-1)
+        h_jac = np.zeros((k, 3, self.nx))
+        for j in range(3):
+            h_jac[:, :, j] = (y_hat[1 + j] - y_hat[4 + j]) / two_h[j]
         f_jac = np.stack([(rate[1 + j] - rate[4 + j]) / two_h[j] for j in range(3)], axis=-1)
+        y_pred = y_hat[0]
+        if self.nx == 6:
+            # eq. (12) y = h(x) + b + e: the bias enters with the identity
+            h_jac[:, :, 3:] = np.eye(3)
+            y_pred = y_pred + self.x[:, 3:]
         r = measurement_cov(
             self.r_cov,
-            self.x,
+            xv,
             meas.delta_rad,
             meas.wheel_speed_m_s,
             self.params,
@@ -291,12 +368,16 @@ class GridEkf(BaselineFilter):
         ph_t = self.p @ np.transpose(h_jac, (0, 2, 1))
         s = h_jac @ ph_t + r
         chol = np.linalg.cholesky(s)
-        nu = meas.y[None, :] - y_hat[0]
+        nu = meas.y[None, :] - y_pred
+        z = np.linalg.solve(chol, nu[..., None])[..., 0]
+        nis = np.sum(z * z, axis=-1)
+        a = min(1.0, self._dt_s / self.config.fit_window_s)
+        self.nis_mean += a * (float(self.q @ nis) - self.nis_mean)
+        learn = learn and self.since_start_s >= self.config.learn_hold_s
         if learn:
             # predictive density N(y; y_hat, S) of each cell: the likelihood of its stiffness
-            z = np.linalg.solve(chol, nu[..., None])[..., 0]
             log_det = 2.0 * np.sum(np.log(np.diagonal(chol, axis1=-2, axis2=-1)), axis=-1)
-            log_lik = -0.5 * (np.sum(z * z, axis=-1) + log_det + 3.0 * _LOG_2PI)
+            log_lik = -0.5 * (nis + log_det + 3.0 * _LOG_2PI)
             # forgetting: log q <- lambda log q (relative to the best cell), then Bayes
             finite = np.isfinite(self.log_q)
             top = np.max(self.log_q[finite])
@@ -308,16 +389,16 @@ class GridEkf(BaselineFilter):
         dx = np.einsum("kij,kj->ki", gain, nu)
         self.x += dx
         # Joseph form P = (I - K H) P (I - K H)^T + K R K^T
-        ikh = np.eye(3)[None, :, :] - gain @ h_jac
+        ikh = np.eye(self.nx)[None, :, :] - gain @ h_jac
         self.p = ikh @ self.p @ np.transpose(ikh, (0, 2, 1))
         self.p += gain @ r @ np.transpose(gain, (0, 2, 1))
         self.p = 0.5 * (self.p + np.transpose(self.p, (0, 2, 1)))
         # derivative at the updated state to first order: f(x + dx) = f(x) + F dx
-        self._rate = rate[0] + np.einsum("kij,kj->ki", f_jac, dx)
+        self._rate = rate[0] + np.einsum("kij,kj->ki", f_jac, dx[:, :3])
         self._jac = f_jac
         if learn:
-            _, cov = gaussian_fit(self.w[:, 1:], self.q)
             c = self.config
+            _, cov = gaussian_fit(self.w[:, 1:], self.q)
             if (
                 self._spacing_in_std(cov) < c.regrid_min_cells
                 or self._edge_mass() > c.regrid_edge_mass
@@ -326,7 +407,7 @@ class GridEkf(BaselineFilter):
 
     def estimate(self) -> FilterEstimate:
         """Posterior mean and std of the stiffness (Cx: the prior), mixture mean and
-        covariance of the state."""
+        covariance of the state, mixture mean of the biases."""
         q = self.q
         m, cov = gaussian_fit(self.w[:, 1:], q)
         std = np.empty(3)
@@ -334,12 +415,14 @@ class GridEkf(BaselineFilter):
         std[1:] = np.sqrt(np.maximum(np.diag(cov), 0.0))
         xm = q @ self.x
         dx = self.x - xm
+        cov = np.einsum("k,kij->ij", q, self.p) + np.einsum("k,ki,kj->ij", q, dx, dx)
         return FilterEstimate(
             stiffness=self.nominal + np.concatenate([[self.w[0, 0]], m]),
             stiffness_std=std,
-            state=xm,
-            state_cov=np.einsum("k,kij->ij", q, self.p) + np.einsum("k,ki,kj->ij", q, dx, dx),
+            state=xm[:3],
+            state_cov=cov[:3, :3],
             n_eff=resampling.ess(q),
+            bias=xm[3:] if self.nx == 6 else None,
         )
 
 
