@@ -76,3 +76,10 @@ def test_algorithm_1_in_the_comparison_is_the_sine_study_run() -> None:
     for m in METHODS:
         assert np.isfinite(got[m]["vy_rmse_m_s"])
         assert got[m]["activation_s"] == pytest.approx(ref["activation_s"], abs=0.05)
+    # a subset of the methods gives the same scores as the full comparison
+    alone = run_sine_seed(3, "snow_sine", 1.5, 50, over, methods=("grid",))
+    assert set(alone) == {"grid"}
+    np.testing.assert_array_equal(alone["grid"]["settling_s"], got["grid"]["settling_s"])
+    np.testing.assert_array_equal(
+        alone["grid"]["steady_mean_rel_error"], got["grid"]["steady_mean_rel_error"]
+    )
