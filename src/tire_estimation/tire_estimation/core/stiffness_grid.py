@@ -28,7 +28,9 @@ along the posterior's principal axes over +- ``grid_span_sigma`` std around its 
 cell takes the EKF of the nearest old cell and the weight of the Gaussian with the posterior's
 mean and covariance. ``forgetting`` lambda flattens the log-weights at every learning step
 (``log q <- lambda log q``), so that the posterior keeps a memory of about ``1 / (1 - lambda)``
-steps and follows a change of the road.
+steps. That is not enough to follow an abrupt change of the road: on ``stiffness_step`` the
+estimate stays at the stiffness from before the 50 % drop (docs/results.md section 6,
+twenty-second session).
 
 IMU biases: with a non-zero ``accel_bias_std_m_s2`` or ``gyro_bias_std_rad_s`` (Algorithm 1's
 fields and defaults, eq. 11-12) each cell's EKF carries ``[b_ax, b_ay, b_r]`` as random-walk
