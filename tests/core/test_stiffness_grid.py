@@ -104,15 +104,20 @@ def test_regrid_keeps_the_posterior_moments_and_takes_the_nearest_cells_state() 
     assert np.all(np.abs(old_cells[nearest[inside]] - f.w[inside, 1:]) < np.abs(old_axes).max())
 
 
-def test_weights_change_only_while_learning() -> None:
-    f = _filter(initial_stiffness_factor=0.8, learn_hold_s=0.0)
-    meas = sb.Measurement(
+def _turning() -> sb.Measurement:
+    """One IMU sample in a left turn at 20 m/s (ay 1.5 m/s^2, yaw rate 0.08 rad/s)."""
+    return sb.Measurement(
         y=np.array([0.0, 1.5, 0.08]),
         delta_rad=0.02,
         wheel_speed_m_s=(20.0, 20.0),
         speed_m_s=20.0,
         vx_measured=False,
     )
+
+
+def test_weights_change_only_while_learning() -> None:
+    f = _filter(initial_stiffness_factor=0.8, learn_hold_s=0.0)
+    meas = _turning()
     q0 = f.q.copy()
     x0 = f.x.copy()
     f.update(meas, False, False)
@@ -158,13 +163,7 @@ def test_the_ekfs_carry_the_imu_biases_when_their_prior_is_not_zero() -> None:
 
 def test_no_learning_within_the_hold_after_initialization() -> None:
     f = _filter(initial_stiffness_factor=0.8, learn_hold_s=0.5)
-    meas = sb.Measurement(
-        y=np.array([0.0, 1.5, 0.08]),
-        delta_rad=0.02,
-        wheel_speed_m_s=(20.0, 20.0),
-        speed_m_s=20.0,
-        vx_measured=False,
-    )
+    meas = _turning()
     q0 = f.q.copy()
     f.update(meas, True, False)
     for _ in range(49):
