@@ -23,6 +23,7 @@ NIW_UPDATES = ("sampled", "tempered", "rao_blackwellized")
 SATURATION_PEAKS = ("scaled", "friction")
 INACTIVE_STATISTICS = ("particles", "held")
 INACTIVE_PROPAGATIONS = ("draw", "mean")
+FIRST_LEARNING = ("mpf", "grid")
 
 
 def require_tyre_shape(config: Any) -> None:
@@ -152,6 +153,15 @@ class StiffnessEstimatorConfig:
             excitation, which helps the runs that start above the true stiffness and hurts
             those that start below it (snow, 100 runs: 9 end above 3 % against 4 with
             ``draw``; docs/results.md section 6) (default ``draw``).
+        first_learning: what learns the stiffness from the prior (not in the paper): ``mpf`` is
+            Algorithm 1 from the start; ``grid`` runs the point-mass filter with an EKF per
+            cell (:mod:`~tire_estimation.core.stiffness_grid`, its defaults, the settings of
+            the same names shared) beside it until it has learned ``grid_handover_s``, publishes
+            its cornering stiffness until then, and hands its posterior (mean and covariance of
+            Cy_f, Cy_r) to Algorithm 1 as the NiW statistics, which then go on learning and
+            follow later changes; once per initialization or reset (docs/results.md section 6,
+            twenty-second session) (default ``mpf``).
+        grid_handover_s: learning time of the grid before the hand-over, s (default 2.0).
         wheel_radius_m: effective wheel radius R_w of eq. (3), m; 0 uses the vehicle's nominal
             radius (default 0.0).
         rolling_resistance_n: known constant longitudinal resistance, N (default 0.0, the
@@ -256,6 +266,8 @@ class StiffnessEstimatorConfig:
     propagation_draw_share: float = 1.0
     inactive_statistics: str = "held"
     inactive_propagation: str = "draw"
+    first_learning: str = "mpf"
+    grid_handover_s: float = 2.0
     wheel_radius_m: float = 0.0
     rolling_resistance_n: float = 0.0
     drag_n_s2_m2: float = 0.0
@@ -294,6 +306,8 @@ class StiffnessEstimatorConfig:
         require_range("propagation_draw_share", self.propagation_draw_share, 0.0, 1.0)
         require_choice("inactive_statistics", self.inactive_statistics, INACTIVE_STATISTICS)
         require_choice("inactive_propagation", self.inactive_propagation, INACTIVE_PROPAGATIONS)
+        require_choice("first_learning", self.first_learning, FIRST_LEARNING)
+        require_range("grid_handover_s", self.grid_handover_s, 0.01, 600.0)
         require_choice("drive", self.drive, DRIVE_CHOICES)
         require_range("initial_stiffness_factor", self.initial_stiffness_factor, 0.05, 5.0)
         require_range(

@@ -171,6 +171,8 @@ class StiffnessEstimator:
         #: times the filter restarted from the start of learning with a recentred prior
         #: (``activation_restart_s``)
         self.restart_count = 0
+        #: times the grid handed its posterior to Algorithm 1 (``first_learning`` = ``grid``)
+        self.handover_count = 0
         self.reset()
 
     def reset(self) -> None:
@@ -196,10 +198,19 @@ class StiffnessEstimator:
         self._t_ns = 0
         # activation_restart_s: armed while the statistics are the prior's; the copy of the
         # filter taken when learning started, its stamp, and the learning steps since
-        self._restart_armed = self.config.activation_restart_s > 0.0
+        self._restart_armed = (
+            self.config.activation_restart_s > 0.0 and self.config.first_learning == "mpf"
+        )
         self._restart_copy: StiffnessMpf | None = None
         self._restart_t0_ns = 0
         self._restart_steps: list[_Step] = []
+        # first_learning = grid: the point-mass filter that learns first (None once handed over)
+        self._grid: Any = None
+        if self.config.first_learning == "grid":
+            # imported here: stiffness_grid builds on stiffness_baselines, which imports this
+            from tire_estimation.core.stiffness_grid import GridConfig, GridEkf
+
+            self._grid = GridEkf(GridConfig.sharing(self.config), self.params)
 
     # ------------------------------------------------------------------ helpers
     def _drop(self, kind: str) -> None:
@@ -315,6 +326,8 @@ class StiffnessEstimator:
                 [c.initial_vx_std_m_s, c.initial_vy_std_m_s, c.initial_yaw_rate_std_rad_s]
             )
             self.mpf.initialize(x0, std)
+            if self._grid is not None:
+                self._grid.initialize(x0, std)
             self._steer_window.reset()
             self._accel_x_window.reset()
             self._replay.clear()
@@ -347,6 +360,8 @@ class StiffnessEstimator:
         if dt is not None:
             self.mpf.predict(dt, self._active, self._cx_active)
         self.mpf.update(y, steer, (wf, wr), self._active, vx_in, self._cx_active)
+        if self._grid is not None:
+            self._grid_step(dt, y, steer, (wf, wr), speed, vx_in is not None)
         if self._restart_copy is not None:
             self._restart_steps.append((dt, y, steer, (wf, wr), vx_in, self._cx_active))
             if (t - self._restart_t0_ns) * 1e-9 >= c.activation_restart_s:
@@ -356,6 +371,46 @@ class StiffnessEstimator:
             self._replay.clear()
         elif not self._active:
             self._replay.record(t, (dt, y, steer, (wf, wr), vx_in, cx_excited), self.mpf)
+
+    def _grid_step(
+        self,
+        dt: float | None,
+        y: F64,
+        steer: float,
+        speeds: tuple[float, float],
+        speed: float,
+        vx_measured: bool,
+    ) -> None:
+        """``first_learning`` = ``grid``: one step of the grid with the MPF's inputs and learning
+        flags; the hand-over once it has learned ``grid_handover_s``."""
+        from tire_estimation.core.stiffness_baselines import Measurement
+
+        grid = self._grid
+        if dt is not None:
+            grid.predict(dt, self._active, self._cx_active)
+        meas = Measurement(y, steer, speeds, speed, vx_measured)
+        grid.update(meas, self._active, self._cx_active)
+        if grid.learned_s >= self.config.grid_handover_s:
+            self._hand_over()
+
+    def _hand_over(self) -> None:
+        """The grid's posterior of ``(Cy_f, Cy_r)`` becomes Algorithm 1's NiW statistics
+        (:func:`niw.stats_from_moments`, as a restored state): the grid's mean, and ``gamma`` such
+        that ``gamma E[Sigma]`` has the trace of the grid's covariance over the two cornering
+        stiffnesses (the NiW shares one ``gamma``: Cx's prior uncertainty must not set it); Cx,
+        the expected noise covariance and the dof as the MPF has them."""
+        from tire_estimation.core.stiffness_grid import posterior
+
+        m, cov = posterior(self._grid)
+        est = niw.mmse(self.mpf.stats, self.mpf.weights)
+        mean = est.mean.copy()
+        mean[1:] = m
+        gamma = np.trace(cov) / max(float(np.trace(est.noise_cov[1:, 1:])), 1e-300)
+        self.mpf.stats = niw.stats_from_moments(
+            self.mpf.n, mean, gamma * est.noise_cov, est.noise_cov, est.dof
+        )
+        self._grid = None
+        self.handover_count += 1
 
     def _start_learning(self, t_ns: int) -> None:
         """Learning starts at ``t_ns``: rewind (``activation_replay_s``), keep the copy for a
@@ -420,11 +475,17 @@ class StiffnessEstimator:
         """Current estimate (see :class:`StiffnessEstimate`)."""
         e = self.mpf.estimate()
         vx, vy, r = (float(v) for v in e.state)
+        stiffness, stiffness_std = e.stiffness, e.stiffness_std
+        if self._grid is not None and self._grid.learned_s > 0.0:
+            # first_learning = grid: the grid's cornering stiffness until the hand-over
+            g = self._grid.estimate()
+            stiffness = np.concatenate([e.stiffness[:1], g.stiffness[1:]])
+            stiffness_std = np.concatenate([e.stiffness_std[:1], g.stiffness_std[1:]])
         return StiffnessEstimate(
             t_ns=self._t_ns,
             names=NAMES,
-            stiffness=e.stiffness,
-            stiffness_std=e.stiffness_std,
+            stiffness=stiffness,
+            stiffness_std=stiffness_std,
             nominal=self.mpf.nominal.copy(),
             active=self._active,
             cx_active=self._cx_active,
@@ -487,9 +548,10 @@ class StiffnessEstimator:
         self.mpf.stats = stats
         # a copy taken before would bring the old statistics back on the next activation
         self._replay.clear()
-        # restored statistics are learned, not a prior to recentre
+        # restored statistics are learned, not a prior to recentre or to learn on a grid
         self._restart_copy, self._restart_steps = None, []
         self._restart_armed = False
+        self._grid = None
 
 
 __all__ = ["StiffnessEstimate", "StiffnessEstimator"]

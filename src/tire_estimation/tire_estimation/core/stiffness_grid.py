@@ -184,6 +184,12 @@ def gaussian_fit(cells: F64, q: F64) -> tuple[F64, F64]:
     return m, np.einsum("k,ki,kj->ij", q, dev, dev)
 
 
+def posterior(f: GridEkf) -> tuple[F64, F64]:
+    """Mean (2,) and covariance (2, 2) of ``(dCy_f, dCy_r)`` (deviation from nominal, N/rad)
+    on the grid of ``f``."""
+    return gaussian_fit(f.w[:, 1:], f.q)
+
+
 def principal_axes(cov: F64, floor: F64) -> F64:
     """``L`` (2, 2) with ``L L^T = cov``, columns along the principal axes; each std at least
     ``floor`` (2,) projected on its axis (a grid never narrower than that)."""
@@ -228,6 +234,8 @@ class GridEkf(BaselineFilter):
         self.regrid_count = 0
         #: exponential mean of the weighted NIS (``fit_window_s``), 1
         self.nis_mean = 3.0
+        #: time the weights have learned since the initialization, s
+        self.learned_s = 0.0
         #: time since the initialization, s (``learn_hold_s``)
         self.since_start_s = 0.0
         self._dt_s = 0.0
@@ -312,6 +320,7 @@ class GridEkf(BaselineFilter):
         self._rate = self._jac = None
         self.nis_mean = 3.0
         self.since_start_s = 0.0
+        self.learned_s = 0.0
         self.initialized = True
 
     def predict(self, dt_s: float, learn: bool, learn_cx: bool) -> None:
@@ -387,6 +396,7 @@ class GridEkf(BaselineFilter):
                 finite, self.config.forgetting * (self.log_q - top) + log_lik, -np.inf
             )
             self.q, _ = resampling.normalize_log_weights(self.log_q)
+            self.learned_s += self._dt_s
         gain = np.transpose(np.linalg.solve(s, np.transpose(ph_t, (0, 2, 1))), (0, 2, 1))
         dx = np.einsum("kij,kj->ki", gain, nu)
         self.x += dx
@@ -446,4 +456,12 @@ class GridEstimator(BaselineEstimator):
         return GridEkf(self.config, self.params)
 
 
-__all__ = ["GridConfig", "GridEkf", "GridEstimator", "gaussian_fit", "lattice", "principal_axes"]
+__all__ = [
+    "GridConfig",
+    "GridEkf",
+    "GridEstimator",
+    "gaussian_fit",
+    "lattice",
+    "posterior",
+    "principal_axes",
+]

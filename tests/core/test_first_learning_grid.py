@@ -1,0 +1,94 @@
+"""The grid learns first and hands its posterior to Algorithm 1 (``first_learning: grid``)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pytest
+
+from tire_estimation.core import niw
+from tire_estimation.core.stiffness_config import StiffnessEstimatorConfig
+from tire_estimation.core.stiffness_estimator import StiffnessEstimator
+from tire_estimation.core.stiffness_grid import GridEkf, posterior
+from tire_estimation.core.vehicle import VehicleParams
+from tire_estimation.errors import ConfigError
+from tire_estimation.evaluation.stiffness import (
+    NO_BIAS,
+    eval_config,
+    run,
+    settling,
+    simulate,
+    truth_over_nominal,
+)
+
+
+def test_grid_hands_its_posterior_to_algorithm_1_once(monkeypatch: pytest.MonkeyPatch) -> None:
+    # snow drive 24 from 150 % of the truth, the simulator's tyre curve: Algorithm 1 alone
+    # leaves the rear's 5 % band for good 4.2 s after activation (docs/results.md section 6)
+    sim = simulate("snow_sine", seed=24, sensors=NO_BIAS)
+    cfg = eval_config(
+        200,
+        initial_stiffness_factor=1.5 * truth_over_nominal(sim),
+        niw_update="rao_blackwellized",
+        friction_coefficient=0.3,
+        tyre_shape="magic_formula",
+        magic_formula_curvature_e=-0.5,
+        first_learning="grid",
+    )
+    handed: dict[str, Any] = {}
+    hand_over = StiffnessEstimator._hand_over
+
+    def spy(self: StiffnessEstimator) -> None:
+        grid = self._grid
+        assert isinstance(grid, GridEkf)
+        handed["estimator"] = self
+        handed["grid"] = posterior(grid)
+        handed["learned_s"] = grid.learned_s
+        handed["published"] = self.estimate().stiffness.copy()
+        hand_over(self)
+        handed["mpf"] = niw.mmse(self.mpf.stats, self.mpf.weights)
+
+    monkeypatch.setattr(StiffnessEstimator, "_hand_over", spy)
+    res = run(sim, cfg, seed=1024)
+    est = handed["estimator"]
+    assert est.handover_count == 1
+    assert est._grid is None
+    assert cfg.grid_handover_s <= handed["learned_s"] < cfg.grid_handover_s + 0.011
+    # until the hand-over the published cornering stiffness is the grid's
+    m, cov = handed["grid"]
+    nominal = est.mpf.nominal
+    np.testing.assert_allclose(handed["published"][1:], nominal[1:] + m, rtol=1e-12)
+    # Algorithm 1 takes the grid's mean and, through gamma, the size of its covariance
+    mpf = handed["mpf"]
+    np.testing.assert_allclose(mpf.mean[1:], m, rtol=1e-9, atol=1e-6)
+    np.testing.assert_allclose(np.trace(mpf.mean_cov[1:, 1:]), np.trace(cov), rtol=1e-6)
+    # and the rear settles within 1 s and ends within 3 % (the issue-5 target)
+    rel = res["c"] / res["truth_c"] - 1.0
+    ts = res["t_s"]
+    on = float(ts[int(np.argmax(res["active"]))])
+    assert settling(ts, rel[:, 2], on) < 1.0
+    assert settling(ts, rel[:, 1], on) < 1.0
+    assert np.max(np.abs(rel[ts > ts[-1] - 5.0, 1:])) < 0.03
+
+
+def test_no_grid_with_restored_statistics_and_reset_brings_it_back() -> None:
+    cfg = StiffnessEstimatorConfig(n_particles=20, first_learning="grid")
+    est = StiffnessEstimator(cfg, VehicleParams(), np.random.default_rng(0))
+    assert isinstance(est._grid, GridEkf)
+    est.load_state_dict(est.state_dict())
+    assert est._grid is None
+    est.reset()
+    assert isinstance(est._grid, GridEkf)
+    # Algorithm 1 alone: no grid at all
+    est = StiffnessEstimator(
+        StiffnessEstimatorConfig(n_particles=20), VehicleParams(), np.random.default_rng(0)
+    )
+    assert est._grid is None
+
+
+def test_first_learning_is_validated() -> None:
+    with pytest.raises(ConfigError, match="first_learning"):
+        StiffnessEstimatorConfig(first_learning="ekf")
+    with pytest.raises(ConfigError, match="grid_handover_s"):
+        StiffnessEstimatorConfig(grid_handover_s=0.0)
