@@ -7,6 +7,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from tests.core.test_activation_replay import _RecordingMpf
 from tire_estimation.core.stiffness_config import StiffnessEstimatorConfig
 from tire_estimation.core.stiffness_estimator import StiffnessEstimator
 from tire_estimation.core.vehicle import VehicleParams
@@ -21,37 +22,30 @@ class _Stats:
         self.mean = np.zeros((N, 3))
 
 
-class _LearningMpf:
-    """Stands in for ``StiffnessMpf``: logs every update; each learning update adds 1 to the
-    mean of particle 0 and 3 to that of particle 1 (weights 0.5 / 0.5 / 0 / 0), so the
-    weighted estimate after ``m`` learning updates is ``2 m`` (the prior mean is 0)."""
+class _LearningMpf(_RecordingMpf):
+    """``_RecordingMpf`` (logs every predict / update) whose learning updates add 1 to the mean
+    of particle 0 and 3 to that of particle 1 (weights 0.5 / 0.5 / 0 / 0), so the weighted
+    estimate after ``m`` learning updates is ``2 m`` (the prior mean is 0)."""
 
     def __init__(self) -> None:
-        self.initialized = False
-        self.log: list[tuple[bool, float]] = []
+        super().__init__()
         self.stats = _Stats()
         self.weights = np.array([0.5, 0.5, 0.0, 0.0])
-        self.predicts = 0
 
-    def initialize(self, x0: Any, x0_std: Any, bias0: Any = None) -> None:
-        self.initialized = True
-
-    def predict(self, dt_s: float, learn: bool, learn_cx: bool | None = None) -> None:
-        self.predicts += 1
-
-    def update(
-        self,
-        y: Any,
-        delta_rad: float,
-        wheel_speed_m_s: Any,
-        learn: bool,
-        vx_m_s: float | None = None,
-        learn_cx: bool | None = None,
-    ) -> None:
-        self.log.append((learn, float(y[1])))
+    def update(self, y: Any, delta_rad: float, wheel_speed_m_s: Any, learn: bool, *a: Any) -> None:
+        super().update(y, delta_rad, wheel_speed_m_s, learn, *a)
         if learn:
             self.stats.mean[0] += 1.0
             self.stats.mean[1] += 3.0
+
+    @property
+    def updates(self) -> list[tuple[bool, float]]:
+        """(learning, ay) of every update, in order."""
+        return [(learn, k) for kind, learn, k in self.log if kind == "update"]
+
+    @property
+    def predicts(self) -> int:
+        return sum(1 for kind, _, _ in self.log if kind == "predict")
 
 
 def _drive(
@@ -87,8 +81,8 @@ def test_restart_moves_the_prior_mean_to_the_estimate_and_relearns_every_step_on
     assert est.restart_count == 1
     # the restarted filter is the copy taken when learning started: it ran every sample
     # exactly once, in order, learning from the activation on
-    assert [k for _, k in mpf.log] == [float(k) for k in range(400)]
-    assert [k for learn, k in mpf.log if learn] == [float(k) for k in range(on, 400)]
+    assert [k for _, k in mpf.updates] == [float(k) for k in range(400)]
+    assert [k for learn, k in mpf.updates if learn] == [float(k) for k in range(on, 400)]
     assert mpf.predicts == 399
     # 1 s at 100 Hz after the activation: the samples on .. on + 100 were learned before the
     # restart, so the estimate then was 2 x 101; the copy's prior mean (0) was moved there for
