@@ -38,8 +38,10 @@ states beside the vehicle state; they enter the measurement additively, so given
 are linear, as in Algorithm 1's per-particle bias Kalman filters (eq. 29-30).
 
 Left out: ``Cx`` is not estimated (held at the prior: the sine drives do not excite it, and
-Algorithm 1 freezes it there as well). Not wired into the estimator node; it runs behind the
-baselines' front-end (:class:`~.stiffness_baselines.BaselineEstimator`) in the evaluations.
+Algorithm 1 freezes it there as well). In the estimator node it runs only as the first learner
+of ``first_learning: grid``, which hands its posterior to Algorithm 1
+(:class:`~.stiffness_estimator.StiffnessEstimator`); on its own it runs behind the baselines'
+front-end (:class:`~.stiffness_baselines.BaselineEstimator`) in the evaluations.
 """
 
 from __future__ import annotations
