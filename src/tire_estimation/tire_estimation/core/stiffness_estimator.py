@@ -208,9 +208,11 @@ class StiffnessEstimator:
         self._grid: Any = None
         if self.config.first_learning == "grid":
             # imported here: stiffness_grid builds on stiffness_baselines, which imports this
+            from tire_estimation.core.stiffness_baselines import Measurement
             from tire_estimation.core.stiffness_grid import GridConfig, GridEkf
 
             self._grid = GridEkf(GridConfig.sharing(self.config), self.params)
+            self._grid_measurement = Measurement
 
     # ------------------------------------------------------------------ helpers
     def _drop(self, kind: str) -> None:
@@ -383,12 +385,10 @@ class StiffnessEstimator:
     ) -> None:
         """``first_learning`` = ``grid``: one step of the grid with the MPF's inputs and learning
         flags; the hand-over once it has learned ``grid_handover_s``."""
-        from tire_estimation.core.stiffness_baselines import Measurement
-
         grid = self._grid
         if dt is not None:
             grid.predict(dt, self._active, self._cx_active)
-        meas = Measurement(y, steer, speeds, speed, vx_measured)
+        meas = self._grid_measurement(y, steer, speeds, speed, vx_measured)
         grid.update(meas, self._active, self._cx_active)
         if grid.learned_s >= self.config.grid_handover_s:
             self._hand_over()

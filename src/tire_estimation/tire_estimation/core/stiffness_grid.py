@@ -230,6 +230,8 @@ class GridEkf(BaselineFilter):
         self.bias_var0 = np.array([c.accel_bias_std_m_s2] * 2 + [c.gyro_bias_std_rad_s]) ** 2
         self.u = lattice(config.grid_points)
         self.k = self.u.shape[0]
+        #: the cells on the lattice's boundary ring (``regrid_edge_mass``)
+        self._rim = np.any(np.abs(self.u) >= 1.0 - 1e-12, axis=1)
         #: the smallest posterior std a grid is laid for, N/rad (1e-4 of nominal)
         self.floor = 1e-4 * self.nominal[1:]
         self.initialized = False
@@ -271,8 +273,7 @@ class GridEkf(BaselineFilter):
         return float(np.sqrt(max(np.linalg.eigvalsh(0.5 * (cov_u + cov_u.T))[0], 0.0)) / h)
 
     def _edge_mass(self) -> float:
-        edge = np.any(np.abs(self.u) >= 1.0 - 1e-12, axis=1)
-        return float(self.q[edge].sum())
+        return float(self.q[self._rim].sum())
 
     def regrid(self) -> None:
         """Lay a new grid along the posterior's principal axes (see the module doc)."""
