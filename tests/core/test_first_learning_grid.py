@@ -72,6 +72,40 @@ def test_grid_hands_its_posterior_to_algorithm_1_once(monkeypatch: pytest.Monkey
     assert np.max(np.abs(rel[ts > ts[-1] - 5.0, 1:])) < 0.03
 
 
+def test_a_grid_that_does_not_fit_the_data_is_dropped_and_algorithm_1_goes_on() -> None:
+    # snow drive 24, N = 50: the grid's mean NIS at the hand-over is about 4 (3 measurements), so
+    # a gate of 1.0 rejects it; Algorithm 1 has learned beside it from the same samples with the
+    # same random numbers, so from the drop on everything is the first_learning = mpf run
+    sim = simulate("snow_sine", seed=24, sensors=NO_BIAS)
+    kw: dict[str, Any] = {
+        "initial_stiffness_factor": 1.5 * truth_over_nominal(sim),
+        "niw_update": "rao_blackwellized",
+        "friction_coefficient": 0.3,
+        "tyre_shape": "magic_formula",
+        "magic_formula_curvature_e": -0.5,
+    }
+    gated = run(
+        sim,
+        eval_config(50, first_learning="grid", grid_handover_max_nis=1.0, **kw),
+        seed=7,
+    )
+    alone = run(sim, eval_config(50, **kw), seed=7)
+    assert (int(gated["grid_handovers"]), int(gated["grid_rejections"])) == (0, 1)
+    assert (int(alone["grid_handovers"]), int(alone["grid_rejections"])) == (0, 0)
+    # the grid's cornering stiffness is published while it learns, then Algorithm 1's
+    differs = np.any(gated["c"] != alone["c"], axis=1)
+    assert differs.any()
+    last = int(np.flatnonzero(differs)[-1])
+    on = int(np.argmax(gated["active"]))
+    # the step on which it has learned 2 s (the 200th at 100 Hz, 1.99 s after the first)
+    # already publishes Algorithm 1's
+    assert gated["t_s"][last] - gated["t_s"][on] == pytest.approx(1.98, abs=1e-6)
+    for key in ("vy", "r", "active"):
+        np.testing.assert_array_equal(gated[key], alone[key])
+    for key in ("c", "std"):
+        np.testing.assert_array_equal(gated[key][last + 1 :], alone[key][last + 1 :])
+
+
 def test_no_grid_with_restored_statistics_and_reset_brings_it_back() -> None:
     cfg = StiffnessEstimatorConfig(n_particles=20, first_learning="grid")
     est = StiffnessEstimator(cfg, VehicleParams(), np.random.default_rng(0))
@@ -92,3 +126,5 @@ def test_first_learning_is_validated() -> None:
         StiffnessEstimatorConfig(first_learning="ekf")
     with pytest.raises(ConfigError, match="grid_handover_s"):
         StiffnessEstimatorConfig(grid_handover_s=0.0)
+    with pytest.raises(ConfigError, match="grid_handover_max_nis"):
+        StiffnessEstimatorConfig(grid_handover_max_nis=0.5)

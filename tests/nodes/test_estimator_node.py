@@ -327,6 +327,8 @@ def test_stiffness_estimator_publishes_stiffness_and_lateral_state(
     values = {kv.key: kv.value for kv in status.values}
     assert status.message in ("learning", "holding: no lateral excitation")
     assert float(values["cy_front"]) == pytest.approx(float(last.stiffness[1]), rel=0.05)
+    # Algorithm 1 from the start (first_learning: mpf): no grid to hand over or drop
+    assert (values["grid_handovers"], values["grid_rejections"]) == ("0", "0")
     node.destroy_node()
 
 

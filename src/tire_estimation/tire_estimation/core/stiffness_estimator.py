@@ -173,6 +173,9 @@ class StiffnessEstimator:
         self.restart_count = 0
         #: times the grid handed its posterior to Algorithm 1 (``first_learning`` = ``grid``)
         self.handover_count = 0
+        #: times the grid was dropped without a hand-over: its mean NIS above
+        #: ``grid_handover_max_nis`` (its model does not fit the data)
+        self.grid_rejection_count = 0
         self.reset()
 
     def reset(self) -> None:
@@ -384,14 +387,20 @@ class StiffnessEstimator:
         vx_measured: bool,
     ) -> None:
         """``first_learning`` = ``grid``: one step of the grid with the MPF's inputs and learning
-        flags; the hand-over once it has learned ``grid_handover_s``."""
+        flags; once it has learned ``grid_handover_s``, the hand-over if its mean NIS is at most
+        ``grid_handover_max_nis``, else the grid is dropped."""
         grid = self._grid
         if dt is not None:
             grid.predict(dt, self._active, self._cx_active)
         meas = self._grid_measurement(y, steer, speeds, speed, vx_measured)
         grid.update(meas, self._active, self._cx_active)
         if grid.learned_s >= self.config.grid_handover_s:
-            self._hand_over()
+            if grid.nis_mean <= self.config.grid_handover_max_nis:
+                self._hand_over()
+            else:
+                # the grid's model does not fit these data: no hand-over, Algorithm 1 goes on
+                self._grid = None
+                self.grid_rejection_count += 1
 
     def _hand_over(self) -> None:
         """The grid's posterior of ``(Cy_f, Cy_r)`` becomes Algorithm 1's NiW statistics

@@ -95,7 +95,9 @@ def run(sim: SimResult, cfg: StiffnessEstimatorConfig, seed: int) -> dict[str, n
     ``cx_active`` (Cx learning on), ``ready`` (filter initialized), the truth ``truth_c``
     (stiffness at the next truth sample), ``truth_vy`` (CG) and ``truth_r`` (both linearly
     interpolated at the IMU stamps), ``t_s`` from the first IMU sample, ``step_ms`` and
-    ``mean_log_predictive`` (the estimator's value at the end, nats per IMU sample).
+    ``mean_log_predictive`` (the estimator's value at the end, nats per IMU sample),
+    ``grid_handovers`` and ``grid_rejections`` (``first_learning`` = ``grid``: the grid's
+    hand-overs to Algorithm 1 and its drops without one).
     """
     est = StiffnessEstimator(cfg, sim.vehicle, np.random.default_rng(seed))
     ws, st, imu = sim.wheel_speeds, sim.steering, sim.imu
@@ -156,6 +158,8 @@ def run(sim: SimResult, cfg: StiffnessEstimatorConfig, seed: int) -> dict[str, n
     res["step_ms"] = np.array(1e3 * dt_total / max(len(out["t"]), 1))
     final = est.estimate().mean_log_predictive
     res["mean_log_predictive"] = np.array(np.nan if final is None else final)
+    res["grid_handovers"] = np.array(est.handover_count)
+    res["grid_rejections"] = np.array(est.grid_rejection_count)
     return res
 
 
@@ -301,7 +305,15 @@ def sine_study(
         cfg = eval_config(n, initial_stiffness_factor=factor * truth_ratio, **(overrides or {}))
         res = run(sim, cfg, seed=1000 + r)
         scores = sine_run_scores(res["t_s"], res["c"] / res["truth_c"] - 1.0, res["active"])
-        per_run.append({"seed": r, "truth_over_nominal": truth_ratio, **scores})
+        per_run.append(
+            {
+                "seed": r,
+                "truth_over_nominal": truth_ratio,
+                "grid_handovers": int(res["grid_handovers"]),
+                "grid_rejections": int(res["grid_rejections"]),
+                **scores,
+            }
+        )
     return {
         "scenario": scenario,
         "initial_factor": factor,

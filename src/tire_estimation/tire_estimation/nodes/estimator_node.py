@@ -583,6 +583,7 @@ class EstimatorNode(Node):
             "activation_replays": str(stiffness.replay_count),
             "activation_restarts": str(stiffness.restart_count),
             "grid_handovers": str(stiffness.handover_count),
+            "grid_rejections": str(stiffness.grid_rejection_count),
             "particles": str(stiffness.config.n_particles),
             "gyro_bias_z_rad_s": f"{float(est.gyro_bias_rad_s[2]):.5f}",
             "received.velocity": str(self.received.get("velocity", 0)),
