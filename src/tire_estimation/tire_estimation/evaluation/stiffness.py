@@ -181,8 +181,9 @@ def seed_scores(sim: SimResult, res: dict[str, np.ndarray]) -> dict[str, Any]:
 
     vY RMSE at the CG and at ``base_link`` (vy_cg - lr r), yaw-rate RMSE overall and over the
     last 10 s, final and steady (``stiffness_step``: 15-29.5 s and after 45 s) relative
-    stiffness errors, learning fractions, and the final yaw-rate-bias estimate next to the
-    simulator's (gyro z minus true yaw rate, mean over the last 10 s).
+    stiffness errors, learning fractions, the grid's hand-overs and drops (``first_learning``
+    = ``grid``), and the final yaw-rate-bias estimate next to the simulator's (gyro z minus
+    true yaw rate, mean over the last 10 s).
     """
     ready = res["ready"].astype(bool)
     t_s = res["t_s"]
@@ -203,6 +204,8 @@ def seed_scores(sim: SimResult, res: dict[str, np.ndarray]) -> dict[str, Any]:
         "cx_learning_active_fraction": (
             float(res["cx_active"][ready].mean()) if ready.any() else 0.0
         ),
+        "grid_handovers": int(res.get("grid_handovers", 0)),
+        "grid_rejections": int(res.get("grid_rejections", 0)),
     }
     if sim.scenario == "stiffness_step":
         steady = m & (((t_s > 15.0) & (t_s < 29.5)) | (t_s > 45.0))
