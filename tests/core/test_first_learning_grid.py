@@ -19,6 +19,7 @@ from tire_estimation.evaluation.stiffness import (
     run,
     settling,
     simulate,
+    study_config,
     truth_over_nominal,
 )
 
@@ -106,6 +107,42 @@ def test_a_grid_that_does_not_fit_the_data_is_dropped_and_algorithm_1_goes_on() 
         np.testing.assert_array_equal(gated[key][last + 1 :], alone[key][last + 1 :])
 
 
+def test_the_grid_published_past_the_hand_over_is_dropped_when_the_stiffness_drops() -> None:
+    # stiffness_step seed 0: every stiffness drops by 50 % at 30 s. The grid hands over after
+    # 10 s of learning (its NIS is still high from the initial vY error at 2 s), is published
+    # on, and its NIS gate drops it within 0.1 s of the drop; Algorithm 1 follows the change
+    sim = simulate("stiffness_step", seed=0, sensors=NO_BIAS)
+    cfg = study_config(
+        sim.vehicle,
+        50,
+        False,
+        initial_vy_std_m_s=1.0,
+        first_learning="grid",
+        grid_handover_s=10.0,
+        grid_publish_s=100.0,
+    )
+    drops: list[int] = []
+    est_step = StiffnessEstimator._grid_step
+
+    def spy(self: StiffnessEstimator, *args: Any) -> None:
+        before = self.grid_rejection_count
+        est_step(self, *args)
+        if self.grid_rejection_count > before:
+            drops.append(self._t_ns)
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(StiffnessEstimator, "_grid_step", spy)
+        res = run(sim, cfg, seed=1000)
+    assert (int(res["grid_handovers"]), int(res["grid_rejections"])) == (1, 1)
+    assert len(drops) == 1
+    assert 30.0 <= (drops[0] - int(res["t"][0])) * 1e-9 < 30.1
+    rel = res["c"] / res["truth_c"] - 1.0
+    ts = res["t_s"]
+    # the grid's estimate before the drop, Algorithm 1's after it
+    assert np.all(np.abs(rel[(ts > 12.0) & (ts < 29.9), 1:]) < 0.02)
+    assert np.all(np.abs(rel[ts > 45.0, 1:]) < 0.06)
+
+
 def test_no_grid_with_restored_statistics_and_reset_brings_it_back() -> None:
     cfg = StiffnessEstimatorConfig(n_particles=20, first_learning="grid")
     est = StiffnessEstimator(cfg, VehicleParams(), np.random.default_rng(0))
@@ -128,3 +165,5 @@ def test_first_learning_is_validated() -> None:
         StiffnessEstimatorConfig(grid_handover_s=0.0)
     with pytest.raises(ConfigError, match="grid_handover_max_nis"):
         StiffnessEstimatorConfig(grid_handover_max_nis=0.5)
+    with pytest.raises(ConfigError, match="grid_publish_s"):
+        StiffnessEstimatorConfig(grid_publish_s=-1.0)

@@ -168,6 +168,12 @@ class StiffnessEstimatorConfig:
             (its posterior would be confident and wrong: Revs 250 LM, 68 against 3.8-4.1 on the
             snow drives) and Algorithm 1, which has learned beside it from the same samples,
             goes on with its own statistics, exactly as ``mpf``, 1 (default 10.0).
+        grid_publish_s: learning time of the grid up to which its cornering stiffness is
+            published, s: after the hand-over the grid keeps learning beside Algorithm 1 and is
+            published until it has learned this long, or until its mean NIS rises above
+            ``grid_handover_max_nis`` (the stiffness changed, or the model stopped fitting);
+            then it is dropped and Algorithm 1's estimate is published. Up to
+            ``grid_handover_s``: dropped at the hand-over (default 0.0).
         wheel_radius_m: effective wheel radius R_w of eq. (3), m; 0 uses the vehicle's nominal
             radius (default 0.0).
         rolling_resistance_n: known constant longitudinal resistance, N (default 0.0, the
@@ -275,6 +281,7 @@ class StiffnessEstimatorConfig:
     first_learning: str = "mpf"
     grid_handover_s: float = 2.0
     grid_handover_max_nis: float = 10.0
+    grid_publish_s: float = 0.0
     wheel_radius_m: float = 0.0
     rolling_resistance_n: float = 0.0
     drag_n_s2_m2: float = 0.0
@@ -316,6 +323,7 @@ class StiffnessEstimatorConfig:
         require_choice("first_learning", self.first_learning, FIRST_LEARNING)
         require_range("grid_handover_s", self.grid_handover_s, 0.01, 600.0)
         require_range("grid_handover_max_nis", self.grid_handover_max_nis, 1.0, 1e9)
+        require_range("grid_publish_s", self.grid_publish_s, 0.0, 1e6)
         require_choice("drive", self.drive, DRIVE_CHOICES)
         require_range("initial_stiffness_factor", self.initial_stiffness_factor, 0.05, 5.0)
         require_range(

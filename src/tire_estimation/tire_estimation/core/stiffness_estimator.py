@@ -209,6 +209,7 @@ class StiffnessEstimator:
         self._restart_steps: list[_Step] = []
         # first_learning = grid: the point-mass filter that learns first (None once handed over)
         self._grid: Any = None
+        self._handed_over = False
         if self.config.first_learning == "grid":
             # imported here: stiffness_grid builds on stiffness_baselines, which imports this
             from tire_estimation.core.stiffness_baselines import Measurement
@@ -387,20 +388,24 @@ class StiffnessEstimator:
         vx_measured: bool,
     ) -> None:
         """``first_learning`` = ``grid``: one step of the grid with the MPF's inputs and learning
-        flags; once it has learned ``grid_handover_s``, the hand-over if its mean NIS is at most
-        ``grid_handover_max_nis``, else the grid is dropped."""
+        flags. Once it has learned ``grid_handover_s``: dropped whenever its mean NIS is above
+        ``grid_handover_max_nis``; else the hand-over, and the grid goes on (published) until it
+        has learned ``grid_publish_s``."""
         grid = self._grid
         if dt is not None:
             grid.predict(dt, self._active, self._cx_active)
         meas = self._grid_measurement(y, steer, speeds, speed, vx_measured)
         grid.update(meas, self._active, self._cx_active)
-        if grid.learned_s >= self.config.grid_handover_s:
-            if grid.nis_mean <= self.config.grid_handover_max_nis:
-                self._hand_over()
-            else:
-                # the grid's model does not fit these data: no hand-over, Algorithm 1 goes on
-                self._grid = None
-                self.grid_rejection_count += 1
+        c = self.config
+        if grid.nis_mean > c.grid_handover_max_nis and grid.learned_s >= c.grid_handover_s:
+            # the grid's model does not fit these data (or no longer: the stiffness changed):
+            # no hand-over, or no more publishing; Algorithm 1 goes on
+            self._grid = None
+            self.grid_rejection_count += 1
+        elif not self._handed_over and grid.learned_s >= c.grid_handover_s:
+            self._hand_over()
+        elif self._handed_over and grid.learned_s >= c.grid_publish_s:
+            self._grid = None
 
     def _hand_over(self) -> None:
         """The grid's posterior of ``(Cy_f, Cy_r)`` becomes Algorithm 1's NiW statistics
@@ -418,7 +423,9 @@ class StiffnessEstimator:
         self.mpf.stats = niw.stats_from_moments(
             self.mpf.n, mean, gamma * est.noise_cov, est.noise_cov, est.dof
         )
-        self._grid = None
+        self._handed_over = True
+        if self._grid.learned_s >= self.config.grid_publish_s:
+            self._grid = None
         self.handover_count += 1
 
     def _start_learning(self, t_ns: int) -> None:
@@ -486,7 +493,8 @@ class StiffnessEstimator:
         vx, vy, r = (float(v) for v in e.state)
         stiffness, stiffness_std = e.stiffness, e.stiffness_std
         if self._grid is not None and self._grid.learned_s > 0.0:
-            # first_learning = grid: the grid's cornering stiffness until the hand-over
+            # first_learning = grid: the grid's cornering stiffness until the hand-over, or until
+            # grid_publish_s
             g = self._grid.estimate()
             stiffness = np.concatenate([e.stiffness[:1], g.stiffness[1:]])
             stiffness_std = np.concatenate([e.stiffness_std[:1], g.stiffness_std[1:]])
