@@ -36,6 +36,7 @@ def test_grid_hands_its_posterior_to_algorithm_1_once(monkeypatch: pytest.Monkey
         tyre_shape="magic_formula",
         magic_formula_curvature_e=-0.5,
         first_learning="grid",
+        grid_publish_s=0.0,
     )
     handed: dict[str, Any] = {}
     hand_over = StiffnessEstimator._hand_over

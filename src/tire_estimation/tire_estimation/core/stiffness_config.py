@@ -156,15 +156,18 @@ class StiffnessEstimatorConfig:
         first_learning: what learns the stiffness from the prior (not in the paper): ``mpf`` is
             Algorithm 1 from the start; ``grid`` runs the point-mass filter with an EKF per
             cell (:mod:`~tire_estimation.core.stiffness_grid`, its defaults, the settings of
-            the same names shared) beside it until it has learned ``grid_handover_s``, publishes
-            its cornering stiffness until then, and hands its posterior (mean and covariance of
-            Cy_f, Cy_r) to Algorithm 1 as the NiW statistics, which then go on learning and
-            follow later changes; once per initialization or reset (docs/results.md section 6,
-            twenty-second session) (default ``mpf``).
+            the same names shared) beside it until it has learned ``grid_handover_s``, hands its
+            posterior (mean and covariance of Cy_f, Cy_r) to Algorithm 1 as the NiW statistics,
+            which then go on learning and follow later changes, and publishes its cornering
+            stiffness until ``grid_publish_s`` or until its NIS gate
+            (``grid_handover_max_nis``) trips; once per initialization or reset
+            (docs/results.md section 6, twenty-second and twenty-third sessions) (default
+            ``mpf``).
         grid_handover_s: learning time of the grid before the hand-over, s (default 2.0).
-        grid_handover_max_nis: the hand-over happens only if the grid's normalized innovation
-            squared (its exponential mean ``nis_mean``, 3 measurements: about 3 when its model
-            fits the data) is at most this; above it the grid is dropped without a hand-over
+        grid_handover_max_nis: the hand-over happens, and the grid stays published after it
+            (``grid_publish_s``), only while the grid's normalized innovation squared (its
+            exponential mean ``nis_mean``, 3 measurements: about 3 when its model fits the data)
+            is at most this, checked from ``grid_handover_s`` on; above it the grid is dropped
             (its posterior would be confident and wrong: Revs 250 LM, 68 against 3.8-4.1 on the
             snow drives) and Algorithm 1, which has learned beside it from the same samples,
             goes on with its own statistics, exactly as ``mpf``, 1 (default 10.0).
@@ -173,7 +176,8 @@ class StiffnessEstimatorConfig:
             published until it has learned this long, or until its mean NIS rises above
             ``grid_handover_max_nis`` (the stiffness changed, or the model stopped fitting);
             then it is dropped and Algorithm 1's estimate is published. Up to
-            ``grid_handover_s``: dropped at the hand-over (default 0.0).
+            ``grid_handover_s``: dropped at the hand-over (default 30.0; docs/results.md
+            section 6, twenty-third session).
         wheel_radius_m: effective wheel radius R_w of eq. (3), m; 0 uses the vehicle's nominal
             radius (default 0.0).
         rolling_resistance_n: known constant longitudinal resistance, N (default 0.0, the
@@ -281,7 +285,7 @@ class StiffnessEstimatorConfig:
     first_learning: str = "mpf"
     grid_handover_s: float = 2.0
     grid_handover_max_nis: float = 10.0
-    grid_publish_s: float = 0.0
+    grid_publish_s: float = 30.0
     wheel_radius_m: float = 0.0
     rolling_resistance_n: float = 0.0
     drag_n_s2_m2: float = 0.0
