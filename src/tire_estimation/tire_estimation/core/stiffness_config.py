@@ -168,9 +168,9 @@ class StiffnessEstimatorConfig:
             (``grid_publish_s``), only while the grid's normalized innovation squared (its
             exponential mean ``nis_mean``, 3 measurements: about 3 when its model fits the data)
             is at most this, checked from ``grid_handover_s`` on; above it the grid is dropped
-            (its posterior would be confident and wrong: Revs 250 LM, 68 against 3.8-4.1 on the
-            snow drives) and Algorithm 1, which has learned beside it from the same samples,
-            goes on with its own statistics, exactly as ``mpf``, 1 (default 10.0).
+            (its posterior would be confident and wrong: Revs 250 LM, 68 against 3.0-4.9 on the
+            simulated sine drives) and Algorithm 1, which has learned beside it from the same
+            samples, goes on with its own statistics, exactly as ``mpf``, 1 (default 10.0).
         grid_publish_s: learning time of the grid up to which its cornering stiffness is
             published, s: after the hand-over the grid keeps learning beside Algorithm 1 and is
             published until it has learned this long, or until its mean NIS rises above

@@ -173,8 +173,8 @@ class StiffnessEstimator:
         self.restart_count = 0
         #: times the grid handed its posterior to Algorithm 1 (``first_learning`` = ``grid``)
         self.handover_count = 0
-        #: times the grid was dropped without a hand-over: its mean NIS above
-        #: ``grid_handover_max_nis`` (its model does not fit the data)
+        #: times the grid was dropped by its NIS gate (mean NIS above ``grid_handover_max_nis``:
+        #: its model does not fit the data, or no longer), before or after the hand-over
         self.grid_rejection_count = 0
         self.reset()
 
@@ -207,7 +207,7 @@ class StiffnessEstimator:
         self._restart_copy: StiffnessMpf | None = None
         self._restart_t0_ns = 0
         self._restart_steps: list[_Step] = []
-        # first_learning = grid: the point-mass filter that learns first (None once handed over)
+        # first_learning = grid: the point-mass filter that learns first (None once dropped)
         self._grid: Any = None
         self._handed_over = False
         if self.config.first_learning == "grid":
@@ -397,14 +397,16 @@ class StiffnessEstimator:
         meas = self._grid_measurement(y, steer, speeds, speed, vx_measured)
         grid.update(meas, self._active, self._cx_active)
         c = self.config
-        if grid.nis_mean > c.grid_handover_max_nis and grid.learned_s >= c.grid_handover_s:
+        if grid.learned_s < c.grid_handover_s:
+            return
+        if grid.nis_mean > c.grid_handover_max_nis:
             # the grid's model does not fit these data (or no longer: the stiffness changed):
             # no hand-over, or no more publishing; Algorithm 1 goes on
             self._grid = None
             self.grid_rejection_count += 1
-        elif not self._handed_over and grid.learned_s >= c.grid_handover_s:
+        elif not self._handed_over:
             self._hand_over()
-        elif self._handed_over and grid.learned_s >= c.grid_publish_s:
+        elif grid.learned_s >= c.grid_publish_s:
             self._grid = None
 
     def _hand_over(self) -> None:

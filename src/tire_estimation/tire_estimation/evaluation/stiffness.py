@@ -97,7 +97,7 @@ def run(sim: SimResult, cfg: StiffnessEstimatorConfig, seed: int) -> dict[str, n
     interpolated at the IMU stamps), ``t_s`` from the first IMU sample, ``step_ms`` and
     ``mean_log_predictive`` (the estimator's value at the end, nats per IMU sample),
     ``grid_handovers`` and ``grid_rejections`` (``first_learning`` = ``grid``: the grid's
-    hand-overs to Algorithm 1 and its drops without one).
+    hand-overs to Algorithm 1 and its drops by the NIS gate).
     """
     est = StiffnessEstimator(cfg, sim.vehicle, np.random.default_rng(seed))
     ws, st, imu = sim.wheel_speeds, sim.steering, sim.imu
@@ -204,8 +204,8 @@ def seed_scores(sim: SimResult, res: dict[str, np.ndarray]) -> dict[str, Any]:
         "cx_learning_active_fraction": (
             float(res["cx_active"][ready].mean()) if ready.any() else 0.0
         ),
-        "grid_handovers": int(res.get("grid_handovers", 0)),
-        "grid_rejections": int(res.get("grid_rejections", 0)),
+        "grid_handovers": int(res["grid_handovers"]),
+        "grid_rejections": int(res["grid_rejections"]),
     }
     if sim.scenario == "stiffness_step":
         steady = m & (((t_s > 15.0) & (t_s < 29.5)) | (t_s > 45.0))
