@@ -144,6 +144,48 @@ def test_the_grid_published_past_the_hand_over_is_dropped_when_the_stiffness_dro
     assert np.all(np.abs(rel[ts > 45.0, 1:]) < 0.06)
 
 
+def test_a_gap_after_the_hand_over_drops_the_published_grid() -> None:
+    # snow drive 24, N = 20: after the hand-over the grid is published; an IMU gap longer than
+    # max_gap_s re-initializes the filter, which keeps its learned statistics, so the grid (it
+    # would restart from the prior) is dropped and Algorithm 1's estimate is published
+    sim = simulate("snow_sine", seed=24, sensors=NO_BIAS)
+    cfg = eval_config(
+        20,
+        initial_stiffness_factor=1.5 * truth_over_nominal(sim),
+        friction_coefficient=0.3,
+        first_learning="grid",
+    )
+    est = StiffnessEstimator(cfg, sim.vehicle, np.random.default_rng(3))
+    ws, st, imu = sim.wheel_speeds, sim.steering, sim.imu
+    events = sorted(
+        [(int(t), 0, v) for t, v in zip(ws.t_ns, ws.wheel_speed_rad_s, strict=True)]
+        + [(int(t), 1, float(v)) for t, v in zip(st.t_ns, st.angle_rad, strict=True)]
+        + [
+            (int(t), 2, (g, a))
+            for t, g, a in zip(
+                imu.t_ns, imu.angular_velocity_rad_s, imu.linear_acceleration_m_s2, strict=True
+            )
+        ],
+        key=lambda e: (e[0], e[1]),
+    )
+    gap_from: int | None = None
+    for t, kind, v in events:
+        if kind == 0:
+            est.on_wheel_speeds(t, v)
+        elif kind == 1:
+            est.on_steering(t, v)
+        elif gap_from is None or t > gap_from + int((cfg.max_gap_s + 0.1) * 1e9):
+            est.on_imu(t, v[0], v[1])
+            if gap_from is not None:
+                break
+            if est.handover_count == 1:
+                assert isinstance(est._grid, GridEkf)
+                gap_from = t
+    assert gap_from is not None and est.handover_count == 1
+    assert est._grid is None and est.grid_rejection_count == 0
+    np.testing.assert_array_equal(est.estimate().stiffness, est.mpf.estimate().stiffness)
+
+
 def test_no_grid_with_restored_statistics_and_reset_brings_it_back() -> None:
     cfg = StiffnessEstimatorConfig(n_particles=20, first_learning="grid")
     est = StiffnessEstimator(cfg, VehicleParams(), np.random.default_rng(0))

@@ -332,7 +332,11 @@ class StiffnessEstimator:
                 [c.initial_vx_std_m_s, c.initial_vy_std_m_s, c.initial_yaw_rate_std_rad_s]
             )
             self.mpf.initialize(x0, std)
-            if self._grid is not None:
+            if self._grid is not None and self._handed_over:
+                # Algorithm 1 keeps its learned statistics: a grid from the prior must not be
+                # published over them
+                self._grid = None
+            elif self._grid is not None:
                 self._grid.initialize(x0, std)
             self._steer_window.reset()
             self._accel_x_window.reset()
