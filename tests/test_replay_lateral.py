@@ -117,9 +117,9 @@ def test_rank_seeds_profiles_the_mean_likelihood_of_several_filter_seeds(
 ) -> None:
     from tire_estimation.bag.reader import read_bag
     from tire_estimation.core.config import RadiusEstimatorConfig
-    from tire_estimation.core.radius_estimator import RadiusEstimator
     from tire_estimation.evaluation.residuals import neg_log_likelihood
-    from tire_estimation.evaluation.runner import run_radius_estimator
+    from tire_estimation.evaluation.runner import run_radius
+    from tire_estimation.sources import bag_samples
 
     config = tmp_path / "cfg.yaml"
     radius = {"n_particles": 100, "seed": 3, "gnss_velocity_enabled": False}
@@ -138,8 +138,7 @@ def test_rank_seeds_profiles_the_mean_likelihood_of_several_filter_seeds(
     nll = []
     for seed in (3, 4):
         cfg = RadiusEstimatorConfig(n_particles=100, seed=seed, gnss_velocity_enabled=False)
-        est = RadiusEstimator(cfg, bag.vehicle, np.random.default_rng(seed))
-        tr = run_radius_estimator(est, bag.wheel_speeds, bag.gnss, bag.steering, bag.imu)
+        tr = run_radius(cfg, bag.vehicle, bag_samples(bag))
         nll.append(neg_log_likelihood(tr))
     assert abs(nll[0] - nll[1]) > 1e-6  # the seeds give different runs on this short drive
     for effect in res["ranked_effects"]:

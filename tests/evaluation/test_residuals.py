@@ -39,12 +39,12 @@ import pytest
 
 from tire_estimation.core.config import RadiusEstimatorConfig
 from tire_estimation.core.geodesy import LocalTangentPlane
-from tire_estimation.core.radius_estimator import RadiusEstimator
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.evaluation import residuals as rs
-from tire_estimation.evaluation.runner import RadiusTrace, run_radius_estimator
+from tire_estimation.evaluation.runner import RadiusTrace, run_radius
 from tire_estimation.sim import SensorConfig, SimResult, simulate
 from tire_estimation.sim.streams import GnssStream, WheelSpeedStream
+from tire_estimation.sources import sim_samples
 
 DRIVE = {"scenario": "robustness", "seed": 251, "minutes": 2.0}
 CONFIG: dict[str, Any] = {
@@ -141,9 +141,8 @@ def _run(drive: str, effect: str = "", value: float = 0.0, seed: int = 0) -> Rad
     on at ``value``."""
     sim = _sim(drive)
     overrides = rs.effect_overrides(effect, value) if effect else {}
-    cfg = RadiusEstimatorConfig(**CONFIG, **overrides)
-    est = RadiusEstimator(cfg, VehicleParams(), np.random.default_rng(seed))
-    return run_radius_estimator(est, sim.wheel_speeds, sim.gnss, sim.steering, sim.imu)
+    cfg = RadiusEstimatorConfig(**CONFIG, **overrides, seed=seed)
+    return run_radius(cfg, VehicleParams(), sim_samples(sim, tire_forces=False))
 
 
 @cache
@@ -498,9 +497,8 @@ def _velocity_sim(latency_s: float) -> SimResult:
 def _velocity_run(latency_s: float, effect: str, value: float, seed: int) -> RadiusTrace:
     sim = _velocity_sim(latency_s)
     overrides = rs.effect_overrides(effect, value) if effect else {}
-    cfg = RadiusEstimatorConfig(**CONFIG, gnss_velocity_enabled=True, **overrides)
-    est = RadiusEstimator(cfg, VehicleParams(), np.random.default_rng(seed))
-    return run_radius_estimator(est, sim.wheel_speeds, sim.gnss, sim.steering, sim.imu)
+    cfg = RadiusEstimatorConfig(**CONFIG, gnss_velocity_enabled=True, **overrides, seed=seed)
+    return run_radius(cfg, VehicleParams(), sim_samples(sim, tire_forces=False))
 
 
 @pytest.mark.slow

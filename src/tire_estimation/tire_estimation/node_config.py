@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from tire_estimation.core.pipeline import PublishPeriods
 from tire_estimation.core.validation import (
     require_choice,
     require_finite,
@@ -72,6 +73,16 @@ class EstimatorNodeOptions:
         require_non_negative("stiffness_publish_period_s", self.stiffness_publish_period_s)
         require_positive("diagnostics_period_s", self.diagnostics_period_s)
         require_choice("sensor_qos", self.sensor_qos, SENSOR_QOS)
+
+
+def periods_of(options: EstimatorNodeOptions) -> PublishPeriods:
+    """The pipeline's output periods from the node options (as the node publishes)."""
+    return PublishPeriods(
+        odometry_s=options.odometry_publish_period_s,
+        radii_s=options.radii_publish_period_s,
+        lateral_s=options.lateral_publish_period_s,
+        stiffness_s=options.stiffness_publish_period_s,
+    )
 
 
 @dataclass(frozen=True)

@@ -8,6 +8,7 @@ and atomically; a failed run removes any stale one, so no partial report looks l
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import os
@@ -26,31 +27,31 @@ from tire_estimation.bag import topics
 from tire_estimation.bag.reader import BagData, TopicInfo, read_bag
 from tire_estimation.core import yamlio
 from tire_estimation.core.config import RadiusEstimatorConfig
+from tire_estimation.core.deflation import DeflationDetectorConfig
 from tire_estimation.core.geodesy import LocalTangentPlane
 from tire_estimation.core.linear_lateral_kf import LinearLateralKF, LinearLateralKFConfig
-from tire_estimation.core.radius_estimator import RadiusEstimator
+from tire_estimation.core.pipeline import EstimationPipeline, PipelineConfig
 from tire_estimation.core.stiffness_config import StiffnessEstimatorConfig
-from tire_estimation.core.stiffness_estimator import StiffnessEstimator
-from tire_estimation.core.tyre_force_kf import TyreForceEstimator, TyreForceKFConfig
+from tire_estimation.core.tyre_force_kf import TyreForceKFConfig
 from tire_estimation.errors import BagError, ConfigError
 from tire_estimation.evaluation import metrics as ev
 from tire_estimation.evaluation.residuals import analyze_trace as analyze_residuals
 from tire_estimation.evaluation.runner import (
+    DeflationRecorder,
+    ImuLateralRecorder,
     ImuLateralTrace,
     LateralTrace,
+    RadiusRecorder,
     RadiusTrace,
-    run_imu_lateral_estimator,
-    run_lateral_estimator,
-    run_radius_estimator,
+    TyreForceRecorder,
+    run_radius,
 )
-from tire_estimation.node_config import EstimatorNodeOptions
+from tire_estimation.node_config import EstimatorNodeOptions, periods_of
 from tire_estimation.params import build_config, parameter_specs
+from tire_estimation.sources import bag_samples, sample_count, stream_samples
 
 NODE_NAME = "estimator_node"
 T = TypeVar("T")
-#: Seed-sequence key of the stiffness MPF's generator: ``default_rng([radius.seed, key])``,
-#: independent of the radius MPF's stream (the node uses the same).
-STIFFNESS_RNG_KEY = 1
 
 
 def load_config_sections(path: Path | None) -> dict[str, dict[str, Any]]:
@@ -166,11 +167,36 @@ class ReplayReport:
                 lines.append(
                     f"  stiffness relative RMSE vs truth ({stiff['rel_rmse_window']}): {errs}"
                 )
+        lines.extend(_detection_lines(m.get("detection") or {}, m.get("events") or []))
         res = m["residuals"]
         if res["consistent"] is not None:
             lines.append(f"  innovations consistent: {res['consistent']}")
         lines.append(f"  report: {self.out_dir / 'metrics.json'}")
         return "\n".join(lines)
+
+
+def _detection_lines(det: dict[str, Any], events: list[dict[str, Any]]) -> list[str]:
+    """The deflation detector's outcome in a few lines (with the delay after a simulated
+    pressure loss the bag records)."""
+    if not det.get("ran"):
+        return [f"  deflation detector: did not run ({det.get('note', 'no radius estimates')})"]
+    lines = [f"  deflation detector: {det['note']}"]
+    losses = [e for e in events if e.get("kind") in ("pressure_step", "diffusion_start")]
+    for alarm in det["alarms"]:
+        wheel, t_s = alarm["wheel"], alarm["t_s"]
+        what = "tyre not identified (all wheels)" if wheel == "all" else wheel
+        text = f"  DEFLATION WARNING: {what} at {t_s:.0f} s"
+        before = [e for e in losses if e["t_s"] <= t_s]
+        if before:
+            e = before[-1]
+            text += (
+                f", {t_s - e['t_s']:.0f} s after the {e['kind'].replace('_', ' ')} on "
+                f"{e.get('wheel', '?')} at {e['t_s']:.0f} s"
+            )
+        lines.append(text)
+    if det["armed"] and not det["alarms"]:
+        lines.append("  no deflation warning")
+    return lines
 
 
 def _progress_printer(total: int, enabled: bool) -> Any:
@@ -328,6 +354,7 @@ def run_replay(
         StiffnessEstimatorConfig, "stiffness", sections.get("stiffness", {})
     )
     options = build_config(EstimatorNodeOptions, "", sections.get("", {}))
+    det_cfg = section_config(DeflationDetectorConfig, "detector", sections.get("detector", {}))
     run_stiffness = options.stiffness_enabled if stiffness is None else stiffness
 
     wall0 = time.perf_counter()
@@ -360,63 +387,139 @@ def run_replay(
         )
     t_read = time.perf_counter()
 
-    trace = RadiusTrace()
-    if has_wheels and has_gnss:
-        assert bag.wheel_speeds is not None and bag.gnss is not None
-        estimator = RadiusEstimator(cfg, bag.vehicle, np.random.default_rng(cfg.seed))
-        total = bag.wheel_speeds.t_ns.size + bag.gnss.t_ns.size
-        total += bag.steering.t_ns.size if bag.steering is not None else 0
-        total += bag.imu.t_ns.size if bag.imu is not None else 0
-        trace = run_radius_estimator(
-            estimator,
-            bag.wheel_speeds,
-            bag.gnss,
-            bag.steering,
-            bag.imu,
-            progress=_progress_printer(total, progress),
-        )
-    lateral = None
-    if has_forces:
-        assert bag.tire_forces is not None
-        lateral = run_lateral_estimator(
-            TyreForceEstimator(tyre_cfg, bag.vehicle),
-            bag.tire_forces,
-            bag.wheel_speeds,
-            bag.steering,
-            bag.imu,
-        )
-    imu_lateral: dict[str, ImuLateralTrace] = {}
-    if run_stiffness and has_lateral_inputs:
-        assert bag.imu is not None
-        velocity = None if has_wheels else bag.vehicle_velocity
-        wheels = bag.wheel_speeds if has_wheels else None
-        rng = np.random.default_rng([cfg.seed, STIFFNESS_RNG_KEY])
-        imu_lateral["stiffness_mpf"] = run_imu_lateral_estimator(
-            StiffnessEstimator(stiff_cfg, bag.vehicle, rng),
-            bag.imu,
-            bag.steering,
-            wheels,
-            velocity,
-        )
+    run_radius_mpf = has_wheels and has_gnss
+    run_stiffness_mpf = run_stiffness and has_lateral_inputs
+    pipe_cfg = PipelineConfig(
+        seed=cfg.seed,
+        radius=cfg if run_radius_mpf else None,
+        stiffness=stiff_cfg if run_stiffness_mpf else None,
+        tyre_force=tyre_cfg if has_forces and options.tyre_force_enabled else None,
+        detector=det_cfg if run_radius_mpf else None,
+        periods=periods_of(options),
+    )
+    baselines: dict[str, Any] = {}
+    if run_stiffness_mpf:
         lin_cfg = section_config(LinearLateralKFConfig, "linear_kf", sections.get("linear_kf", {}))
-        imu_lateral["linear_kf"] = run_imu_lateral_estimator(
-            LinearLateralKF(lin_cfg, bag.vehicle), bag.imu, bag.steering, wheels, velocity
-        )
+        baselines["linear_kf"] = LinearLateralKF(lin_cfg, bag.vehicle)
+    pipeline = EstimationPipeline(pipe_cfg, bag.vehicle, baselines)
+    radius_rec, force_rec, detect_rec = RadiusRecorder(), TyreForceRecorder(), DeflationRecorder()
+    imu_recs: dict[str, ImuLateralRecorder] = {}
+    if pipeline.stiffness is not None:
+        imu_recs["stiffness_mpf"] = ImuLateralRecorder(pipeline.stiffness)
+    for name, est in baselines.items():
+        imu_recs[name] = ImuLateralRecorder(est)
+    pipeline.observers.extend([radius_rec, force_rec, detect_rec, *imu_recs.values()])
+    total = sample_count(
+        bag.wheel_speeds, bag.steering, bag.imu, bag.gnss, bag.gnss_velocity, bag.tire_forces
+    )
+    update = _progress_printer(total, progress)
+    push = pipeline.push
+    for n, sample in enumerate(bag_samples(bag)):
+        push(sample)
+        if update is not None and n % 10_000 == 0:
+            update(n)
+    pipeline.flush()
+    t_est = time.perf_counter()
+    trace = radius_rec.finish(pipeline)
+    lateral = force_rec.finish(pipeline) if pipeline.tyre_force is not None else None
+    imu_lateral = {name: rec.finish(t_est - t_read) for name, rec in imu_recs.items()}
+    detection = _detection_metrics(bag, pipeline, detect_rec)
     residual_report = None
     if rank_effects and trace.innov_t_ns:
         residual_report = _assess_effects(bag, cfg, trace, rank_seeds)
     t_run = time.perf_counter()
-    metrics = build_metrics(bag, trace, cfg, lateral, imu_lateral, residual_report)
+    metrics = build_metrics(bag, trace, cfg, lateral, imu_lateral, residual_report, detection)
     metrics["wall_s"] = time.perf_counter() - wall0
     metrics["timing_s"] = {"read": t_read - wall0, "estimate": t_run - t_read}
     metrics["realtime_factor"] = metrics["duration_s"] / max(metrics["wall_s"], 1e-9)
     if plots:
         write_plots(out, bag, trace)
+        write_detection_plot(out, bag, detect_rec, det_cfg)
         if "stiffness_mpf" in imu_lateral:
             write_lateral_plots(out, bag, imu_lateral)
     metrics["plots"] = sorted(p.name for p in out.glob("*.png")) if plots else []
     _atomic_json(stale, _clean(metrics))
     return ReplayReport(out, _clean(metrics))
+
+
+def _detection_metrics(
+    bag: BagData, pipeline: EstimationPipeline, rec: DeflationRecorder
+) -> dict[str, Any] | None:
+    """What the deflation detector did: its alarms, whether each wheel's calibration
+    completed, and the largest CUSUM statistic over its threshold (None: it did not run)."""
+    monitor = pipeline.monitor
+    if monitor is None:
+        return None
+    status = monitor.detector.status()
+    cfg = monitor.detector.config
+    wheels: dict[str, Any] = {}
+    ratio = np.full(len(rec.wheel_names), np.nan)
+    if rec.t_ns:
+        with np.errstate(invalid="ignore", divide="ignore"):
+            r = np.asarray(rec.cusum_m) / np.asarray(rec.threshold_m)
+        calibrated = np.asarray(rec.calibration_state) == 2
+        if calibrated.any():
+            ratio = np.nanmax(np.where(calibrated[:, None], r, np.nan), axis=0)
+    for w in status.wheels:
+        col = rec.wheel_names.index(w.wheel_name) if w.wheel_name in rec.wheel_names else -1
+        wheels[w.wheel_name] = {
+            "calibrated": w.calibrated,
+            "calibrated_at_s": None
+            if w.calibration_t_ns is None
+            else (w.calibration_t_ns - bag.start_ns) * 1e-9,
+            "calibration_progress": w.calibration_progress,
+            "max_cusum_over_threshold": None if col < 0 else ratio[col],
+            "alarm": w.alarm,
+        }
+    armed = any(w.calibrated for w in status.wheels)
+    window = f"{3.6 * cfg.min_speed_m_s:.0f}-{3.6 * cfg.max_speed_m_s:.0f} km/h"
+    note = (
+        "armed: calibration completed"
+        if armed
+        else (
+            f"not armed: the calibration needs {cfg.calibration_time_s:.0f} s of driving at "
+            f"{window} without braking, this bag gave {status.calibrated_driving_time_s:.0f} s "
+            "(detector.calibration_time_s sets it)"
+        )
+    )
+    return {
+        "ran": True,
+        "armed": armed,
+        "note": note,
+        "alarms": [{"wheel": w, "t_s": (t - bag.start_ns) * 1e-9} for w, t in rec.alarms],
+        "calibration": {
+            "required_s": cfg.calibration_time_s,
+            "driving_time_s": status.calibrated_driving_time_s,
+            "done_at_s": None
+            if rec.calibration_done_t_ns is None
+            else (rec.calibration_done_t_ns - bag.start_ns) * 1e-9,
+        },
+        "wheels": wheels,
+        "dropped": dict(monitor.detector.dropped),
+        "config": dataclasses.asdict(cfg),
+    }
+
+
+def write_detection_plot(
+    out: Path, bag: BagData, rec: DeflationRecorder, cfg: DeflationDetectorConfig
+) -> None:
+    """detection.png: the CUSUM statistic per wheel against its threshold."""
+    from tire_estimation.evaluation import plots
+
+    if not rec.t_ns:
+        return
+    t_s = (np.asarray(rec.t_ns) - bag.start_ns) * 1e-9
+    done = rec.calibration_done_t_ns
+    plots.plot_detection(
+        out / "detection.png",
+        t_s,
+        rec.wheel_names,
+        np.asarray(rec.cusum_m, dtype=float),
+        np.asarray(rec.threshold_m, dtype=float),
+        None if done is None else (done - bag.start_ns) * 1e-9,
+        [(w, (t - bag.start_ns) * 1e-9) for w, t in rec.alarms],
+        [(e.t_s, e.kind) for e in bag.events],
+    )
 
 
 def build_metrics(
@@ -426,6 +529,7 @@ def build_metrics(
     lateral: LateralTrace | None = None,
     imu_lateral: dict[str, ImuLateralTrace] | None = None,
     residual_report: dict[str, Any] | None = None,
+    detection: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """The contract's metrics.json content (minus the wall-clock fields).
 
@@ -503,7 +607,8 @@ def build_metrics(
         "estimator": {"name": "radius_mpf", "config": cfg.to_dict()},
         "radii": radii,
         "position": {"rmse_m": pos_rmse, "against": against},
-        "detection": {"alarms": []},
+        "detection": detection
+        or {"ran": False, "armed": False, "alarms": [], "note": "the radius MPF did not run"},
         "stiffness": _stiffness_metrics(bag, stiff) if stiff is not None else None,
         "lateral": primary,
         "lateral_by_source": by_source or None,
@@ -559,13 +664,15 @@ def _assess_effects(
     seeds = [cfg.seed + k for k in range(n_seeds)]
 
     def run(values: dict[str, Any], seed: int) -> RadiusTrace:
-        est = RadiusEstimator(
-            RadiusEstimatorConfig.from_dict({**values, "seed": seed}),
-            bag.vehicle,
-            np.random.default_rng(seed),
+        samples = stream_samples(
+            wheel_speeds=bag.wheel_speeds,
+            steering=bag.steering,
+            imu=bag.imu,
+            gnss=bag.gnss,
+            gnss_velocity=bag.gnss_velocity,
         )
-        assert bag.wheel_speeds is not None and bag.gnss is not None
-        return run_radius_estimator(est, bag.wheel_speeds, bag.gnss, bag.steering, bag.imu)
+        config = RadiusEstimatorConfig.from_dict({**values, "seed": seed})
+        return run_radius(config, bag.vehicle, samples)
 
     def rerun(effect: str, value: float) -> list[RadiusTrace]:
         values = {**cfg.to_dict(), **residuals.effect_overrides(effect, value)}
@@ -624,7 +731,6 @@ def _imu_lateral_metrics(bag: BagData, name: str, trace: ImuLateralTrace) -> dic
         "source": name,
         "dropped_samples": trace.dropped,
         "steps": trace.steps,
-        "time_per_step_ms": 1e3 * trace.wall_s / max(trace.steps, 1),
         "vy_rmse_m_s": None,
         "sideslip_rmse_deg": None,
         "yaw_rate_rmse_deg_s": None,

@@ -31,6 +31,7 @@ from tire_estimation.core.wheels import STEERING_JOINT, WHEELS
 from tire_estimation.errors import BagError, VehicleConfigError
 from tire_estimation.sim.streams import (
     GnssStream,
+    GnssVelocityStream,
     ImuStream,
     SimEvent,
     SpeedStream,
@@ -103,6 +104,7 @@ class BagData:
     steering: SteeringStream | None = None
     imu: ImuStream | None = None
     gnss: GnssStream | None = None
+    gnss_velocity: GnssVelocityStream | None = None
     tire_forces: TireForceStream | None = None
     vehicle_velocity: SpeedStream | None = None
     truth_fix: GnssStream | None = None
@@ -603,6 +605,7 @@ def decode_topics(raw: dict[str, RawTopic], *, fast: bool = True) -> dict[str, A
     velocity = None
     if tp.GNSS_VELOCITY in batches:
         velocity = velocity_arrays(*batches[tp.GNSS_VELOCITY], notes)
+        out["gnss_velocity"] = GnssVelocityStream(*velocity)
     if tp.GNSS_FIX in batches:
         out["gnss"] = fix_stream(*batches[tp.GNSS_FIX], tp.GNSS_FIX, notes, velocity)
     if tp.TIRE_FORCES_TOPIC in batches:

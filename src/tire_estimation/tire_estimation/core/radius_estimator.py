@@ -704,6 +704,12 @@ class RadiusEstimator:
         self._reason = f"waiting for GNSS ({why})"
 
     # ------------------------------------------------------------------ GNSS
+    def _refresh_cache(self) -> None:
+        """After a measurement: the learned radii the gates and the speed use are brought up to
+        date (the MPF's queued predictions are processed)."""
+        if self._cache_version != self.mpf.version:
+            self._set_cache(self.mpf.estimate())
+
     def on_gnss_fix(
         self,
         t_ns: int,
@@ -713,6 +719,18 @@ class RadiusEstimator:
         position_covariance_m2: Any = None,
     ) -> GnssUpdate:
         """GNSS antenna fix (WGS-84) with an optional ENU covariance (3, 3)."""
+        update = self._gnss_fix(t_ns, lat_deg, lon_deg, alt_m, position_covariance_m2)
+        self._refresh_cache()
+        return update
+
+    def _gnss_fix(
+        self,
+        t_ns: int,
+        lat_deg: float,
+        lon_deg: float,
+        alt_m: float,
+        position_covariance_m2: Any,
+    ) -> GnssUpdate:
         zeros2, eye2 = np.zeros(2), np.zeros((2, 2))
         try:
             self._check_order("gnss", t_ns)
@@ -827,6 +845,14 @@ class RadiusEstimator:
 
     def on_gnss_velocity(
         self, t_ns: int, velocity_enu_m_s: Any, velocity_covariance_m2_s2: Any = None
+    ) -> GnssVelocityUpdate:
+        """GNSS Doppler velocity of the antenna (:meth:`_gnss_velocity`)."""
+        update = self._gnss_velocity(t_ns, velocity_enu_m_s, velocity_covariance_m2_s2)
+        self._refresh_cache()
+        return update
+
+    def _gnss_velocity(
+        self, t_ns: int, velocity_enu_m_s: Any, velocity_covariance_m2_s2: Any
     ) -> GnssVelocityUpdate:
         """GNSS Doppler velocity of the antenna in ENU (3,) or (2,) m/s with an optional (3, 3)
         or (2, 2) covariance (beyond the paper; used with ``gnss_velocity_enabled``).
@@ -995,11 +1021,11 @@ class RadiusEstimator:
 
     # ------------------------------------------------------------------ outputs
     def estimate(self) -> RadiusEstimate:
-        """Current estimate (always finite)."""
+        """Current estimate (always finite). Reading it changes nothing in the filter (the MPF's
+        queued predictions are not processed for it: :meth:`RadiusMPF.peek`)."""
         # the estimate computed after the last fix is still valid if nothing changed since
         fresh = getattr(self, "_cache_version", -1) == self.mpf.version
-        est = self._cache if fresh else self.mpf.estimate()
-        self._set_cache(est)
+        est = self._cache if fresh else self.mpf.peek()
         rad = est.radius
         wheels: tuple[str, ...] = REAR_WHEELS
         mean = rad.mean

@@ -655,8 +655,29 @@ class RadiusMPF:
     def estimate(self) -> MpfEstimate:
         """Weighted pose mean/covariance and the NiW MMSE (eq. 30, Table I lines 17-18)."""
         self._flush()
+        return self._moments(self._east, self._north, self._yaw)
+
+    def peek(self) -> MpfEstimate:
+        """:meth:`estimate` without processing the queued predictions: the queued samples move
+        copies of the poses with each particle's NiW mean radius error (no draw), and the
+        filter's state and random stream are untouched, so how often a caller reads the
+        estimate does not change what the filter does."""
+        if not self._pending:
+            return self._moments(self._east, self._north, self._yaw)
+        east, north, yaw = self._east.copy(), self._north.copy(), self._yaw.copy()
+        seg = np.ascontiguousarray(np.array(self._pending).T)
+        m = self.model
+        st = self._stats
+        radius_kernels.propagate_block(
+            east, north, yaw, self._speed.copy(), self._mu, self._lam,
+            seg[0], seg[1], seg[2], seg[4], False, self.lam, float(st.gamma), float(st.dof),
+            m.nominal_radius_m, m.track_width_m, m.wheelbase_m, np.ones(4, dtype=np.uint64),
+        )  # fmt: skip
+        return self._moments(east, north, yaw)
+
+    def _moments(self, east: F64, north: F64, yaw: F64) -> MpfEstimate:
         pose, pose_cov, mean, spread, lam_w = radius_kernels.moments(
-            self._east, self._north, self._yaw, self._mu, self._lam, self.weights
+            east, north, yaw, self._mu, self._lam, self.weights
         )
         return MpfEstimate(
             pose=pose,

@@ -1,5 +1,5 @@
-"""Evaluation: drive the core over recorded streams, compute metrics, draw plots.
+"""Evaluation: record what the pipeline did, compute metrics, draw plots, run campaigns.
 
-No ROS and no rosbags here either: :mod:`tire_estimation.replay` reads the bag and hands the
-streams to :func:`runner.run_radius_estimator`.
+No ROS and no rosbags here either: :mod:`tire_estimation.replay` reads the bag and pushes its
+samples into the core pipeline with the recorders of :mod:`.runner` attached.
 """

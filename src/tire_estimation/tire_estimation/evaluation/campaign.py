@@ -167,10 +167,10 @@ class _Run:
 
 def _simulate_and_estimate(spec: CaseSpec) -> _Run:
     from tire_estimation.core.config import RadiusEstimatorConfig
-    from tire_estimation.core.radius_estimator import RadiusEstimator
     from tire_estimation.core.wheels import REAR_WHEELS
-    from tire_estimation.evaluation.runner import run_radius_estimator
+    from tire_estimation.evaluation.runner import run_radius
     from tire_estimation.sim import START_TIME_NS, SensorConfig, simulate
+    from tire_estimation.sources import sim_samples
 
     t0 = time.perf_counter()
     sensors = SensorConfig(**spec.sensors)
@@ -181,9 +181,7 @@ def _simulate_and_estimate(spec: CaseSpec) -> _Run:
     cfg = RadiusEstimatorConfig.from_dict(
         {**spec.estimator, "run_aug_kf": True, "seed": spec.seed + PF_SEED_OFFSET}
     )
-    rng = np.random.default_rng(spec.seed + PF_SEED_OFFSET)
-    est = RadiusEstimator(cfg, sim.vehicle, rng)
-    trace = run_radius_estimator(est, sim.wheel_speeds, sim.gnss, sim.steering, sim.imu)
+    trace = run_radius(cfg, sim.vehicle, sim_samples(sim, tire_forces=False))
     t2 = time.perf_counter()
     a = trace.arrays()
     names = trace.wheel_names or (REAR_WHEELS if cfg.wheels == "rear" else ())

@@ -164,3 +164,40 @@ def plot_stiffness(path: Path, t_s: F64, names: tuple[str, ...], stiffness: F64,
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def plot_detection(
+    path: Path,
+    t_s: F64,
+    wheel_names: tuple[str, ...],
+    cusum_m: F64,
+    threshold_m: F64,
+    calibration_done_s: float | None,
+    alarms_s: list[tuple[str, float]],
+    events_s: list[tuple[float, str]] | None = None,
+) -> None:
+    """The deflation detector's CUSUM statistic g per wheel against its threshold (mm), the end
+    of the calibration, the alarms and the bag's events."""
+    n = max(len(wheel_names), 1)
+    fig, axes = plt.subplots(n, 1, figsize=(10, 2.2 * n), sharex=True, squeeze=False)
+    for i, w in enumerate(wheel_names):
+        ax = axes[i, 0]
+        ax.plot(t_s, 1e3 * cusum_m[:, i], color="C0", lw=1.2, label="CUSUM g")
+        ax.plot(t_s, 1e3 * threshold_m[:, i], color="C3", lw=1.0, ls="--", label="threshold")
+        if calibration_done_s is not None:
+            ax.axvline(calibration_done_s, color="C2", lw=0.8, label="calibration done")
+        for wheel, t_alarm in alarms_s:
+            if wheel in (w, "all"):
+                ax.axvline(t_alarm, color="C3", lw=1.5, label=f"alarm ({wheel})")
+        for t_ev, label in events_s or []:
+            ax.axvline(t_ev, color="k", ls=":", lw=0.8)
+            ax.text(t_ev, ax.get_ylim()[1], f" {label}", color="k", va="top", fontsize=8)
+        ax.set_ylabel(f"{w}\n[mm]")
+        ax.grid(alpha=0.3)
+        if i == 0:
+            ax.legend(loc="upper left", fontsize=8, ncol=4)
+    axes[-1, 0].set_xlabel("time since bag start [s]")
+    fig.suptitle("Deflation detector: CUSUM of the radius decrease against its threshold")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

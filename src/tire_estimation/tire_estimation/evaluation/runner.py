@@ -1,30 +1,29 @@
-"""Drive one :class:`RadiusEstimator` over recorded streams in header-stamp order.
+"""Traces of what the estimators did over a run: pipeline observers that record them.
 
-This is the replay's inner loop; the ROS node drives the very same estimator object from its
-callbacks. The merge is by measurement time (stable: on equal stamps wheel speeds, then steering,
-then IMU, then GNSS), which is what the node's reorder buffer reproduces online.
+The replay and the campaigns push samples into
+:class:`~tire_estimation.core.pipeline.EstimationPipeline` (the node's pipeline) and attach
+these recorders; :func:`run_radius` is the radius MPF alone over a sample sequence.
 """
 
 from __future__ import annotations
 
-import time
-from collections.abc import Callable
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from tire_estimation.core.radius_estimator import RadiusEstimator
-from tire_estimation.sim.streams import (
-    GnssStream,
-    ImuStream,
-    SteeringStream,
-    TireForceStream,
-    WheelSpeedStream,
+from tire_estimation.core.config import RadiusEstimatorConfig
+from tire_estimation.core.pipeline import (
+    DeflationOutput,
+    EstimationPipeline,
+    Output,
+    PipelineConfig,
 )
-
-WHEEL, STEER, IMU, GNSS, FORCES = 0, 1, 2, 3, 4
+from tire_estimation.core.radius_estimator import RadiusEstimator
+from tire_estimation.core.samples import GnssFix, GnssVelocity, ImuSample, Sample, TireForces
+from tire_estimation.core.vehicle import VehicleParams
 
 
 @dataclass
@@ -109,90 +108,73 @@ class RadiusTrace:
         }
 
 
-def merge_order(
-    wheel_speeds: WheelSpeedStream,
-    steering: SteeringStream | None,
-    imu: ImuStream | None,
-    gnss: GnssStream,
-) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
-    """(stream id, row index) of every sample, sorted by stamp (stable on ties)."""
-    parts_t = [wheel_speeds.t_ns]
-    parts_s = [np.full(wheel_speeds.t_ns.size, WHEEL)]
-    parts_i = [np.arange(wheel_speeds.t_ns.size)]
-    for sid, stream in ((STEER, steering), (IMU, imu), (GNSS, gnss)):
-        if stream is None:
-            continue
-        parts_t.append(stream.t_ns)
-        parts_s.append(np.full(stream.t_ns.size, sid))
-        parts_i.append(np.arange(stream.t_ns.size))
-    t = np.concatenate(parts_t)
-    s = np.concatenate(parts_s)
-    i = np.concatenate(parts_i)
-    order = np.lexsort((s, t))
-    return s[order], i[order]
+class RadiusRecorder:
+    """Pipeline observer: the radius MPF's trace, recorded after every GNSS fix (after the
+    fix's Doppler velocity when one has the fix's stamp)."""
+
+    def __init__(self) -> None:
+        self.trace = RadiusTrace()
+        self._pending: tuple[int, Any] | None = None
+
+    def on_sample(self, pipeline: EstimationPipeline, sample: Sample, result: Any) -> None:
+        """Record the fix's innovation and the estimate; a velocity's innovation."""
+        pending = self._pending
+        kind = type(sample)
+        if kind is GnssVelocity:
+            if result is not None:
+                _record_velocity(self.trace, result)
+            if pending is not None and pending[0] == sample.t_ns:
+                self._flush(pipeline)
+                return
+        if pending is not None:
+            self._flush(pipeline)
+        if kind is GnssFix and pipeline.radius is not None:
+            self._pending = (sample.t_ns, result)
+
+    def _flush(self, pipeline: EstimationPipeline) -> None:
+        assert self._pending is not None and pipeline.radius is not None
+        t_ns, update = self._pending
+        self._pending = None
+        _record(self.trace, pipeline.radius, update, t_ns)
+
+    def on_output(self, pipeline: EstimationPipeline, output: Output) -> None:
+        """Outputs are not part of this trace."""
+
+    def finish(self, pipeline: EstimationPipeline) -> RadiusTrace:
+        """The trace with the run's counters (call after the last sample)."""
+        if self._pending is not None:
+            self._flush(pipeline)
+        trace, estimator = self.trace, pipeline.radius
+        if estimator is None:
+            return trace
+        trace.dropped = dict(estimator.stats)
+        if estimator.config.gnss_velocity_enabled and pipeline.received["gnss_velocity"]:
+            nis = np.asarray(trace.vel_nis, dtype=float)
+            trace.gnss_velocity = {
+                "updates": estimator.velocity_updates,
+                "skipped_accelerating": estimator.velocity_skipped_accel,
+                "innovations": int(nis.size),
+                "mean_nis": float(nis[np.asarray(trace.vel_accepted, dtype=bool)].mean())
+                if estimator.velocity_updates
+                else None,
+                "latency_s": estimator.config.gnss_velocity_latency_s,
+            }
+        ltp = getattr(estimator, "_ltp", None)
+        if ltp is not None:
+            trace.origin_lla = (ltp.origin_lat_deg, ltp.origin_lon_deg, ltp.origin_alt_m)
+        return trace
 
 
-def run_radius_estimator(
-    estimator: RadiusEstimator,
-    wheel_speeds: WheelSpeedStream,
-    gnss: GnssStream,
-    steering: SteeringStream | None = None,
-    imu: ImuStream | None = None,
-    progress: Callable[[int], None] | None = None,
+def run_radius(
+    config: RadiusEstimatorConfig, vehicle: VehicleParams, samples: Iterable[Sample]
 ) -> RadiusTrace:
-    """Feed every sample to ``estimator`` in stamp order; record a trace after each fix.
-
-    ``progress`` (optional) is called with the number of samples processed, every 10 000.
-    """
-    streams, rows = merge_order(wheel_speeds, steering, imu, gnss)
-    trace = RadiusTrace()
-    w_t = wheel_speeds.t_ns.tolist()
-    w_v = wheel_speeds.wheel_speed_rad_s
-    g_t = gnss.t_ns.tolist()
-    g_cov = gnss.position_covariance_m2
-    lat, lon, alt = gnss.lat_deg.tolist(), gnss.lon_deg.tolist(), gnss.alt_m.tolist()
-    s_t = steering.t_ns.tolist() if steering is not None else []
-    s_v = steering.angle_rad.tolist() if steering is not None else []
-    i_t = imu.t_ns.tolist() if imu is not None else []
-    i_w = imu.angular_velocity_rad_s if imu is not None else None
-    i_a = imu.linear_acceleration_m_s2 if imu is not None else None
-    # the Doppler velocity of a fix (same stamp; NaN rows: none) follows its fix
-    g_vel, g_vcov = gnss.velocity_enu_m_s, gnss.velocity_covariance_m2_s2
-    use_vel = g_vel is not None and estimator.config.gnss_velocity_enabled
-    g_has_vel = np.isfinite(g_vel[:, 0]).tolist() if use_vel and g_vel is not None else []
-    for n, (sid, row) in enumerate(zip(streams.tolist(), rows.tolist(), strict=True)):
-        if sid == WHEEL:
-            estimator.on_wheel_speeds(w_t[row], w_v[row])
-        elif sid == STEER:
-            estimator.on_steering(s_t[row], s_v[row])
-        elif sid == IMU:
-            estimator.on_imu(i_t[row], i_w[row], i_a[row])  # type: ignore[index]
-        else:
-            upd = estimator.on_gnss_fix(g_t[row], lat[row], lon[row], alt[row], g_cov[row])
-            if g_has_vel and g_has_vel[row]:
-                vupd = estimator.on_gnss_velocity(
-                    g_t[row], g_vel[row], None if g_vcov is None else g_vcov[row]
-                )
-                _record_velocity(trace, vupd)
-            _record(trace, estimator, upd, g_t[row])
-        if progress is not None and n % 10_000 == 0:
-            progress(n)
-    trace.dropped = dict(estimator.stats)
-    if use_vel:
-        nis = np.asarray(trace.vel_nis, dtype=float)
-        trace.gnss_velocity = {
-            "updates": estimator.velocity_updates,
-            "skipped_accelerating": estimator.velocity_skipped_accel,
-            "innovations": int(nis.size),
-            "mean_nis": float(nis[np.asarray(trace.vel_accepted, dtype=bool)].mean())
-            if estimator.velocity_updates
-            else None,
-            "latency_s": estimator.config.gnss_velocity_latency_s,
-        }
-    ltp = getattr(estimator, "_ltp", None)
-    if ltp is not None:
-        trace.origin_lla = (ltp.origin_lat_deg, ltp.origin_lon_deg, ltp.origin_alt_m)
-    return trace
+    """The radius MPF alone (seed ``config.seed``) over ``samples``: its trace."""
+    recorder = RadiusRecorder()
+    pipeline = EstimationPipeline(
+        PipelineConfig(seed=config.seed, radius=config), vehicle, observers=[recorder]
+    )
+    pipeline.push_all(samples)
+    return recorder.finish(pipeline)
 
 
 def _record_velocity(trace: RadiusTrace, upd: Any) -> None:
@@ -267,62 +249,33 @@ class LateralTrace:
 _RELAY_CODE = {"unknown": 0, "linear": 1, "nonlinear": 2}
 
 
-def run_lateral_estimator(
-    estimator: Any,
-    tire_forces: TireForceStream,
-    wheel_speeds: WheelSpeedStream | None,
-    steering: SteeringStream | None,
-    imu: ImuStream | None,
-) -> LateralTrace:
-    """Feed a tyre-force lateral estimator (``TyreForceEstimator``) in stamp order.
+class TyreForceRecorder:
+    """Pipeline observer: the tyre-force KF's lateral estimate after every tyre-force sample
+    (once its relay knows the regime)."""
 
-    On equal stamps wheel speeds, steering and IMU go before the tyre forces, so each force
-    sample sees the inputs of its own instant.
-    """
-    parts: list[tuple[NDArray[np.int64], int]] = []
-    if wheel_speeds is not None:
-        parts.append((wheel_speeds.t_ns, WHEEL))
-    if steering is not None:
-        parts.append((steering.t_ns, STEER))
-    if imu is not None:
-        parts.append((imu.t_ns, IMU))
-    parts.append((tire_forces.t_ns, FORCES))
-    t = np.concatenate([p[0] for p in parts])
-    s = np.concatenate([np.full(p[0].size, p[1]) for p in parts])
-    i = np.concatenate([np.arange(p[0].size) for p in parts])
-    order = np.lexsort((s, t))
-    trace = LateralTrace()
-    f = tire_forces
-    for sid, row in zip(s[order].tolist(), i[order].tolist(), strict=True):
-        if sid == WHEEL:
-            estimator.on_wheel_speeds(
-                int(wheel_speeds.t_ns[row]), wheel_speeds.wheel_speed_rad_s[row]
-            )  # type: ignore[union-attr]
-        elif sid == STEER:
-            estimator.on_steering(int(steering.t_ns[row]), float(steering.angle_rad[row]))  # type: ignore[union-attr]
-        elif sid == IMU:
-            estimator.on_imu(
-                int(imu.t_ns[row]),
-                imu.angular_velocity_rad_s[row],
-                imu.linear_acceleration_m_s2[row],
-            )  # type: ignore[union-attr]
-        else:
-            est = estimator.on_tire_forces(
-                int(f.t_ns[row]), f.fx_n[row], f.fy_n[row], f.fz_n[row], f.valid[row]
-            )
-            if est is None or est.linearity == "unknown":
-                continue
-            trace.t_ns.append(int(est.t_ns))
-            trace.vx_m_s.append(float(est.vx_m_s))
-            trace.vy_m_s.append(float(est.vy_m_s))
-            trace.yaw_rate_rad_s.append(float(est.yaw_rate_rad_s))
-            trace.sideslip_rad.append(float(est.sideslip_rad))
-            trace.relay.append(_RELAY_CODE.get(est.linearity, 0))
-    trace.dropped = dict(getattr(estimator, "stats", {}))
-    return trace
+    def __init__(self) -> None:
+        self.trace = LateralTrace()
 
+    def on_sample(self, pipeline: EstimationPipeline, sample: Sample, result: Any) -> None:
+        """Record the estimate a tyre-force sample gave."""
+        if type(sample) is not TireForces or result is None or result.linearity == "unknown":
+            return
+        trace = self.trace
+        trace.t_ns.append(int(result.t_ns))
+        trace.vx_m_s.append(float(result.vx_m_s))
+        trace.vy_m_s.append(float(result.vy_m_s))
+        trace.yaw_rate_rad_s.append(float(result.yaw_rate_rad_s))
+        trace.sideslip_rad.append(float(result.sideslip_rad))
+        trace.relay.append(_RELAY_CODE.get(result.linearity, 0))
 
-VELOCITY = 5
+    def on_output(self, pipeline: EstimationPipeline, output: Output) -> None:
+        """Outputs are not part of this trace."""
+
+    def finish(self, pipeline: EstimationPipeline) -> LateralTrace:
+        """The trace with the filter's drop counters."""
+        if pipeline.tyre_force is not None:
+            self.trace.dropped = dict(pipeline.tyre_force.stats)
+        return self.trace
 
 
 @dataclass
@@ -369,66 +322,93 @@ class ImuLateralTrace:
         }
 
 
-def run_imu_lateral_estimator(
-    estimator: Any,
-    imu: ImuStream,
-    steering: SteeringStream | None,
-    wheel_speeds: WheelSpeedStream | None = None,
-    velocity: Any = None,
-    record_period_s: float = 0.01,
-) -> ImuLateralTrace:
-    """Feed an IMU-driven lateral estimator in stamp order; record its estimate.
+class ImuLateralRecorder:
+    """Pipeline observer: an IMU-driven lateral estimator's estimate after IMU samples, at
+    most one per ``record_period_s``, once the estimator is initialized.
 
-    ``estimator`` has ``on_wheel_speeds``, ``on_steering``, ``on_imu``, ``on_velocity`` (used
-    when ``velocity``, a :class:`~tire_estimation.sim.streams.SpeedStream`, is given) and
-    ``estimate()``; its ``initialized`` flag (or ``mpf.initialized``) says when an estimate
-    exists. On equal stamps speeds and steering go before the IMU sample they belong to.
+    Args:
+        estimator: the estimator (the pipeline's stiffness MPF or one of its baselines); its
+            ``initialized`` flag (or ``mpf.initialized``) says when an estimate exists.
+        record_period_s: least time between recorded estimates, s.
     """
-    parts: list[tuple[NDArray[np.int64], int]] = []
-    if wheel_speeds is not None:
-        parts.append((wheel_speeds.t_ns, WHEEL))
-    if velocity is not None:
-        parts.append((velocity.t_ns, VELOCITY))
-    if steering is not None:
-        parts.append((steering.t_ns, STEER))
-    parts.append((imu.t_ns, IMU))
-    t = np.concatenate([p[0] for p in parts])
-    s = np.concatenate([np.full(p[0].size, p[1]) for p in parts])
-    i = np.concatenate([np.arange(p[0].size) for p in parts])
-    order = np.lexsort((s, t))
-    trace = ImuLateralTrace()
-    period_ns = round(record_period_s * 1e9)
-    next_ns: int | None = None
-    i_t = imu.t_ns.tolist()
-    i_w, i_a = imu.angular_velocity_rad_s, imu.linear_acceleration_m_s2
-    s_t = steering.t_ns.tolist() if steering is not None else []
-    s_v = steering.angle_rad.tolist() if steering is not None else []
-    v_t = velocity.t_ns.tolist() if velocity is not None else []
-    v_v = velocity.vx_m_s.tolist() if velocity is not None else []
-    w_t = wheel_speeds.t_ns.tolist() if wheel_speeds is not None else []
-    mpf = getattr(estimator, "mpf", None)
-    ready_of = mpf if mpf is not None else estimator
-    wall0 = time.perf_counter()
-    for sid, row in zip(s[order].tolist(), i[order].tolist(), strict=True):
-        if sid == WHEEL:
-            estimator.on_wheel_speeds(w_t[row], wheel_speeds.wheel_speed_rad_s[row])  # type: ignore[union-attr]
-        elif sid == VELOCITY:
-            estimator.on_velocity(v_t[row], v_v[row])
-        elif sid == STEER:
-            estimator.on_steering(s_t[row], s_v[row])
-        else:
-            t_row = i_t[row]
-            estimator.on_imu(t_row, i_w[row], i_a[row])
-            trace.steps += 1
-            if not getattr(ready_of, "initialized", False):
-                continue
-            if next_ns is not None and t_row < next_ns:
-                continue
-            next_ns = t_row + period_ns
-            _record_lateral(trace, estimator.estimate(), t_row)
-    trace.wall_s = time.perf_counter() - wall0
-    trace.dropped = dict(getattr(estimator, "stats", {}))
-    return trace
+
+    def __init__(self, estimator: Any, record_period_s: float = 0.01) -> None:
+        self.estimator = estimator
+        self.trace = ImuLateralTrace()
+        self._period_ns = round(record_period_s * 1e9)
+        self._next_ns: int | None = None
+        mpf = getattr(estimator, "mpf", None)
+        self._ready_of = mpf if mpf is not None else estimator
+
+    def on_sample(self, pipeline: EstimationPipeline, sample: Sample, result: Any) -> None:
+        """Count IMU steps; record the estimate when due."""
+        if type(sample) is not ImuSample:
+            return
+        self.trace.steps += 1
+        if not getattr(self._ready_of, "initialized", False):
+            return
+        t_ns = sample.t_ns
+        if self._next_ns is not None and t_ns < self._next_ns:
+            return
+        self._next_ns = t_ns + self._period_ns
+        _record_lateral(self.trace, self.estimator.estimate(), t_ns)
+
+    def on_output(self, pipeline: EstimationPipeline, output: Output) -> None:
+        """Outputs are not part of this trace."""
+
+    def finish(self, wall_s: float) -> ImuLateralTrace:
+        """The trace with the estimator's drop counters and the run's wall time."""
+        self.trace.wall_s = wall_s
+        self.trace.dropped = dict(getattr(self.estimator, "stats", {}))
+        return self.trace
+
+
+class DeflationRecorder:
+    """Pipeline observer: the deflation detector's statistics after every accepted estimate.
+
+    ``t_ns`` (K,), per wheel in ``wheel_names`` order ``cusum_m`` and ``threshold_m`` (K, W)
+    (NaN while a wheel is not seen), ``calibration_state`` (K,), and ``alarms`` as
+    ``(wheel, t_ns)``, the common channel's with the wheel ``all``.
+    """
+
+    def __init__(self) -> None:
+        self.wheel_names: tuple[str, ...] = ()
+        self.t_ns: list[int] = []
+        self.cusum_m: list[list[float]] = []
+        self.threshold_m: list[list[float]] = []
+        self.calibration_state: list[int] = []
+        self.alarms: list[tuple[str, int]] = []
+        self.calibration_done_t_ns: int | None = None
+
+    def on_sample(self, pipeline: EstimationPipeline, sample: Sample, result: Any) -> None:
+        """Samples are not part of this trace."""
+
+    def on_output(self, pipeline: EstimationPipeline, output: Output) -> None:
+        """Record a detector status."""
+        if type(output) is not DeflationOutput:
+            return
+        step = output.step
+        status = step.status
+        if not self.wheel_names:
+            self.wheel_names = tuple(w.wheel_name for w in status.wheels)
+        by_name = {w.wheel_name: w for w in status.wheels}
+        nan = float("nan")
+        self.t_ns.append(output.t_ns)
+        self.cusum_m.append(
+            [by_name[n].cusum_m if n in by_name else nan for n in self.wheel_names]
+        )
+        self.threshold_m.append(
+            [by_name[n].threshold_m if n in by_name else nan for n in self.wheel_names]
+        )
+        self.calibration_state.append(int(status.calibration_state))
+        if self.calibration_done_t_ns is None and int(status.calibration_state) == 2:
+            self.calibration_done_t_ns = output.t_ns
+        for wheel in step.new_alarms:
+            alarm_t = by_name[wheel].alarm_t_ns
+            self.alarms.append((wheel, output.t_ns if alarm_t is None else alarm_t))
+        if step.new_common_alarm and status.common is not None:
+            alarm_t = status.common.alarm_t_ns
+            self.alarms.append(("all", output.t_ns if alarm_t is None else alarm_t))
 
 
 def _record_lateral(trace: ImuLateralTrace, est: Any, t_ns: int) -> None:

@@ -1,7 +1,8 @@
 """Message <-> core conversions for the nodes (duck-typed: no message imports needed here).
 
-Each ``*_from_msg`` returns plain numbers/arrays or raises :class:`InputError` with a stable
-``kind`` that the node counts and reports on ``/diagnostics``.
+Each ``*_from_msg`` returns a typed sample of :mod:`tire_estimation.core.samples` (checked
+there) or raises :class:`InputError` with a stable ``kind`` that the node counts and reports on
+``/diagnostics`` as ``dropped.<stream>:<kind>``.
 """
 
 from __future__ import annotations
@@ -11,7 +12,16 @@ from typing import Any
 
 import numpy as np
 
-from tire_estimation.core.wheels import STEERING_JOINT, WHEEL_INDEX
+from tire_estimation.core.samples import (
+    GnssFix,
+    GnssVelocity,
+    ImuSample,
+    MeasuredVelocity,
+    Steering,
+    TireForces,
+    WheelSpeeds,
+)
+from tire_estimation.core.wheels import STEERING_JOINT, WHEEL_INDEX, WHEELS
 from tire_estimation.errors import InputError
 
 #: sensor_msgs/NavSatStatus.STATUS_NO_FIX
@@ -32,8 +42,8 @@ def ns_to_stamp(t_ns: int, stamp: Any) -> Any:
     return stamp
 
 
-def wheel_speeds_from_msg(msg: Any) -> tuple[int, np.ndarray]:
-    """JointState -> (t_ns, wheel speeds (4,) rad/s in WHEELS order, NaN where absent).
+def wheel_speeds_from_msg(msg: Any) -> WheelSpeeds:
+    """JointState -> :class:`WheelSpeeds` (NaN for a wheel the message does not name).
 
     Names are matched, not positions (contract). Unknown names are ignored if at least one known
     wheel is present; a message with no known wheel raises ``unknown_wheel``.
@@ -57,12 +67,14 @@ def wheel_speeds_from_msg(msg: Any) -> tuple[int, np.ndarray]:
         out[idx] = float(value)
         known += 1
     if known == 0:
-        raise InputError("unknown_wheel", f"no known wheel name in {names}")
-    return t_ns, out
+        raise InputError("unknown_wheel", f"no known wheel name in {names}; expected {WHEELS}")
+    if not np.all(np.isfinite(out[~np.isnan(out)])) or any(math.isnan(v) for v in velocity):
+        raise InputError("nan", "a wheel speed is not finite")
+    return WheelSpeeds.checked(t_ns, out)
 
 
-def steering_from_msg(msg: Any) -> tuple[int, float]:
-    """JointState with ``front_wheel_angle`` -> (t_ns, angle rad)."""
+def steering_from_msg(msg: Any) -> Steering:
+    """JointState with ``front_wheel_angle`` -> :class:`Steering`."""
     t_ns = stamp_ns(msg.header)
     names = list(msg.name)
     position = list(msg.position)
@@ -73,85 +85,64 @@ def steering_from_msg(msg: Any) -> tuple[int, float]:
         )
     for name, value in zip(names, position, strict=True):
         if name == STEERING_JOINT:
-            angle = float(value)
-            if not math.isfinite(angle):
-                raise InputError("nan", "steering angle is not finite")
-            return t_ns, angle
+            return Steering.checked(t_ns, value)
     raise InputError("unknown_joint", f"no '{STEERING_JOINT}' in steering names {names}")
 
 
-def imu_from_msg(msg: Any) -> tuple[int, np.ndarray, np.ndarray]:
-    """Imu -> (t_ns, angular velocity (3,) rad/s, linear acceleration (3,) m/s^2)."""
+def imu_from_msg(msg: Any) -> ImuSample:
+    """Imu -> :class:`ImuSample`."""
     t_ns = stamp_ns(msg.header)
     w = msg.angular_velocity
     a = msg.linear_acceleration
-    gyro = np.array([w.x, w.y, w.z], dtype=float)
-    acc = np.array([a.x, a.y, a.z], dtype=float)
-    if not (np.all(np.isfinite(gyro)) and np.all(np.isfinite(acc))):
-        raise InputError("nan", "IMU sample is not finite")
-    return t_ns, gyro, acc
+    return ImuSample.checked(t_ns, [w.x, w.y, w.z], [a.x, a.y, a.z])
 
 
-def velocity_from_msg(msg: Any) -> tuple[int, float]:
-    """TwistWithCovarianceStamped in base_link -> (t_ns, vx m/s).
+def velocity_from_msg(msg: Any) -> MeasuredVelocity:
+    """TwistWithCovarianceStamped in base_link -> :class:`MeasuredVelocity`.
 
-    Another frame raises ``wrong_frame`` (an empty frame id is taken as base_link); a
-    non-finite speed raises ``nan``.
+    Another frame raises ``wrong_frame`` (an empty frame id is taken as base_link).
     """
     t_ns = stamp_ns(msg.header)
     frame = str(msg.header.frame_id)
     if frame not in ("base_link", ""):
         raise InputError("wrong_frame", f"/vehicle/velocity must be in base_link, got {frame!r}")
-    vx = float(msg.twist.twist.linear.x)
-    if not math.isfinite(vx):
-        raise InputError("nan", "velocity not finite")
-    return t_ns, vx
+    return MeasuredVelocity.checked(t_ns, msg.twist.twist.linear.x)
 
 
-def gnss_velocity_from_msg(msg: Any) -> tuple[int, np.ndarray, np.ndarray | None]:
-    """TwistWithCovarianceStamped of ``/gnss/velocity`` (ENU, contract) -> (t_ns, velocity
-    (3,) m/s, covariance (3, 3) m^2/s^2 or None when all zero).
+def gnss_velocity_from_msg(msg: Any) -> GnssVelocity:
+    """TwistWithCovarianceStamped of ``/gnss/velocity`` (ENU, contract) -> :class:`GnssVelocity`
+    (covariance None when all zero).
 
     The frame id is not an axis convention for GNSS drivers (many put the antenna's frame
     there while reporting ENU); only ``base_link`` (body axes) is refused with ``wrong_frame``.
-    Values are checked by the estimator.
     """
     t_ns = stamp_ns(msg.header)
     if str(msg.header.frame_id) == "base_link":
         raise InputError("wrong_frame", "/gnss/velocity must be in ENU, got base_link")
     lin = msg.twist.twist.linear
-    v = np.array([float(lin.x), float(lin.y), float(lin.z)])
     cov = np.asarray(msg.twist.covariance, dtype=float).reshape(6, 6)[:3, :3]
-    return t_ns, v, (None if not np.any(cov) else cov.copy())
+    return GnssVelocity.checked(t_ns, [lin.x, lin.y, lin.z], cov.copy())
 
 
-def gnss_from_msg(msg: Any) -> tuple[int, float, float, float, np.ndarray | None]:
-    """NavSatFix -> (t_ns, lat deg, lon deg, alt m, ENU covariance (3, 3) m^2 or None).
+def gnss_from_msg(msg: Any) -> GnssFix:
+    """NavSatFix -> :class:`GnssFix`.
 
     A fix with status STATUS_NO_FIX (-1) raises ``no_fix``; STATUS_UNKNOWN (-2, the message
     default, left by many drivers) is accepted. Covariance type 0 (unknown) gives None so the
-    estimator applies its configured default.
+    estimator applies its configured default; a covariance that is given but not finite or not
+    positive raises ``bad_cov``.
     """
     t_ns = stamp_ns(msg.header)
     if int(msg.status.status) == STATUS_NO_FIX:
         raise InputError("no_fix", "NavSatFix status reports no fix")
-    lat, lon, alt = float(msg.latitude), float(msg.longitude), float(msg.altitude)
-    if not (math.isfinite(lat) and math.isfinite(lon)):
-        raise InputError("nan", "GNSS latitude/longitude not finite")
-    if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
-        raise InputError("out_of_range", f"GNSS lat/lon out of range: {lat}, {lon}")
-    if not math.isfinite(alt):
-        alt = 0.0
-    cov: np.ndarray | None = None
+    cov = None
     if int(msg.position_covariance_type) != 0:
         cov = np.asarray(msg.position_covariance, dtype=float).reshape(3, 3)
-        if not np.all(np.isfinite(cov)) or cov[0, 0] <= 0 or cov[1, 1] <= 0:
-            cov = None
-    return t_ns, lat, lon, alt, cov
+    return GnssFix.checked(t_ns, msg.latitude, msg.longitude, msg.altitude, cov)
 
 
-def tire_forces_from_msg(msg: Any) -> tuple[int, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """TireForces -> (t_ns, fx, fy, fz, valid), each (4,) in WHEELS order.
+def tire_forces_from_msg(msg: Any) -> TireForces:
+    """TireForces message -> :class:`TireForces` sample, arrays in WHEELS order.
 
     Wheels absent from the message are invalid; unknown names are ignored; mismatched array
     lengths raise ``wrong_length``; no known wheel raises ``unknown_wheel``.
@@ -175,5 +166,5 @@ def tire_forces_from_msg(msg: Any) -> tuple[int, np.ndarray, np.ndarray, np.ndar
         fx[idx], fy[idx], fz[idx] = float(cols[0][k]), float(cols[1][k]), float(cols[2][k])
         valid[idx] = bool(cols[3][k])
     if known == 0:
-        raise InputError("unknown_wheel", f"no known wheel name in {names}")
-    return t_ns, fx, fy, fz, valid
+        raise InputError("unknown_wheel", f"no known wheel name in {names}; expected {WHEELS}")
+    return TireForces.checked(t_ns, fx, fy, fz, valid)

@@ -1,4 +1,5 @@
-"""detector_node: thin rclpy adapter over the core ``DeflationDetector``.
+"""detector_node: thin rclpy adapter over the core ``DeflationMonitor`` (the same front-end of
+the CUSUM detector that the estimation pipeline runs in a replay).
 
 Subscribes ``/tire_estimation/tire_radii`` (TireRadii) and ``/tire_estimation/odometry``
 (nav_msgs/Odometry: speed from ``twist.linear.x``; braking = deceleration between odometry
@@ -14,7 +15,6 @@ counted by kind and shown on ``/diagnostics``.
 
 from __future__ import annotations
 
-import math
 from collections import Counter
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -26,14 +26,15 @@ from rclpy.node import Node
 from std_srvs.srv import Trigger
 
 from tire_estimation.core.deflation import (
-    DeflationDetector,
     DeflationDetectorConfig,
     DeflationStatusData,
     Level,
     WheelDeflationData,
 )
+from tire_estimation.core.deflation_monitor import DeflationMonitor, MonitorConfig
 from tire_estimation.core.vehicle import load_vehicle_yaml
 from tire_estimation.errors import InputError, TireEstimationError
+from tire_estimation.node_config import DetectorNodeOptions
 from tire_estimation.nodes import conversions as conv
 from tire_estimation.nodes.common import declare_specs, restore_state, save_state_of, spin_node
 from tire_estimation.params import (
@@ -69,18 +70,19 @@ class DetectorNode(Node):
         self.config = build_config(
             DeflationDetectorConfig, DETECTOR_PREFIX, self._values(self._specs)
         )
-        self.detector = DeflationDetector(self.config)
+        options = build_config(DetectorNodeOptions, "", self._values(self._node_specs))
+        self.monitor = DeflationMonitor(
+            self.config,
+            MonitorConfig(
+                braking_decel_m_s2=options.braking_decel_m_s2,
+                braking_window_s=options.braking_window_s,
+                odometry_timeout_s=options.odometry_timeout_s,
+            ),
+        )
+        self.detector = self.monitor.detector
         self.received: Counter[str] = Counter()
         self.dropped: Counter[str] = Counter()
-        self.events: Counter[str] = Counter()
-
-        self._braking_decel = float(self.get_parameter("braking_decel_m_s2").value)
-        self._braking_window_ns = int(float(self.get_parameter("braking_window_s").value) * 1e9)
-        self._odom_timeout_ns = int(float(self.get_parameter("odometry_timeout_s").value) * 1e9)
-        self._odom_t_ns: int | None = None
-        self._speed: float | None = None
-        self._braking = False
-        self._brake_ref: tuple[int, float] | None = None
+        self.events = self.monitor.events
         self._last_radii_ns: int | None = None  # stamp of the last TireRadii
         self._last_radii_clock_ns = 0  # node clock when it arrived
         self._last_status: DeflationStatusData | None = None
@@ -111,10 +113,12 @@ class DetectorNode(Node):
 
     # --- parameters -------------------------------------------------------------------------
     def _declare_parameters(self) -> None:
-        for prefix, cls, _ in detector_sections()[:2]:
+        sections = detector_sections()
+        for prefix, cls, _ in sections[:2]:
             specs = parameter_specs(cls, prefix)
             declare_specs(self, specs)
             build_config(cls, prefix, self._values(specs))  # validate the node options
+        self._node_specs = parameter_specs(sections[0][1], sections[0][0])
         self._specs = parameter_specs(DeflationDetectorConfig, DETECTOR_PREFIX)
         declare_specs(self, self._specs)
 
@@ -175,66 +179,38 @@ class DetectorNode(Node):
         return callback
 
     def _on_odometry(self, msg: Odometry) -> None:
-        t_ns = conv.stamp_ns(msg.header)
-        speed = float(msg.twist.twist.linear.x)
-        if not math.isfinite(speed):
-            raise InputError("nan", "odometry speed is not finite")
-        if self._odom_t_ns is not None and t_ns <= self._odom_t_ns:
-            raise InputError("out_of_order", "odometry stamp is not newer than the last one")
-        if self._odom_t_ns is not None and t_ns - self._odom_t_ns > self._odom_timeout_ns:
-            self._brake_ref = None  # a gap: restart the deceleration estimate
-            self._braking = False
-        ref = self._brake_ref
-        if ref is None:
-            self._brake_ref = (t_ns, speed)
-        elif t_ns - ref[0] >= self._braking_window_ns:
-            decel = (ref[1] - speed) / ((t_ns - ref[0]) * 1e-9)
-            self._braking = decel > self._braking_decel
-            self._brake_ref = (t_ns, speed)
-        self._odom_t_ns = t_ns
-        self._speed = speed
+        self.monitor.on_odometry(conv.stamp_ns(msg.header), float(msg.twist.twist.linear.x))
 
     def _on_radii(self, msg: TireRadii) -> None:
         t_ns = conv.stamp_ns(msg.header)
-        speed = self._speed
-        if self._odom_t_ns is None or abs(t_ns - self._odom_t_ns) > self._odom_timeout_ns:
-            speed = None
-            self.events["radii_without_odometry"] += 1
-        before = self.detector.calibration_state
-        alarms_before = {w.wheel_name for w in self.detector.status().wheels if w.alarm}
-        common_before = self.detector.status().common
-        status = self.detector.step(
+        step = self.monitor.on_radii(
             t_ns,
             list(msg.wheel_names),
             list(msg.radius_error_m),
             list(msg.radius_error_std_m),
             list(msg.active),
-            speed,
-            self._braking,
         )
-        if not status.accepted:
+        if step is None:
             return
+        status = step.status
         self._last_radii_ns = t_ns
         self._last_radii_clock_ns = self.get_clock().now().nanoseconds
         self._last_status = status
         self.pub_status.publish(self._status_msg(status))
-        new_alarms = [w for w in status.wheels if w.alarm and w.wheel_name not in alarms_before]
-        for w in new_alarms:
+        for wheel in step.new_alarms:
+            change = status.wheel(wheel).radius_change_m
             self.get_logger().error(
-                f"tyre deflation alarm on {w.wheel_name}: radius "
-                f"{1e3 * w.radius_change_m:.2f} mm smaller than calibrated"
+                f"tyre deflation alarm on {wheel}: radius {1e3 * change:.2f} mm smaller than "
+                "calibrated"
             )
         common = status.common
-        new_common = (
-            common is not None and common.alarm and not (common_before and common_before.alarm)
-        )
-        if new_common and common is not None:
+        if step.new_common_alarm and common is not None:
             self.get_logger().error(
                 "tyre deflation alarm, tyre not identified (common channel): mean radius of "
                 f"{', '.join(common.wheel_names)} {1e3 * common.radius_change_m:.2f} mm smaller "
                 "than calibrated"
             )
-        if new_alarms or new_common or status.calibration_state != before:
+        if step.new_alarms or step.new_common_alarm or step.calibration_changed:
             self._save()
 
     # --- outputs ----------------------------------------------------------------------------
@@ -302,8 +278,10 @@ class DetectorNode(Node):
             "calibration_progress": f"{status.calibration_progress:.3f}",
             "calibrated_driving_time_s": f"{status.calibrated_driving_time_s:.1f}",
             "calibration_required_s": f"{self.config.calibration_time_s:.1f}",
-            "speed_m_s": "unknown" if self._speed is None else f"{self._speed:.2f}",
-            "braking": str(self._braking).lower(),
+            "speed_m_s": "unknown"
+            if self.monitor.speed_m_s is None
+            else f"{self.monitor.speed_m_s:.2f}",
+            "braking": str(self.monitor.braking).lower(),
             "tire_set_id": self._identity.tire_set_id,
             "persistence": self._persist_note,
         }

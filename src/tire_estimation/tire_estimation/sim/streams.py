@@ -119,6 +119,24 @@ class GnssStream:
 
 
 @dataclass(frozen=True)
+class GnssVelocityStream:
+    """The receiver's Doppler velocity on its own stamps: ``velocity_enu_m_s`` (M, 3) m/s and
+    ``covariance_m2_s2`` (M, 3, 3) (all zero: not reported)."""
+
+    t_ns: I64
+    velocity_enu_m_s: F64
+    covariance_m2_s2: F64
+
+    def __post_init__(self) -> None:
+        _check(
+            "gnss_velocity",
+            self.t_ns,
+            velocity_enu_m_s=self.velocity_enu_m_s,
+            covariance_m2_s2=self.covariance_m2_s2,
+        )
+
+
+@dataclass(frozen=True)
 class TireForceStream:
     """Measured tyre forces (M, 4) N in each wheel's frame; ``valid`` (M, 4) marks real sensors."""
 

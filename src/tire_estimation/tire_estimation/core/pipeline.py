@@ -1,0 +1,411 @@
+"""The estimation pipeline: one object that takes every sample and runs every estimator.
+
+The estimator node, the bag replay and the campaigns push the same typed samples
+(:mod:`tire_estimation.core.samples`) into an :class:`EstimationPipeline`. It owns
+
+* the stamp ordering (:class:`~tire_estimation.core.ordering.ReorderBuffer`),
+* the routing of each sample to the estimators that use it: the tyre-radius MPF
+  (:class:`~tire_estimation.core.radius_estimator.RadiusEstimator`), the tyre-force lateral KF
+  (:class:`~tire_estimation.core.tyre_force_kf.TyreForceEstimator`), the stiffness MPF
+  (:class:`~tire_estimation.core.stiffness_estimator.StiffnessEstimator`) and any lateral
+  baselines the caller adds,
+* the random streams (``default_rng(seed)`` for the radius MPF,
+  ``default_rng([seed, STIFFNESS_RNG_KEY])`` for the stiffness MPF),
+* the outputs at their periods in header time, with the node's topics' meaning: odometry and
+  radii after wheel-speed samples, stiffness after IMU samples, the lateral state of the
+  tyre-force KF while it runs and of the stiffness MPF otherwise,
+* the deflation detector (:class:`~tire_estimation.core.deflation_monitor.DeflationMonitor`)
+  fed with the published odometry and radii, exactly as the detector node is fed by topics.
+
+``push(sample)`` returns the outputs due; observers (:class:`Observer`) see every processed
+sample with the estimator's result and every output, for traces and reports.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+import numpy as np
+
+from tire_estimation.core.config import RadiusEstimatorConfig
+from tire_estimation.core.deflation import DeflationDetectorConfig
+from tire_estimation.core.deflation_monitor import DeflationMonitor, MonitorConfig, MonitorStep
+from tire_estimation.core.ordering import ReorderBuffer
+from tire_estimation.core.radius_estimator import RadiusEstimate, RadiusEstimator
+from tire_estimation.core.samples import (
+    GnssFix,
+    GnssVelocity,
+    ImuSample,
+    MeasuredVelocity,
+    Sample,
+    Steering,
+    TireForces,
+    WheelSpeeds,
+)
+from tire_estimation.core.stiffness_config import StiffnessEstimatorConfig
+from tire_estimation.core.stiffness_estimator import StiffnessEstimate, StiffnessEstimator
+from tire_estimation.core.tyre_force_kf import (
+    LateralEstimate,
+    TyreForceEstimator,
+    TyreForceKFConfig,
+)
+from tire_estimation.core.validation import require_non_negative, require_positive
+from tire_estimation.core.vehicle import VehicleParams
+
+#: seed-sequence key of the stiffness MPF's generator: ``default_rng([seed, key])``
+STIFFNESS_RNG_KEY = 1
+#: the stiffness MPF gives the lateral state only when the tyre-force KF has not for this
+#: long (header time), ns
+TYRE_FORCE_PRIORITY_NS = 500_000_000
+#: source name of the stiffness MPF's lateral state
+STIFFNESS_SOURCE = "stiffness_mpf"
+
+
+@dataclass(frozen=True)
+class PublishPeriods:
+    """Least periods between outputs of one kind, header time, s (0: after every sample).
+
+    Attributes:
+        odometry_s: odometry (pose, speed, yaw rate). Default 0.02.
+        radii_s: tyre radii. Default 0.1.
+        lateral_s: lateral state. Default 0.02.
+        stiffness_s: tyre stiffness. Default 0.1.
+    """
+
+    odometry_s: float = 0.02
+    radii_s: float = 0.1
+    lateral_s: float = 0.02
+    stiffness_s: float = 0.1
+
+    def __post_init__(self) -> None:
+        require_non_negative("odometry_publish_period_s", self.odometry_s)
+        require_positive("radii_publish_period_s", self.radii_s)
+        require_non_negative("lateral_publish_period_s", self.lateral_s)
+        require_non_negative("stiffness_publish_period_s", self.stiffness_s)
+
+
+@dataclass(frozen=True)
+class PipelineConfig:
+    """What runs in an :class:`EstimationPipeline` (an estimator is off when its config is None).
+
+    Attributes:
+        seed: seed of the random streams (the radius configuration's ``seed``).
+        radius: the tyre-radius MPF.
+        stiffness: the tyre-stiffness MPF.
+        tyre_force: the tyre-force lateral KF (runs when tyre forces arrive).
+        detector: the deflation detector, fed with the pipeline's own odometry and radii.
+        monitor: how the detector takes speed and braking from the odometry.
+        periods: output periods.
+        max_hold_s: longest time a sample waits for the clock streams, s. Default 0.5.
+        reorder_delay_s: the lag behind the wheel speeds (or measured speed) up to which a
+            sample of another stream is still processed in stamp order, s; it delays every
+            output by as much. Default 0.05.
+    """
+
+    seed: int = 0
+    radius: RadiusEstimatorConfig | None = None
+    stiffness: StiffnessEstimatorConfig | None = None
+    tyre_force: TyreForceKFConfig | None = None
+    detector: DeflationDetectorConfig | None = None
+    monitor: MonitorConfig = field(default_factory=MonitorConfig)
+    periods: PublishPeriods = field(default_factory=PublishPeriods)
+    max_hold_s: float = 0.5
+    reorder_delay_s: float = 0.05
+
+    def __post_init__(self) -> None:
+        require_non_negative("max_hold_s", self.max_hold_s)
+        require_non_negative("reorder_delay_s", self.reorder_delay_s)
+
+
+@dataclass(frozen=True, slots=True)
+class OdometryOutput:
+    """The radius MPF's pose and motion (published as nav_msgs/Odometry)."""
+
+    t_ns: int
+    estimate: RadiusEstimate
+
+
+@dataclass(frozen=True, slots=True)
+class RadiiOutput:
+    """The radius MPF's tyre radii (published as TireRadii)."""
+
+    t_ns: int
+    estimate: RadiusEstimate
+
+
+@dataclass(frozen=True, slots=True)
+class StiffnessOutput:
+    """The stiffness MPF's estimate (published as TireStiffness)."""
+
+    t_ns: int
+    estimate: StiffnessEstimate
+
+
+@dataclass(frozen=True, slots=True)
+class LateralOutput:
+    """Lateral state of base_link (published as LateralState); ``estimate.source`` names the
+    estimator."""
+
+    t_ns: int
+    estimate: LateralEstimate
+
+
+@dataclass(frozen=True, slots=True)
+class DeflationOutput:
+    """The deflation detector's status after an accepted radius estimate."""
+
+    t_ns: int
+    step: MonitorStep
+
+
+Output = OdometryOutput | RadiiOutput | StiffnessOutput | LateralOutput | DeflationOutput
+
+
+class Observer(Protocol):
+    """Sees what the pipeline does (trace recorders, reports)."""
+
+    def on_sample(self, pipeline: EstimationPipeline, sample: Sample, result: Any) -> None:
+        """After ``sample`` was routed; ``result`` is the radius MPF's update for a GNSS fix or
+        velocity, the tyre-force KF's estimate for tyre forces, else None."""
+
+    def on_output(self, pipeline: EstimationPipeline, output: Output) -> None:
+        """After an output was made."""
+
+
+class LateralBaseline(Protocol):
+    """An IMU-driven lateral estimator run beside the stiffness MPF on the same samples."""
+
+    def on_wheel_speeds(self, t_ns: int, wheel_speed_rad_s: Any) -> None: ...
+    def on_steering(self, t_ns: int, angle_rad: float) -> None: ...
+    def on_velocity(self, t_ns: int, vx_m_s: float) -> None: ...
+    def on_imu(self, t_ns: int, gyro_rad_s: Any, accel_m_s2: Any) -> None: ...
+    def estimate(self) -> Any: ...
+
+
+def lateral_from_stiffness(est: StiffnessEstimate, lr_m: float) -> LateralEstimate:
+    """The stiffness MPF's CG state moved to base_link: ``vy_b = vy_cg - lr r`` (REP-103)."""
+    vy_b = est.vy_m_s - lr_m * est.yaw_rate_rad_s
+    # covariance of J [vx, vy_cg, r] with J = [[1, 0, 0], [0, 1, -lr], [0, 0, 1]]
+    jac = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, -lr_m], [0.0, 0.0, 1.0]])
+    cov = jac @ np.asarray(est.covariance, dtype=float) @ jac.T
+    return LateralEstimate(
+        t_ns=int(est.t_ns),
+        vx_m_s=float(est.vx_m_s),
+        vy_m_s=float(vy_b),
+        yaw_rate_rad_s=float(est.yaw_rate_rad_s),
+        sideslip_rad=float(math.atan2(vy_b, max(est.vx_m_s, 1e-3))),
+        covariance=cov,
+        axle_lateral_force_n=np.zeros(2),
+        linearity="unknown",
+        source=STIFFNESS_SOURCE,
+    )
+
+
+class EstimationPipeline:
+    """Every estimator behind one ``push``.
+
+    Args:
+        config: what runs.
+        vehicle: the vehicle description.
+        baselines: lateral estimators run beside the stiffness MPF (evaluation only), by name.
+        observers: see every processed sample and every output.
+    """
+
+    def __init__(
+        self,
+        config: PipelineConfig,
+        vehicle: VehicleParams,
+        baselines: Mapping[str, LateralBaseline] | None = None,
+        observers: Sequence[Observer] = (),
+    ) -> None:
+        self.config = config
+        self.vehicle = vehicle
+        self.radius: RadiusEstimator | None = None
+        if config.radius is not None:
+            self.radius = RadiusEstimator(
+                config.radius, vehicle, np.random.default_rng(config.seed)
+            )
+        self.stiffness: StiffnessEstimator | None = None
+        if config.stiffness is not None:
+            rng = np.random.default_rng([config.seed, STIFFNESS_RNG_KEY])
+            self.stiffness = StiffnessEstimator(config.stiffness, vehicle, rng)
+        self.tyre_force: TyreForceEstimator | None = None
+        if config.tyre_force is not None:
+            self.tyre_force = TyreForceEstimator(config.tyre_force, vehicle)
+        self.monitor: DeflationMonitor | None = None
+        if config.detector is not None:
+            self.monitor = DeflationMonitor(config.detector, config.monitor)
+        self.baselines: dict[str, LateralBaseline] = dict(baselines or {})
+        self.observers: list[Observer] = list(observers)
+        self.buffer = ReorderBuffer(
+            round(config.max_hold_s * 1e9), round(config.reorder_delay_s * 1e9)
+        )
+        #: samples received, per stream
+        self.received: Counter[str] = Counter()
+        #: samples dropped by the pipeline, ``<stream>:<kind>``
+        self.dropped: Counter[str] = Counter()
+        periods = config.periods
+        self._period_ns = {
+            "odometry": round(periods.odometry_s * 1e9),
+            "radii": round(periods.radii_s * 1e9),
+            "lateral": round(periods.lateral_s * 1e9),
+            "stiffness": round(periods.stiffness_s * 1e9),
+        }
+        self._last_ns = {"odometry": 0, "radii": 0, "lateral": 0, "stiffness": 0}
+        self._last_tyre_force_ns: int | None = None
+        self._lr_m = vehicle.lr_m
+        # IMU-driven estimators that take speed, steering and IMU the same way
+        self._lateral_imu: list[Any] = [self.stiffness] if self.stiffness is not None else []
+        self._lateral_imu.extend(self.baselines.values())
+
+    # ------------------------------------------------------------------ input
+    def push(self, sample: Sample) -> list[Output]:
+        """Take one sample; process what the stamp order allows; return the outputs due."""
+        self.received[sample.KIND] += 1
+        out: list[Output] = []
+        for ready in self.buffer.push(sample):
+            self._process(ready, out)
+        return out
+
+    def push_all(self, samples: Iterable[Sample]) -> None:
+        """Push every sample and then :meth:`flush` (the outputs go to the observers)."""
+        push = self.push
+        for sample in samples:
+            push(sample)
+        self.flush()
+
+    def flush(self) -> list[Output]:
+        """Process the samples still held for ordering (at the end of a recording)."""
+        out: list[Output] = []
+        for ready in self.buffer.flush():
+            self._process(ready, out)
+        return out
+
+    def reset(self) -> None:
+        """Forget what the estimators learned (radii, stiffness); the detector is untouched."""
+        if self.radius is not None:
+            self.radius.reset()
+        if self.stiffness is not None:
+            self.stiffness.reset()
+
+    # ------------------------------------------------------------------ routing
+    def _process(self, sample: Sample, out: list[Output]) -> None:
+        result: Any = None
+        t = sample.t_ns
+        if type(sample) is WheelSpeeds:
+            ws = sample.wheel_speed_rad_s
+            if self.radius is not None:
+                self.radius.on_wheel_speeds(t, ws)
+            if self.tyre_force is not None:
+                self.tyre_force.on_wheel_speeds(t, ws)
+            for est in self._lateral_imu:
+                est.on_wheel_speeds(t, ws)
+            if self.radius is not None:
+                self._radius_outputs(t, out)
+        elif type(sample) is ImuSample:
+            gyro, acc = sample.angular_velocity_rad_s, sample.linear_acceleration_m_s2
+            if self.radius is not None:
+                self.radius.on_imu(t, gyro, acc)
+            if self.tyre_force is not None:
+                self.tyre_force.on_imu(t, gyro, acc)
+            for est in self._lateral_imu:
+                est.on_imu(t, gyro, acc)
+            if self.stiffness is not None:
+                self._stiffness_outputs(self.stiffness, t, out)
+        elif type(sample) is Steering:
+            angle = sample.angle_rad
+            if self.radius is not None:
+                self.radius.on_steering(t, angle)
+            if self.tyre_force is not None:
+                self.tyre_force.on_steering(t, angle)
+            for est in self._lateral_imu:
+                est.on_steering(t, angle)
+        elif type(sample) is GnssFix:
+            if self.radius is not None:
+                result = self.radius.on_gnss_fix(
+                    t, sample.lat_deg, sample.lon_deg, sample.alt_m, sample.covariance_m2
+                )
+        elif type(sample) is GnssVelocity:
+            if self.radius is not None and self.radius.config.gnss_velocity_enabled:
+                result = self.radius.on_gnss_velocity(
+                    t, sample.velocity_enu_m_s, sample.covariance_m2_s2
+                )
+        elif type(sample) is MeasuredVelocity:
+            for est in self._lateral_imu:
+                est.on_velocity(t, sample.vx_m_s)
+        elif type(sample) is TireForces and self.tyre_force is not None:
+            result = self.tyre_force.on_tire_forces(
+                t, sample.fx_n, sample.fy_n, sample.fz_n, sample.valid
+            )
+            if result is not None:
+                self._last_tyre_force_ns = t
+                self._lateral_output(t, result, out)
+        for obs in self.observers:
+            obs.on_sample(self, sample, result)
+
+    # ------------------------------------------------------------------ outputs
+    def _emit(self, output: Output, out: list[Output]) -> None:
+        out.append(output)
+        for obs in self.observers:
+            obs.on_output(self, output)
+
+    def _due(self, kind: str, t_ns: int) -> bool:
+        return t_ns - self._last_ns[kind] >= self._period_ns[kind]
+
+    def _radius_outputs(self, t_ns: int, out: list[Output]) -> None:
+        """Odometry and radii when their periods have elapsed; the detector sees both."""
+        odom_due, radii_due = self._due("odometry", t_ns), self._due("radii", t_ns)
+        if not (odom_due or radii_due):
+            return
+        assert self.radius is not None
+        est = self.radius.estimate()
+        monitor = self.monitor
+        if odom_due:
+            self._last_ns["odometry"] = t_ns
+            if est.state != "initializing":
+                self._emit(OdometryOutput(t_ns, est), out)
+                if monitor is not None:
+                    monitor.on_odometry(t_ns, float(est.speed_m_s))
+        if radii_due:
+            self._last_ns["radii"] = t_ns
+            self._emit(RadiiOutput(t_ns, est), out)
+            if monitor is not None:
+                step = monitor.on_radii(
+                    t_ns,
+                    est.wheels,
+                    [float(v) for v in est.radius_error_m],
+                    [float(v) for v in est.radius_error_std_m],
+                    [bool(v) for v in est.active],
+                )
+                if step is not None:
+                    self._emit(DeflationOutput(t_ns, step), out)
+
+    def _stiffness_outputs(
+        self, stiffness: StiffnessEstimator, t_ns: int, out: list[Output]
+    ) -> None:
+        """Stiffness at its period and, while the tyre-force KF is silent, the lateral state."""
+        if not stiffness.mpf.initialized:
+            return
+        stiff_due = self._due("stiffness", t_ns)
+        last_tf = self._last_tyre_force_ns
+        lateral_due = (last_tf is None or t_ns - last_tf > TYRE_FORCE_PRIORITY_NS) and self._due(
+            "lateral", t_ns
+        )
+        if not (stiff_due or lateral_due):
+            return
+        est = stiffness.estimate()
+        if stiff_due:
+            self._last_ns["stiffness"] = t_ns
+            self._emit(StiffnessOutput(t_ns, est), out)
+        if lateral_due:
+            self._last_ns["lateral"] = t_ns
+            self._emit(LateralOutput(t_ns, lateral_from_stiffness(est, self._lr_m)), out)
+
+    def _lateral_output(self, t_ns: int, est: LateralEstimate, out: list[Output]) -> None:
+        if self._due("lateral", t_ns):
+            self._last_ns["lateral"] = t_ns
+            self._emit(LateralOutput(t_ns, est), out)

@@ -1,0 +1,257 @@
+"""Typed sensor samples: what every source (node, bag, simulator) hands to the pipeline.
+
+One frozen dataclass per input stream of the contract. Time is integer nanoseconds of
+measurement (header stamp); vectors are in ``base_link`` axes (REP-103) unless named ``_enu``;
+per-wheel arrays have 4 entries in the order of :data:`~tire_estimation.core.wheels.WHEELS`.
+
+A sample is checked once, where it enters the package: :meth:`checked` of each type raises
+:class:`~tire_estimation.errors.InputError` with a stable ``kind`` (``no_stamp``, ``nan``,
+``wrong_shape``, ``out_of_range``) that the caller counts as ``dropped.<stream>:<kind>``.
+Sources whose arrays were validated as a whole (the bag reader, the simulator) build samples
+with the plain constructor.
+
+``KIND`` names the stream (the key of the drop counters and of ``/diagnostics``);
+``PRIORITY`` orders samples of equal stamp: the speeds and steering an IMU sample belongs to
+come before it, a fix before its Doppler velocity, and all of them before the tyre forces and
+the measured velocity of the same instant.
+"""
+
+from __future__ import annotations
+
+import heapq
+import math
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+from numpy.typing import NDArray
+
+from tire_estimation.errors import InputError
+
+F64 = NDArray[np.float64]
+
+#: largest wheel angular speed accepted, rad/s (about 1300 km/h on a 0.35 m tyre)
+MAX_WHEEL_SPEED_RAD_S = 1000.0
+#: largest steering angle accepted, rad
+MAX_STEERING_RAD = 1.2
+
+
+def _stamp(t_ns: object) -> int:
+    if isinstance(t_ns, bool) or not isinstance(t_ns, (int, np.integer)):
+        raise InputError("bad_stamp", f"stamp must be integer nanoseconds, got {t_ns!r}")
+    if t_ns <= 0:
+        raise InputError("no_stamp", "stamp is zero or negative")
+    return int(t_ns)
+
+
+def _vector(values: object, n: int, what: str) -> F64:
+    try:
+        arr = np.asarray(values, dtype=np.float64).reshape(-1)
+    except (TypeError, ValueError) as exc:
+        raise InputError("bad_value", f"{what}: {exc}") from exc
+    if arr.size != n:
+        raise InputError("wrong_shape", f"{what} needs {n} values, got {arr.size}")
+    return arr
+
+
+def _covariance(values: object, n: int, what: str) -> F64 | None:
+    """An (n, n) covariance; None when absent or all zero (ROS: unknown). Non-finite, or not
+    positive on the horizontal variances: ``bad_cov``."""
+    if values is None:
+        return None
+    try:
+        cov = np.asarray(values, dtype=np.float64).reshape(n, n)
+    except (TypeError, ValueError) as exc:
+        raise InputError("bad_cov", f"{what}: {exc}") from exc
+    if not np.all(np.isfinite(cov)):
+        raise InputError("bad_cov", f"{what} is not finite")
+    if not np.any(cov):
+        return None
+    if cov[0, 0] <= 0.0 or cov[1, 1] <= 0.0:
+        raise InputError("bad_cov", f"{what} has a horizontal variance <= 0")
+    return cov
+
+
+@dataclass(frozen=True, slots=True)
+class WheelSpeeds:
+    """Wheel angular speeds (4,) rad/s, positive rolling forward; NaN for a wheel not reported."""
+
+    KIND: ClassVar[str] = "wheel_speeds"
+    PRIORITY: ClassVar[int] = 0
+    t_ns: int
+    wheel_speed_rad_s: F64
+
+    @classmethod
+    def checked(cls, t_ns: object, wheel_speed_rad_s: object) -> WheelSpeeds:
+        """Validated sample: at least one finite wheel, all within +-1000 rad/s."""
+        ws = _vector(wheel_speed_rad_s, 4, "wheel speeds")
+        finite = ws[np.isfinite(ws)]
+        if finite.size == 0:
+            raise InputError("nan", "no finite wheel speed")
+        if np.any(np.isinf(ws)) or np.any(np.abs(finite) > MAX_WHEEL_SPEED_RAD_S):
+            raise InputError("out_of_range", f"wheel speed beyond 1000 rad/s: {ws.tolist()}")
+        return cls(_stamp(t_ns), ws)
+
+
+@dataclass(frozen=True, slots=True)
+class Steering:
+    """Mean road-wheel steer angle, rad, positive to the left."""
+
+    KIND: ClassVar[str] = "steering"
+    PRIORITY: ClassVar[int] = 1
+    t_ns: int
+    angle_rad: float
+
+    @classmethod
+    def checked(cls, t_ns: object, angle_rad: object) -> Steering:
+        """Validated sample: finite, within +-1.2 rad."""
+        try:
+            angle = float(angle_rad)  # type: ignore[arg-type]
+        except (TypeError, ValueError) as exc:
+            raise InputError("bad_value", f"steering angle: {exc}") from exc
+        if not math.isfinite(angle):
+            raise InputError("nan", "steering angle is not finite")
+        if abs(angle) > MAX_STEERING_RAD:
+            raise InputError("out_of_range", f"steering angle {angle} rad")
+        return cls(_stamp(t_ns), angle)
+
+
+@dataclass(frozen=True, slots=True)
+class ImuSample:
+    """Gyro (3,) rad/s and specific force (3,) m/s^2 (about +9.81 z at rest), base_link axes."""
+
+    KIND: ClassVar[str] = "imu"
+    PRIORITY: ClassVar[int] = 2
+    t_ns: int
+    angular_velocity_rad_s: F64
+    linear_acceleration_m_s2: F64
+
+    @classmethod
+    def checked(
+        cls, t_ns: object, angular_velocity_rad_s: object, linear_acceleration_m_s2: object
+    ) -> ImuSample:
+        """Validated sample: two finite 3-vectors."""
+        gyro = _vector(angular_velocity_rad_s, 3, "angular velocity")
+        acc = _vector(linear_acceleration_m_s2, 3, "linear acceleration")
+        if not (np.all(np.isfinite(gyro)) and np.all(np.isfinite(acc))):
+            raise InputError("nan", "IMU sample is not finite")
+        return cls(_stamp(t_ns), gyro, acc)
+
+
+@dataclass(frozen=True, slots=True)
+class GnssFix:
+    """WGS-84 antenna position and its ENU covariance (3, 3) m^2 (None: not reported)."""
+
+    KIND: ClassVar[str] = "gnss_fix"
+    PRIORITY: ClassVar[int] = 3
+    t_ns: int
+    lat_deg: float
+    lon_deg: float
+    alt_m: float
+    covariance_m2: F64 | None
+
+    @classmethod
+    def checked(
+        cls, t_ns: object, lat_deg: float, lon_deg: float, alt_m: float, covariance_m2: object
+    ) -> GnssFix:
+        """Validated sample: finite latitude, longitude and altitude in range; a covariance
+        that is given must be finite and positive on its diagonal (else ``bad_cov``)."""
+        lat, lon, alt = float(lat_deg), float(lon_deg), float(alt_m)
+        if not (math.isfinite(lat) and math.isfinite(lon) and math.isfinite(alt)):
+            raise InputError("nan", "GNSS latitude, longitude or altitude not finite")
+        if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
+            raise InputError("out_of_range", f"GNSS lat/lon out of range: {lat}, {lon}")
+        return cls(_stamp(t_ns), lat, lon, alt, _covariance(covariance_m2, 3, "fix covariance"))
+
+
+@dataclass(frozen=True, slots=True)
+class GnssVelocity:
+    """The receiver's Doppler velocity (3,) m/s in ENU, covariance (3, 3) (None: not given)."""
+
+    KIND: ClassVar[str] = "gnss_velocity"
+    PRIORITY: ClassVar[int] = 4
+    t_ns: int
+    velocity_enu_m_s: F64
+    covariance_m2_s2: F64 | None
+
+    @classmethod
+    def checked(cls, t_ns: object, velocity_enu_m_s: object, covariance: object) -> GnssVelocity:
+        """Validated sample: a finite 3-vector."""
+        v = _vector(velocity_enu_m_s, 3, "GNSS velocity")
+        if not np.all(np.isfinite(v)):
+            raise InputError("nan", "GNSS velocity is not finite")
+        return cls(_stamp(t_ns), v, _covariance(covariance, 3, "velocity covariance"))
+
+
+@dataclass(frozen=True, slots=True)
+class TireForces:
+    """Measured tyre forces (4,) N per wheel in the wheel's frame; ``valid`` (4,) bool."""
+
+    KIND: ClassVar[str] = "tire_forces"
+    PRIORITY: ClassVar[int] = 5
+    t_ns: int
+    fx_n: F64
+    fy_n: F64
+    fz_n: F64
+    valid: NDArray[np.bool_]
+
+    @classmethod
+    def checked(
+        cls, t_ns: object, fx_n: object, fy_n: object, fz_n: object, valid: object
+    ) -> TireForces:
+        """Validated sample: four 4-vectors; a wheel with a non-finite force is not valid."""
+        fx = _vector(fx_n, 4, "fx")
+        fy = _vector(fy_n, 4, "fy")
+        fz = _vector(fz_n, 4, "fz")
+        ok = np.asarray(valid, dtype=bool).reshape(-1)
+        if ok.size != 4:
+            raise InputError("wrong_shape", f"valid needs 4 values, got {ok.size}")
+        ok = ok & np.isfinite(fx) & np.isfinite(fy) & np.isfinite(fz)
+        return cls(_stamp(t_ns), fx, fy, fz, ok)
+
+
+@dataclass(frozen=True, slots=True)
+class MeasuredVelocity:
+    """Measured longitudinal speed of base_link, m/s (vehicles without wheel speeds)."""
+
+    KIND: ClassVar[str] = "velocity"
+    PRIORITY: ClassVar[int] = 6
+    t_ns: int
+    vx_m_s: float
+
+    @classmethod
+    def checked(cls, t_ns: object, vx_m_s: object) -> MeasuredVelocity:
+        """Validated sample: a finite speed."""
+        vx = float(vx_m_s)  # type: ignore[arg-type]
+        if not math.isfinite(vx):
+            raise InputError("nan", "velocity not finite")
+        return cls(_stamp(t_ns), vx)
+
+
+Sample = (
+    WheelSpeeds | Steering | ImuSample | GnssFix | GnssVelocity | TireForces | MeasuredVelocity
+)
+#: every sample type, in priority order
+SAMPLE_TYPES: tuple[type, ...] = (
+    WheelSpeeds,
+    Steering,
+    ImuSample,
+    GnssFix,
+    GnssVelocity,
+    TireForces,
+    MeasuredVelocity,
+)
+#: the stream names (``KIND``) in priority order
+STREAMS: tuple[str, ...] = tuple(t.KIND for t in SAMPLE_TYPES)
+
+
+def order_key(sample: Sample) -> tuple[int, int]:
+    """``(stamp, priority)``: the order in which the pipeline processes samples."""
+    return sample.t_ns, sample.PRIORITY
+
+
+def merge(streams: Iterable[Iterable[Sample]]) -> Iterator[Sample]:
+    """Merge per-stream sample sequences, each in stamp order, into one in :func:`order_key`
+    order (lazy; ties of equal key keep the order of ``streams``)."""
+    return heapq.merge(*streams, key=order_key)

@@ -1,0 +1,151 @@
+"""``/diagnostics`` of the estimator node: one status per estimator and one per wheel."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+
+from tire_estimation.core.pipeline import EstimationPipeline
+from tire_estimation.core.stiffness_estimator import StiffnessEstimator
+from tire_estimation.core.tyre_force_kf import TyreForceEstimator
+
+#: input streams reported on /diagnostics (rate and count)
+INPUT_STREAMS = ("wheel_speeds", "steering", "imu", "gnss_fix", "gnss_velocity", "tire_forces")
+
+
+def _status(name: str, hardware_id: str, level: int, message: str) -> DiagnosticStatus:
+    st = DiagnosticStatus()
+    st.name, st.hardware_id, st.level, st.message = name, hardware_id, level, message
+    return st
+
+
+def _values(values: Mapping[str, str]) -> list[KeyValue]:
+    return [KeyValue(key=k, value=v) for k, v in values.items()]
+
+
+def statuses(
+    pipeline: EstimationPipeline,
+    hardware_id: str,
+    received: Mapping[str, int],
+    dropped: Mapping[str, int],
+    rates_hz: Mapping[str, float],
+    persistence_note: str,
+) -> list[DiagnosticStatus]:
+    """The radius estimator's status (with the input counters), one per wheel it covers, and
+    one for the stiffness MPF and the tyre-force KF when they run."""
+    out: list[DiagnosticStatus] = []
+    radius = pipeline.radius
+    if radius is not None:
+        est = radius.estimate()
+        if est.state == "running":
+            level, message = DiagnosticStatus.OK, "running"
+        elif est.state == "paused":
+            level, message = DiagnosticStatus.WARN, f"paused: {est.state_reason}"
+        else:
+            level, message = DiagnosticStatus.WARN, f"initializing: {est.state_reason}"
+        main = _status("tire_estimation: radius estimator", hardware_id, level, message)
+        values = {
+            "state": est.state,
+            "reason": est.state_reason,
+            "effective_sample_size": f"{float(est.n_eff):.1f}",
+            "resample_count": str(int(est.resample_count)),
+            "particles": str(radius.config.n_particles),
+            "persistence": persistence_note,
+        }
+        if radius.config.gnss_velocity_enabled:
+            # velocities received minus these: dropped, gated, or while paused / initializing
+            values["gnss_velocity.updates"] = str(int(radius.velocity_updates))
+            values["gnss_velocity.skipped_accelerating"] = str(int(radius.velocity_skipped_accel))
+        for stream in INPUT_STREAMS:
+            values[f"rate_hz.{stream}"] = f"{rates_hz.get(stream, 0.0):.1f}"
+            values[f"received.{stream}"] = str(received.get(stream, 0))
+        for key, count in sorted(dropped.items()):
+            values[f"dropped.{key}"] = str(count)
+        for key, count in sorted(radius.stats.items()):
+            values[f"dropped.core.{key}"] = str(count)
+        if any(dropped.values()) and main.level == DiagnosticStatus.OK:
+            main.message = f"running; {sum(dropped.values())} input samples dropped"
+        main.values = _values(values)
+        out.append(main)
+        for i, wheel in enumerate(est.wheels):
+            active = bool(est.active[i])
+            st = _status(
+                f"tire_estimation: {wheel}",
+                hardware_id,
+                DiagnosticStatus.OK,
+                "learning" if active else "holding",
+            )
+            st.values = _values(
+                {
+                    "radius_error_mm": f"{1e3 * float(est.radius_error_m[i]):.3f}",
+                    "radius_error_std_mm": f"{1e3 * float(est.radius_error_std_m[i]):.3f}",
+                    "radius_noise_std_mm": f"{1e3 * float(est.radius_noise_std_m[i]):.4f}",
+                    "active": str(active).lower(),
+                }
+            )
+            out.append(st)
+    if pipeline.stiffness is not None:
+        out.append(_stiffness_status(pipeline.stiffness, hardware_id, received))
+    if pipeline.tyre_force is not None:
+        out.append(_tyre_force_status(pipeline.tyre_force, hardware_id, received))
+    return out
+
+
+def _tyre_force_status(
+    lateral: TyreForceEstimator, hardware_id: str, received: Mapping[str, int]
+) -> DiagnosticStatus:
+    """The tyre-force lateral KF: waiting for forces, or running with its relay."""
+    est = lateral.estimate()
+    n = received.get("tire_forces", 0)
+    if n == 0:
+        level, message = DiagnosticStatus.OK, "idle: no tyre forces received"
+    elif est.linearity == "unknown":
+        level, message = DiagnosticStatus.WARN, "initializing"
+    else:
+        level, message = DiagnosticStatus.OK, f"running ({est.linearity})"
+    st = _status("tire_estimation: tyre-force lateral KF", hardware_id, level, message)
+    values = {
+        "linearity": str(est.linearity),
+        "received.tire_forces": str(n),
+        "lateral_velocity_m_s": f"{float(est.vy_m_s):.3f}",
+        "yaw_rate_rad_s": f"{float(est.yaw_rate_rad_s):.4f}",
+        "virtual_sensor_method": lateral.config.virtual_sensor_method,
+    }
+    for key, count in sorted(lateral.stats.items()):
+        values[f"dropped.core.{key}"] = str(count)
+    st.values = _values(values)
+    return st
+
+
+def _stiffness_status(
+    stiffness: StiffnessEstimator, hardware_id: str, received: Mapping[str, int]
+) -> DiagnosticStatus:
+    """The stiffness MPF: learning or holding and why, N_eff, estimates, drops."""
+    est = stiffness.estimate()
+    if not stiffness.mpf.initialized:
+        level, message = DiagnosticStatus.WARN, f"initializing: {est.reason}"
+    else:
+        level = DiagnosticStatus.OK
+        message = "learning" if est.active else f"holding: {est.reason}"
+    st = _status("tire_estimation: stiffness estimator", hardware_id, level, message)
+    values = {
+        "active": str(bool(est.active)).lower(),
+        "reason": est.reason,
+        "effective_sample_size": f"{float(est.n_eff):.1f}",
+        "resample_count": str(int(stiffness.mpf.resample_count)),
+        "activation_replays": str(stiffness.replay_count),
+        "activation_restarts": str(stiffness.restart_count),
+        "grid_handovers": str(stiffness.handover_count),
+        "grid_rejections": str(stiffness.grid_rejection_count),
+        "particles": str(stiffness.config.n_particles),
+        "gyro_bias_z_rad_s": f"{float(est.gyro_bias_rad_s[2]):.5f}",
+        "received.velocity": str(received.get("velocity", 0)),
+    }
+    for name, c, s in zip(est.names, est.stiffness, est.stiffness_std, strict=True):
+        values[name] = f"{float(c):.0f}"
+        values[f"{name}_std"] = f"{float(s):.0f}"
+    for key, count in sorted(stiffness.stats.items()):
+        values[f"dropped.core.{key}"] = str(count)
+    st.values = _values(values)
+    return st

@@ -1,0 +1,102 @@
+"""Core estimates -> output messages of the estimator node (REP-103/105)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from nav_msgs.msg import Odometry
+
+from tire_estimation.core.radius_estimator import RadiusEstimate
+from tire_estimation.core.stiffness_estimator import StiffnessEstimate
+from tire_estimation.core.tyre_force_kf import LateralEstimate
+from tire_estimation.nodes.conversions import ns_to_stamp
+from tire_estimation_msgs.msg import LateralState, TireRadii, TireStiffness
+
+_STATE = {
+    "initializing": TireRadii.STATE_INITIALIZING,
+    "running": TireRadii.STATE_RUNNING,
+    "paused": TireRadii.STATE_PAUSED,
+}
+_LINEARITY = {
+    "unknown": LateralState.LINEARITY_UNKNOWN,
+    "linear": LateralState.LINEARITY_LINEAR,
+    "nonlinear": LateralState.LINEARITY_NONLINEAR,
+}
+#: rows/columns of x, y and yaw in the REP-103 6x6 covariance order (x, y, z, roll, pitch, yaw)
+_PLANAR = (0, 1, 5)
+#: twist covariance of the odometry: speed (0.1 m/s)^2, lateral and vertical speed (0.1 m/s)^2
+#: (planar, non-holonomic), roll/pitch rates unknown, yaw rate (0.01 rad/s)^2
+_TWIST_COV = np.diag([0.01, 0.01, 0.01, 1e6, 1e6, 1e-4]).reshape(36)
+
+
+def odometry_msg(est: RadiusEstimate, t_ns: int) -> Odometry:
+    """Pose of base_link in ``map`` (planar: z, roll, pitch unknown), twist in base_link."""
+    msg = Odometry()
+    ns_to_stamp(t_ns, msg.header.stamp)
+    msg.header.frame_id = "map"
+    msg.child_frame_id = "base_link"
+    east, north, yaw = (float(v) for v in est.pose)
+    msg.pose.pose.position.x = east
+    msg.pose.pose.position.y = north
+    # quaternion of a rotation about z by yaw: (0, 0, sin(yaw / 2), cos(yaw / 2))
+    msg.pose.pose.orientation.z = math.sin(0.5 * yaw)
+    msg.pose.pose.orientation.w = math.cos(0.5 * yaw)
+    cov = np.zeros((6, 6))
+    cov[np.ix_(_PLANAR, _PLANAR)] = est.pose_cov
+    cov[2, 2] = cov[3, 3] = cov[4, 4] = 1e6
+    msg.pose.covariance = cov.reshape(36)
+    msg.twist.twist.linear.x = float(est.speed_m_s)
+    msg.twist.twist.angular.z = float(est.yaw_rate_rad_s)
+    msg.twist.covariance = _TWIST_COV
+    return msg
+
+
+def radii_msg(est: RadiusEstimate, t_ns: int, nominal_radius_m: float) -> TireRadii:
+    """Per-wheel radius error (estimate minus nominal) with its std."""
+    msg = TireRadii()
+    ns_to_stamp(t_ns, msg.header.stamp)
+    msg.header.frame_id = "base_link"
+    msg.nominal_radius_m = float(nominal_radius_m)
+    msg.wheel_names = list(est.wheels)
+    msg.radius_error_m = [float(v) for v in est.radius_error_m]
+    msg.radius_error_std_m = [float(v) for v in est.radius_error_std_m]
+    msg.radius_noise_std_m = [float(v) for v in est.radius_noise_std_m]
+    msg.active = [bool(v) for v in est.active]
+    msg.effective_sample_size = float(est.n_eff)
+    msg.state = _STATE.get(est.state, TireRadii.STATE_INITIALIZING)
+    msg.state_reason = str(est.state_reason)
+    return msg
+
+
+def stiffness_msg(est: StiffnessEstimate, t_ns: int) -> TireStiffness:
+    """Learned axle stiffness, its std, the nominal values and the IMU biases."""
+    msg = TireStiffness()
+    ns_to_stamp(t_ns, msg.header.stamp)
+    msg.header.frame_id = "base_link"
+    msg.names = list(est.names)
+    msg.stiffness = [float(v) for v in est.stiffness]
+    msg.stiffness_std = [float(v) for v in est.stiffness_std]
+    msg.nominal = [float(v) for v in est.nominal]
+    msg.active = bool(est.active)
+    msg.reason = "" if est.reason == "excited" else str(est.reason)
+    msg.gyro_bias_rad_s = [float(v) for v in est.gyro_bias_rad_s]
+    msg.accel_bias_m_s2 = [float(v) for v in est.accel_bias_m_s2]
+    msg.effective_sample_size = float(est.n_eff)
+    return msg
+
+
+def lateral_msg(est: LateralEstimate, t_ns: int) -> LateralState:
+    """Lateral state of base_link; ``source`` names the estimator."""
+    msg = LateralState()
+    ns_to_stamp(t_ns, msg.header.stamp)
+    msg.header.frame_id = "base_link"
+    msg.source = str(est.source)
+    msg.longitudinal_velocity_m_s = float(est.vx_m_s)
+    msg.lateral_velocity_m_s = float(est.vy_m_s)
+    msg.yaw_rate_rad_s = float(est.yaw_rate_rad_s)
+    msg.sideslip_rad = float(est.sideslip_rad)
+    msg.covariance = [float(v) for v in np.asarray(est.covariance, dtype=float).ravel()]
+    msg.axle_lateral_force_n = [float(v) for v in est.axle_lateral_force_n]
+    msg.linearity = _LINEARITY.get(est.linearity, LateralState.LINEARITY_UNKNOWN)
+    return msg

@@ -1,0 +1,161 @@
+"""Recorded and simulated streams as one sequence of typed samples for the pipeline.
+
+The bag reader and the simulator produce whole-stream arrays (:mod:`tire_estimation.sim.streams`,
+checked as a whole there); these functions turn them into the typed samples of
+:mod:`tire_estimation.core.samples`, merged in the pipeline's ``(stamp, priority)`` order, so
+that the replay and the campaigns feed :class:`~tire_estimation.core.pipeline.EstimationPipeline`
+the way the node does.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from tire_estimation.core.samples import (
+    GnssFix,
+    GnssVelocity,
+    ImuSample,
+    MeasuredVelocity,
+    Sample,
+    Steering,
+    TireForces,
+    WheelSpeeds,
+    merge,
+)
+from tire_estimation.sim.streams import (
+    GnssStream,
+    GnssVelocityStream,
+    ImuStream,
+    SpeedStream,
+    SteeringStream,
+    TireForceStream,
+    WheelSpeedStream,
+)
+
+if TYPE_CHECKING:
+    from tire_estimation.bag.reader import BagData
+    from tire_estimation.sim.streams import SimResult
+
+
+def _wheel_speeds(s: WheelSpeedStream) -> Iterator[Sample]:
+    values = s.wheel_speed_rad_s
+    for k, t in enumerate(s.t_ns.tolist()):
+        yield WheelSpeeds(t, values[k])
+
+
+def _steering(s: SteeringStream) -> Iterator[Sample]:
+    for t, a in zip(s.t_ns.tolist(), s.angle_rad.tolist(), strict=True):
+        yield Steering(t, a)
+
+
+def _imu(s: ImuStream) -> Iterator[Sample]:
+    gyro, acc = s.angular_velocity_rad_s, s.linear_acceleration_m_s2
+    for k, t in enumerate(s.t_ns.tolist()):
+        yield ImuSample(t, gyro[k], acc[k])
+
+
+def _fixes(s: GnssStream) -> Iterator[Sample]:
+    cov = s.position_covariance_m2
+    lat, lon, alt = s.lat_deg.tolist(), s.lon_deg.tolist(), s.alt_m.tolist()
+    for k, t in enumerate(s.t_ns.tolist()):
+        yield GnssFix(t, lat[k], lon[k], alt[k], cov[k])
+
+
+def _unknown_if_zero(cov: np.ndarray) -> np.ndarray | None:
+    return cov if cov.any() else None
+
+
+def _velocities(s: GnssVelocityStream) -> Iterator[Sample]:
+    vel, cov = s.velocity_enu_m_s, s.covariance_m2_s2
+    finite = np.isfinite(vel).all(axis=1).tolist()
+    for k, t in enumerate(s.t_ns.tolist()):
+        if finite[k]:
+            yield GnssVelocity(t, vel[k], _unknown_if_zero(cov[k]))
+
+
+def velocity_stream(gnss: GnssStream) -> GnssVelocityStream | None:
+    """The Doppler velocity a :class:`GnssStream` carries beside its fixes (rows with NaN are
+    left out), or None."""
+    if gnss.velocity_enu_m_s is None:
+        return None
+    keep = np.isfinite(gnss.velocity_enu_m_s).all(axis=1)
+    cov = gnss.velocity_covariance_m2_s2
+    cov = np.zeros((gnss.t_ns.size, 3, 3)) if cov is None else np.nan_to_num(cov)
+    return GnssVelocityStream(gnss.t_ns[keep], gnss.velocity_enu_m_s[keep], cov[keep])
+
+
+def _tire_forces(s: TireForceStream) -> Iterator[Sample]:
+    for k, t in enumerate(s.t_ns.tolist()):
+        yield TireForces(t, s.fx_n[k], s.fy_n[k], s.fz_n[k], s.valid[k])
+
+
+def _measured_velocity(s: SpeedStream) -> Iterator[Sample]:
+    for t, v in zip(s.t_ns.tolist(), s.vx_m_s.tolist(), strict=True):
+        yield MeasuredVelocity(t, v)
+
+
+def stream_samples(
+    *,
+    wheel_speeds: WheelSpeedStream | None = None,
+    steering: SteeringStream | None = None,
+    imu: ImuStream | None = None,
+    gnss: GnssStream | None = None,
+    gnss_velocity: GnssVelocityStream | None = None,
+    tire_forces: TireForceStream | None = None,
+    velocity: SpeedStream | None = None,
+) -> Iterator[Sample]:
+    """Every sample of the given streams, merged in the pipeline's order (lazy).
+
+    Without ``gnss_velocity`` the Doppler velocity that ``gnss`` carries is used."""
+    parts: list[Iterator[Sample]] = []
+    if wheel_speeds is not None:
+        parts.append(_wheel_speeds(wheel_speeds))
+    if steering is not None:
+        parts.append(_steering(steering))
+    if imu is not None:
+        parts.append(_imu(imu))
+    if gnss is not None:
+        parts.append(_fixes(gnss))
+        if gnss_velocity is None:
+            gnss_velocity = velocity_stream(gnss)
+    if gnss_velocity is not None:
+        parts.append(_velocities(gnss_velocity))
+    if tire_forces is not None:
+        parts.append(_tire_forces(tire_forces))
+    if velocity is not None:
+        parts.append(_measured_velocity(velocity))
+    return merge(parts)
+
+
+def sample_count(*streams: object) -> int:
+    """Number of samples of the given streams (None entries count 0)."""
+    return sum(int(s.t_ns.size) for s in streams if s is not None)  # type: ignore[attr-defined]
+
+
+def bag_samples(bag: BagData) -> Iterator[Sample]:
+    """The input samples of a bag. The measured velocity is used only when the bag has no wheel
+    speeds (a vehicle without them, such as the Revs export)."""
+    has_wheels = bag.wheel_speeds is not None and bag.wheel_speeds.t_ns.size > 0
+    return stream_samples(
+        wheel_speeds=bag.wheel_speeds,
+        steering=bag.steering,
+        imu=bag.imu,
+        gnss=bag.gnss,
+        gnss_velocity=bag.gnss_velocity,
+        tire_forces=bag.tire_forces,
+        velocity=None if has_wheels else bag.vehicle_velocity,
+    )
+
+
+def sim_samples(sim: SimResult, tire_forces: bool = True) -> Iterator[Sample]:
+    """The sensor samples of a simulated drive."""
+    return stream_samples(
+        wheel_speeds=sim.wheel_speeds,
+        steering=sim.steering,
+        imu=sim.imu,
+        gnss=sim.gnss,
+        tire_forces=sim.tire_forces if tire_forces else None,
+    )
