@@ -1,9 +1,9 @@
 """Run the stiffness MPF on a converted Revs bag and keep its trace (issue 5).
 
-The replay's own loop (`evaluation.runner.run_imu_lateral_estimator`) with the replay's
-configuration sections and seed; the filter can start ``--start-s`` seconds into the bag. Saves
-every trace array (stiffness and its std per step, vY, sideslip, ...) to an ``.npz`` and prints
-the stiffness at a few times (docs/results.md, "Revs: what sets the stiffness scale").
+The replay's pipeline (`core.pipeline.EstimationPipeline`) with the replay's configuration
+sections and seed, the stiffness MPF alone; the filter can start ``--start-s`` seconds into the
+bag. Saves every trace array (stiffness and its std per step, vY, sideslip, ...) to an ``.npz``
+and prints the stiffness at a few times.
 
     python scripts/revs250lm_stiffness_trace.py BAG CONFIG.yaml OUT.npz [--start-s 60]
 """
@@ -18,15 +18,11 @@ from typing import Any
 import numpy as np
 
 from tire_estimation.bag.reader import read_bag
+from tire_estimation.core.pipeline import EstimationPipeline, PipelineConfig
 from tire_estimation.core.stiffness_config import StiffnessEstimatorConfig
-from tire_estimation.core.stiffness_estimator import StiffnessEstimator
-from tire_estimation.evaluation.runner import run_imu_lateral_estimator
-from tire_estimation.replay import (
-    STIFFNESS_RNG_KEY,
-    load_config_sections,
-    replay_topics,
-    section_config,
-)
+from tire_estimation.evaluation.runner import ImuLateralRecorder
+from tire_estimation.replay import load_config_sections, replay_topics, section_config
+from tire_estimation.sources import stream_samples
 
 
 def _from(stream: Any, first_ns: int) -> Any:
@@ -55,8 +51,12 @@ def main() -> None:
         raise SystemExit(f"{args.bag}: needs IMU, steering and /vehicle/velocity")
     first = int(bag.imu.t_ns[0] + args.start_s * 1e9)
     imu, steer, vel = (_from(s, first) for s in (bag.imu, bag.steering, bag.vehicle_velocity))
-    est = StiffnessEstimator(cfg, bag.vehicle, np.random.default_rng([seed, STIFFNESS_RNG_KEY]))
-    arrays = run_imu_lateral_estimator(est, imu, steer, None, vel).arrays()
+    pipeline = EstimationPipeline(PipelineConfig(seed=seed, stiffness=cfg), bag.vehicle)
+    assert pipeline.stiffness is not None
+    rec = ImuLateralRecorder(pipeline.stiffness)
+    pipeline.observers.append(rec)
+    pipeline.push_all(stream_samples(imu=imu, steering=steer, velocity=vel))
+    arrays = rec.finish(0.0).arrays()
     np.savez(args.out, **arrays)
     t_s = (arrays["t_ns"] - arrays["t_ns"][0]) * 1e-9
     for at in (2.0, 5.0, 10.0, 60.0, float(t_s[-1])):

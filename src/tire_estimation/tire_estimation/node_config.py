@@ -48,6 +48,10 @@ class EstimatorNodeOptions:
         diagnostics_period_s: period of /diagnostics, s (wall or sim time). Default 1.
         sensor_qos: QoS of the sensor subscriptions, ``sensor_data`` (best effort, default) or
             ``reliable``.
+        reorder_delay_s: samples are processed in header-stamp order when they arrive at most
+            this long after the wheel speeds of a later stamp (so a live run computes what a
+            replay of its recording computes); every output is delayed by as much, s.
+            Default 0.05.
     """
 
     vehicle_file: str = ""
@@ -62,11 +66,13 @@ class EstimatorNodeOptions:
     stiffness_publish_period_s: float = 0.1
     diagnostics_period_s: float = 1.0
     sensor_qos: str = "sensor_data"
+    reorder_delay_s: float = 0.05
 
     def __post_init__(self) -> None:
         if not self.tire_set_id:
             raise ConfigError("tire_set_id", self.tire_set_id, "must not be empty")
         require_finite("persistence_period_s", self.persistence_period_s)
+        require_non_negative("reorder_delay_s", self.reorder_delay_s)
         require_non_negative("odometry_publish_period_s", self.odometry_publish_period_s)
         require_positive("radii_publish_period_s", self.radii_publish_period_s)
         require_non_negative("lateral_publish_period_s", self.lateral_publish_period_s)

@@ -15,7 +15,7 @@ import os
 import sys
 import tempfile
 import time
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TypeVar
@@ -30,7 +30,7 @@ from tire_estimation.core.config import RadiusEstimatorConfig
 from tire_estimation.core.deflation import DeflationDetectorConfig
 from tire_estimation.core.geodesy import LocalTangentPlane
 from tire_estimation.core.linear_lateral_kf import LinearLateralKF, LinearLateralKFConfig
-from tire_estimation.core.pipeline import EstimationPipeline, PipelineConfig
+from tire_estimation.core.pipeline import EstimationPipeline, Observer, PipelineConfig
 from tire_estimation.core.stiffness_config import StiffnessEstimatorConfig
 from tire_estimation.core.tyre_force_kf import TyreForceKFConfig
 from tire_estimation.errors import BagError, ConfigError
@@ -323,6 +323,7 @@ def run_replay(
     stiffness: bool | None = None,
     rank_effects: bool = False,
     rank_seeds: int = 1,
+    observers: Sequence[Observer] = (),
 ) -> ReplayReport:
     """Replay ``bag_path`` through the estimators; write ``out_dir/metrics.json`` + PNGs.
 
@@ -330,7 +331,11 @@ def run_replay(
     tyre-force KF on ``/vehicle/tire_forces``, the stiffness MPF on IMU + steering + wheel
     speeds or ``/vehicle/velocity`` (``stiffness``: None = the node option
     ``stiffness_enabled`` of the configuration, default true; the linear single-track KF runs
-    beside it as the lateral baseline). A bag that feeds none of them is an error.
+    beside it as the lateral baseline). A bag that feeds none of them is an error. The
+    deflation detector runs on the radius MPF's published radii and odometry, as the detector
+    node does (``detector`` section of the configuration).
+
+    ``observers`` see every sample and output of the pipeline (what the node publishes).
 
     ``rank_effects`` completes the residual analysis with the profile likelihood of every
     switchable effect (:func:`~tire_estimation.evaluation.residuals.assess`: the radius MPF is
@@ -396,6 +401,7 @@ def run_replay(
         tyre_force=tyre_cfg if has_forces and options.tyre_force_enabled else None,
         detector=det_cfg if run_radius_mpf else None,
         periods=periods_of(options),
+        reorder_delay_s=options.reorder_delay_s,
     )
     baselines: dict[str, Any] = {}
     if run_stiffness_mpf:
@@ -409,6 +415,7 @@ def run_replay(
     for name, est in baselines.items():
         imu_recs[name] = ImuLateralRecorder(est)
     pipeline.observers.extend([radius_rec, force_rec, detect_rec, *imu_recs.values()])
+    pipeline.observers.extend(observers)
     total = sample_count(
         bag.wheel_speeds, bag.steering, bag.imu, bag.gnss, bag.gnss_velocity, bag.tire_forces
     )

@@ -43,13 +43,16 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from tire_estimation.core.pipeline import EstimationPipeline, Output, PipelineConfig
+from tire_estimation.core.samples import Sample, TireForces
 from tire_estimation.core.stiffness_config import StiffnessEstimatorConfig
-from tire_estimation.core.tyre_force_kf import TyreForceEstimator, TyreForceKFConfig
+from tire_estimation.core.tyre_force_kf import TyreForceKFConfig
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.evaluation import stiffness as stiffness_eval
 from tire_estimation.sim.dynamics import GRAVITY_M_S2
 from tire_estimation.sim.streams import SimResult
 from tire_estimation.sim.tires import TireModelConfig
+from tire_estimation.sources import stream_samples
 
 F64 = NDArray[np.float64]
 
@@ -61,8 +64,6 @@ DEFAULT_MPF_PARTICLES = StiffnessEstimatorConfig().n_particles
 MPF_SEED_OFFSET = 1000
 #: Samples before this time after the first tyre-force sample are not scored, s.
 WARMUP_S = 1.0
-#: Order of the streams on equal stamps: inputs that the force step holds come first.
-_WHEELS, _STEER, _IMU, _FORCES = 0, 1, 2, 3
 
 
 @dataclass
@@ -100,7 +101,8 @@ def run(
     vehicle: VehicleParams | None = None,
     force_gain: float = 1.0,
 ) -> LateralTrace:
-    """Drive a :class:`TyreForceEstimator` over ``sim`` in stamp order; methods (a) and (b).
+    """The tyre-force KF (:class:`TyreForceEstimator`) in the pipeline over ``sim``; methods (a)
+    and (b).
 
     Args:
         sim: simulated drive with tyre forces.
@@ -111,45 +113,42 @@ def run(
     """
     if sim.tire_forces is None:
         raise ValueError("the simulation has no tyre forces (SensorConfig.tire_force_enabled)")
-    est = TyreForceEstimator(config or TyreForceKFConfig(), vehicle or sim.vehicle)
-    tf = sim.tire_forces
-    streams = (
-        (sim.wheel_speeds.t_ns, _WHEELS),
-        (sim.steering.t_ns, _STEER),
-        (sim.imu.t_ns, _IMU),
-        (tf.t_ns, _FORCES),
-    )
-    t_all = np.concatenate([t for t, _ in streams])
-    kind = np.concatenate([np.full(t.size, k) for t, k in streams])
-    index = np.concatenate([np.arange(t.size) for t, _ in streams])
-    order = np.lexsort((kind, t_all))
+    tf = dataclasses.replace(sim.tire_forces, fy_n=sim.tire_forces.fy_n * force_gain)
     t0 = int(tf.t_ns[0])
     rows: list[tuple[float, ...]] = []
-    fy = tf.fy_n * force_gain
-    for o in order:
-        k, i, t = int(kind[o]), int(index[o]), int(t_all[o])
-        if k == _WHEELS:
-            est.on_wheel_speeds(t, sim.wheel_speeds.wheel_speed_rad_s[i])
-        elif k == _STEER:
-            est.on_steering(t, float(sim.steering.angle_rad[i]))
-        elif k == _IMU:
-            est.on_imu(t, sim.imu.angular_velocity_rad_s[i], sim.imu.linear_acceleration_m_s2[i])
-        else:
-            e = est.on_tire_forces(t, tf.fx_n[i], fy[i], tf.fz_n[i], tf.valid[i])
-            if e is None:
-                continue
-            s = est.single_track_estimate()
+
+    class _Rows:
+        def on_sample(self, pipeline: EstimationPipeline, sample: Sample, e: Any) -> None:
+            if type(sample) is not TireForces or e is None or pipeline.tyre_force is None:
+                return
+            s = pipeline.tyre_force.single_track_estimate()
             rows.append(
                 (
-                    (t - t0) * 1e-9,
+                    (sample.t_ns - t0) * 1e-9,
                     e.vy_m_s,
                     e.yaw_rate_rad_s,
                     s.vy_m_s,
                     s.yaw_rate_rad_s,
                     1.0 if e.linearity == "nonlinear" else 0.0,
-                    est.axle_force_deviation_n,
+                    pipeline.tyre_force.axle_force_deviation_n,
                 )
             )
+
+        def on_output(self, pipeline: EstimationPipeline, output: Output) -> None:
+            pass
+
+    pipeline = EstimationPipeline(
+        PipelineConfig(tyre_force=config or TyreForceKFConfig()),
+        vehicle or sim.vehicle,
+        observers=[_Rows()],
+    )
+    pipeline.push_all(
+        stream_samples(
+            wheel_speeds=sim.wheel_speeds, steering=sim.steering, imu=sim.imu, tire_forces=tf
+        )
+    )
+    est = pipeline.tyre_force
+    assert est is not None
     a = np.asarray(rows, dtype=float).reshape(-1, 7)
     truth_t = (sim.truth.t_ns - t0) * 1e-9
     nonlinear = a[:, 5] > 0.5

@@ -28,8 +28,6 @@ from std_srvs.srv import Trigger
 from tire_estimation.core.deflation import (
     DeflationDetectorConfig,
     DeflationStatusData,
-    Level,
-    WheelDeflationData,
 )
 from tire_estimation.core.deflation_monitor import DeflationMonitor, MonitorConfig
 from tire_estimation.core.vehicle import load_vehicle_yaml
@@ -37,6 +35,7 @@ from tire_estimation.errors import InputError, TireEstimationError
 from tire_estimation.node_config import DetectorNodeOptions
 from tire_estimation.nodes import conversions as conv
 from tire_estimation.nodes.common import declare_specs, restore_state, save_state_of, spin_node
+from tire_estimation.nodes.detector_diagnostics import wheel_status
 from tire_estimation.params import (
     ParameterSpec,
     build_config,
@@ -47,18 +46,6 @@ from tire_estimation.persistence import Identity
 from tire_estimation_msgs.msg import DeflationStatus, TireRadii, WheelDeflation
 
 DETECTOR_PREFIX = "detector"
-_DIAG_LEVEL = {
-    Level.OK: DiagnosticStatus.OK,
-    Level.WARN: DiagnosticStatus.WARN,
-    Level.ALARM: DiagnosticStatus.ERROR,
-    Level.STALE: DiagnosticStatus.STALE,
-}
-_LEVEL_TEXT = {
-    Level.OK: "ok",
-    Level.WARN: "CUSUM above half the threshold",
-    Level.ALARM: "DEFLATION ALARM",
-    Level.STALE: "no radius estimate",
-}
 
 
 class DetectorNode(Node):
@@ -298,42 +285,8 @@ class DetectorNode(Node):
             values[f"dropped.{key}"] = str(count)
         main.values = [KeyValue(key=k, value=v) for k, v in values.items()]
         statuses = [main]
-        statuses.extend(self._wheel_status(w, now) for w in status.wheels)
+        statuses.extend(wheel_status(w, now, hw) for w in status.wheels)
         return statuses
-
-    def _wheel_status(self, w: WheelDeflationData, now: int | None) -> DiagnosticStatus:
-        st = DiagnosticStatus(
-            name=f"tire_estimation: deflation {w.wheel_name}",
-            hardware_id=self._identity.vehicle_name,
-        )
-        st.level = _DIAG_LEVEL[w.level]
-        st.message = _LEVEL_TEXT[w.level] if w.calibrated or w.alarm else "calibrating"
-        if w.level == Level.STALE:
-            st.message = _LEVEL_TEXT[Level.STALE]
-        since_cal = ""
-        if w.calibration_t_ns is not None and now is not None:
-            since_cal = f"{max(0.0, (now - w.calibration_t_ns) * 1e-9):.1f}"
-        age = ""
-        if w.last_estimate_t_ns is not None and now is not None:
-            age = f"{max(0.0, (now - w.last_estimate_t_ns) * 1e-9):.1f}"
-        values = {
-            "radius_change_mm": f"{1e3 * w.radius_change_m:.3f}",
-            "cusum_g_mm": f"{1e3 * w.cusum_m:.3f}",
-            "threshold_mm": f"{1e3 * w.threshold_m:.3f}",
-            "calibrated": str(w.calibrated).lower(),
-            "calibration_progress": f"{w.calibration_progress:.3f}",
-            "time_since_calibration_s": since_cal,
-            "calibrated_radius_error_mm": (
-                ""
-                if w.calibrated_radius_error_m is None
-                else f"{1e3 * w.calibrated_radius_error_m:.3f}"
-            ),
-            "alarm": str(w.alarm).lower(),
-            "alarm_time_s": "" if w.alarm_t_ns is None else f"{w.alarm_t_ns * 1e-9:.3f}",
-            "estimate_age_s": age,
-        }
-        st.values = [KeyValue(key=k, value=v) for k, v in values.items()]
-        return st
 
 
 def main(args: list[str] | None = None) -> None:

@@ -85,6 +85,7 @@ class EstimatorNode(Node):
                 if opts.tyre_force_enabled
                 else None,
                 periods=periods_of(opts),
+                reorder_delay_s=opts.reorder_delay_s,
             ),
             self.vehicle,
         )
