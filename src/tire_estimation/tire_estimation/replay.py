@@ -225,6 +225,28 @@ def _truth_radius_error(bag: BagData) -> tuple[np.ndarray, tuple[str, ...], np.n
     return tr.t_ns, tuple(tr.names), tr.values
 
 
+def _reference_origin(bag: BagData) -> tuple[float, float, float] | None:
+    """ENU origin of ``/reference/odometry`` (contract): the metadata key
+    ``tire_estimation.reference_origin_lla`` ("lat lon alt") when the bag has it, else the
+    bag's first ``/gnss/fix``."""
+    text = bag.custom_data.get("tire_estimation.reference_origin_lla")
+    if text:
+        try:
+            # "lat lon alt" (contract) or a YAML list of the three
+            parsed = yamlio.safe_load(str(text))
+            values = parsed if isinstance(parsed, list) else str(text).split()
+            lat, lon, alt = (float(v) for v in values)
+        except (ValueError, TypeError, yaml.YAMLError) as exc:
+            raise BagError(
+                f"{bag.path}: metadata tire_estimation.reference_origin_lla={text!r} is not "
+                "'lat lon alt'"
+            ) from exc
+        return lat, lon, alt
+    if bag.gnss is not None and bag.gnss.t_ns.size:
+        return float(bag.gnss.lat_deg[0]), float(bag.gnss.lon_deg[0]), float(bag.gnss.alt_m[0])
+    return None
+
+
 def _reference_positions(
     bag: BagData, trace_t_ns: np.ndarray, ltp: LocalTangentPlane | None
 ) -> tuple[np.ndarray | None, str]:
@@ -239,10 +261,9 @@ def _reference_positions(
         )
         return en, topics.TRUTH_FIX
     ref = bag.reference_odometry
-    origin = bag.custom_data.get("tire_estimation.reference_origin_lla")
-    if ref is not None and ref.t_ns.size and origin:
-        lat0, lon0, alt0 = (float(v) for v in yaml.safe_load(origin))
-        ref_ltp = LocalTangentPlane(lat0, lon0, alt0)
+    origin = _reference_origin(bag)
+    if ref is not None and ref.t_ns.size and origin is not None:
+        ref_ltp = LocalTangentPlane(*origin)
         lat, lon, alt = ref_ltp.to_lla(
             ref.position_m[:, 0], ref.position_m[:, 1], ref.position_m[:, 2]
         )
