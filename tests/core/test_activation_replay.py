@@ -8,14 +8,10 @@ import numpy as np
 import pytest
 
 from tire_estimation.core.activation_replay import SNAPSHOTS_PER_HORIZON, ActivationReplay
-from tire_estimation.core.stiffness_baselines import (
-    BaselineEstimator,
-    BaselineFilter,
-    EkfConfig,
-    Measurement,
-)
 from tire_estimation.core.stiffness_config import StiffnessEstimatorConfig
 from tire_estimation.core.stiffness_estimator import StiffnessEstimator
+from tire_estimation.core.stiffness_filter import BaselineConfig, Measurement, StiffnessFilter
+from tire_estimation.core.stiffness_frontend import StiffnessFrontEnd
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.errors import ConfigError
 from tire_estimation.evaluation.stiffness import sine_study
@@ -202,8 +198,8 @@ def test_replay_settles_the_rear_of_a_slow_snow_drive() -> None:
     assert settle[1.0] < 1.0
 
 
-class _RecordingBaseline(BaselineFilter):
-    """Stands in for a baseline filter: logs the learning flag of every update."""
+class _RecordingFilter(StiffnessFilter):
+    """Stands in for a filter behind the front-end: logs the learning flag of every update."""
 
     def __init__(self) -> None:
         self.log: list[tuple[bool, float]] = []
@@ -218,13 +214,15 @@ class _RecordingBaseline(BaselineFilter):
         self.log.append((learn, float(meas.y[1])))
 
 
-class _RecordingEstimator(BaselineEstimator):
-    def make_filter(self) -> BaselineFilter:
-        return _RecordingBaseline()
+class _RecordingFrontEnd(StiffnessFrontEnd[_RecordingFilter]):
+    def make_filter(self) -> _RecordingFilter:
+        return _RecordingFilter()
 
 
-def test_baselines_replay_the_onset_as_algorithm_1() -> None:
-    est = _RecordingEstimator(EkfConfig(activation_replay_s=1.0), VehicleParams())
+def test_any_filter_behind_the_front_end_replays_the_onset_as_algorithm_1() -> None:
+    est = _RecordingFrontEnd(
+        BaselineConfig(activation_replay_s=1.0), VehicleParams(), np.random.default_rng(0)
+    )
     w = 20.0 / 0.31
     for k in range(300):
         t = 1_000_000_000 + k * 10 * MS

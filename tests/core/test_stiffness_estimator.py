@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from tire_estimation.core.stiffness_config import StiffnessEstimatorConfig
-from tire_estimation.core.stiffness_estimator import SlidingWindow, StiffnessEstimator
+from tire_estimation.core.stiffness_estimator import StiffnessEstimator
+from tire_estimation.core.stiffness_frontend import SlidingWindow
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.errors import ConfigError, InputError
 

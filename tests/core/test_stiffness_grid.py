@@ -5,11 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tire_estimation.core import stiffness_baselines as sb
+from tire_estimation.core.stiffness_filter import Measurement
 from tire_estimation.core.stiffness_grid import (
     GridConfig,
     GridEkf,
-    GridEstimator,
     gaussian_fit,
     lattice,
     principal_axes,
@@ -23,6 +22,7 @@ from tire_estimation.evaluation.stiffness import (
     simulate,
     truth_over_nominal,
 )
+from tire_estimation.evaluation.stiffness_baselines import BaselineEstimator
 from tire_estimation.evaluation.stiffness_compare import replay, sine_scores
 
 
@@ -104,9 +104,9 @@ def test_regrid_keeps_the_posterior_moments_and_takes_the_nearest_cells_state() 
     assert np.all(np.abs(old_cells[nearest[inside]] - f.w[inside, 1:]) < np.abs(old_axes).max())
 
 
-def _turning() -> sb.Measurement:
+def _turning() -> Measurement:
     """One IMU sample in a left turn at 20 m/s (ay 1.5 m/s^2, yaw rate 0.08 rad/s)."""
-    return sb.Measurement(
+    return Measurement(
         y=np.array([0.0, 1.5, 0.08]),
         delta_rad=0.02,
         wheel_speed_m_s=(20.0, 20.0),
@@ -129,8 +129,8 @@ def test_weights_change_only_while_learning() -> None:
     assert not np.allclose(f.q, q0)
 
 
-def _straight(y: list[float]) -> sb.Measurement:
-    return sb.Measurement(
+def _straight(y: list[float]) -> Measurement:
+    return Measurement(
         y=np.array(y),
         delta_rad=0.0,
         wheel_speed_m_s=(20.0, 20.0),
@@ -187,7 +187,7 @@ def test_grid_settles_a_snow_drive_that_algorithm_1_does_not() -> None:
         tyre_shape="magic_formula",
         magic_formula_curvature_e=-0.5,
     )
-    est = GridEstimator(GridConfig.sharing(alg1), sim.vehicle)
+    est = BaselineEstimator(GridConfig.sharing(alg1), sim.vehicle)
     s = sine_scores(replay(sim, est, lambda: est.initialized))
     assert s["settling_s"][1] < 1.0
     assert s["settling_s"][2] < 1.0

@@ -5,9 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tire_estimation.core.stiffness_baselines import AugPfConfig, AugPfEstimator
 from tire_estimation.core.stiffness_config import StiffnessEstimatorConfig
 from tire_estimation.core.stiffness_estimator import StiffnessEstimator
+from tire_estimation.core.stiffness_filter import BaselineConfig
+from tire_estimation.core.stiffness_frontend import single_track_params
 from tire_estimation.core.stiffness_model import (
     GRAVITY_M_S2,
     SingleTrackParams,
@@ -194,8 +195,7 @@ def test_tyre_shape_reaches_the_regressor_of_the_filter_and_the_baselines() -> N
         -0.5,
     )
     # the baselines take the same shape from the estimator's config
-    aug = AugPfEstimator(AugPfConfig.sharing(mf_cfg, n_particles=4), v, rng)
-    assert aug.params == mf_p
+    assert single_track_params(BaselineConfig.sharing(mf_cfg), v) == mf_p
     x = np.array([[20.0, 0.0, 0.0]])
     a_s = mf_p.saturation_slip_front_rad
     for delta, same in ((1e-4, True), (2.0 * a_s, False)):
@@ -217,7 +217,7 @@ def test_tyre_shape_config_errors_name_the_field() -> None:
         with pytest.raises(ConfigError, match=field):
             StiffnessEstimatorConfig(**{field: value})
         with pytest.raises(ConfigError, match=field):
-            AugPfConfig(**{field: value})
+            BaselineConfig(**{field: value})
 
 
 def test_friction_coefficient_saturates_the_axle_forces() -> None:

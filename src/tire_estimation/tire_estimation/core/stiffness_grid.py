@@ -1,11 +1,11 @@
 """Point-mass filter on the cornering stiffnesses with an EKF on the vehicle state per cell.
 
 A method beside Algorithm 1 (Berntorp & Di Cairano, IEEE TCST 2018) and its baselines
-(:mod:`.stiffness_baselines`), not in the paper. Algorithm 1 samples the vehicle state and
+(``evaluation.stiffness_baselines``), not in the paper. Algorithm 1 samples the vehicle state and
 marginalizes the stiffness (Normal-inverse-Wishart statistics of ``w`` per particle); this filter
 does it the other way round. The stiffness is a parameter, constant over a step, gridded over
 ``(Cy_f, Cy_r)``; given a cell's stiffness the single-track model (eq. 1-12, the same
-``stiffness_baselines.model``) is a smooth system in ``[vX, vY, r]``, and an extended Kalman
+:func:`.stiffness_filter.model`) is a smooth system in ``[vX, vY, r]``, and an extended Kalman
 filter per cell carries that state and the cell's predictive density of every IMU sample. The
 cell weights are the posterior of the stiffness (Bayes' rule on the grid: point-mass filter,
 Bucy & Senne 1971), the per-cell EKF the Rao-Blackwellized part (a bank of Kalman filters, as in
@@ -40,8 +40,9 @@ are linear, as in Algorithm 1's per-particle bias Kalman filters (eq. 29-30).
 Left out: ``Cx`` is not estimated (held at the prior: the sine drives do not excite it, and
 Algorithm 1 freezes it there as well). In the estimator node it runs only as the first learner
 of ``first_learning: grid``, which hands its posterior to Algorithm 1
-(:class:`~.stiffness_estimator.StiffnessEstimator`); on its own it runs behind the baselines'
-front-end (:class:`~.stiffness_baselines.BaselineEstimator`) in the evaluations.
+(:class:`~.stiffness_estimator.StiffnessEstimator`); on its own it runs behind the same
+front-end (:class:`~.stiffness_frontend.StiffnessFrontEnd`) in the evaluations
+(``evaluation.stiffness_baselines.BaselineEstimator``).
 """
 
 from __future__ import annotations
@@ -54,17 +55,16 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tire_estimation.core import resampling
-from tire_estimation.core.stiffness_baselines import (
+from tire_estimation.core.stiffness_filter import (
     JACOBIAN_STEP,
     BaselineConfig,
-    BaselineEstimator,
-    BaselineFilter,
     FilterEstimate,
     Measurement,
-    _r_cov,
-    _stiffness_bounds,
+    StiffnessFilter,
+    imu_noise_cov,
     measurement_cov,
     model,
+    stiffness_bounds,
 )
 from tire_estimation.core.stiffness_model import SingleTrackParams
 from tire_estimation.core.validation import (
@@ -73,7 +73,6 @@ from tire_estimation.core.validation import (
     require_positive,
     require_range,
 )
-from tire_estimation.core.vehicle import VehicleParams
 
 F64 = NDArray[np.float64]
 _LOG_2PI = math.log(2.0 * math.pi)
@@ -202,7 +201,7 @@ def principal_axes(cov: F64, floor: F64) -> F64:
     return u * s[None, :]
 
 
-class GridEkf(BaselineFilter):
+class GridEkf(StiffnessFilter):
     """Point-mass filter on ``(Cy_f, Cy_r)``, one EKF on ``[vX, vY, r]`` per cell, vectorized.
 
     Args:
@@ -214,8 +213,8 @@ class GridEkf(BaselineFilter):
         self.config = config
         self.params = params
         self.nominal = np.asarray(params.nominal, dtype=float)
-        self.lower, self.upper = _stiffness_bounds(config, self.nominal)
-        self.r_cov = _r_cov(config)
+        self.lower, self.upper = stiffness_bounds(config, self.nominal)
+        self.r_cov = imu_noise_cov(config)
         c = config
         jitter = [
             c.state_jitter_vx_m_s_sqrt_s,
@@ -441,28 +440,9 @@ class GridEkf(BaselineFilter):
         )
 
 
-class GridEstimator(BaselineEstimator):
-    """:class:`GridEkf` behind the baselines' front-end (deterministic)."""
-
-    config: GridConfig
-
-    def __init__(
-        self,
-        config: GridConfig,
-        vehicle: VehicleParams,
-        rng: np.random.Generator | None = None,
-    ) -> None:
-        super().__init__(config, vehicle, rng)
-
-    def make_filter(self) -> BaselineFilter:
-        """A fresh :class:`GridEkf`."""
-        return GridEkf(self.config, self.params)
-
-
 __all__ = [
     "GridConfig",
     "GridEkf",
-    "GridEstimator",
     "gaussian_fit",
     "lattice",
     "posterior",

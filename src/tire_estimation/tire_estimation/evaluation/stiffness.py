@@ -18,17 +18,22 @@ import argparse
 import json
 import math
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from tire_estimation.core.pipeline import EstimationPipeline, Output, PipelineConfig
+from tire_estimation.core.samples import ImuSample, Sample
 from tire_estimation.core.stiffness_config import StiffnessEstimatorConfig
 from tire_estimation.core.stiffness_estimator import StiffnessEstimator
+from tire_estimation.core.stiffness_frontend import StiffnessFrontEnd
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.sim import SensorConfig, SimResult, simulate
 from tire_estimation.sim.dynamics import GRAVITY_M_S2
 from tire_estimation.sim.tires import TireModelConfig
+from tire_estimation.sources import stream_samples
 
 NO_BIAS = SensorConfig(
     accel_bias_initial_std_m_s2=0.0,
@@ -87,6 +92,67 @@ def study_config(
     return StiffnessEstimatorConfig(**base)
 
 
+class _Timed:
+    """An IMU-driven estimator whose ``on_imu`` time is summed (``busy_s``)."""
+
+    def __init__(self, est: StiffnessFrontEnd[Any]) -> None:
+        self.est = est
+        self.busy_s = 0.0
+        self.on_wheel_speeds = est.on_wheel_speeds
+        self.on_steering = est.on_steering
+        self.on_velocity = est.on_velocity
+        self.estimate = est.estimate
+
+    def on_imu(self, t_ns: int, gyro_rad_s: Any, accel_m_s2: Any) -> None:
+        t0 = time.perf_counter()
+        self.est.on_imu(t_ns, gyro_rad_s, accel_m_s2)
+        self.busy_s += time.perf_counter() - t0
+
+
+class _AfterImu:
+    """Pipeline observer: calls ``after_imu(t_ns)`` after each IMU sample."""
+
+    def __init__(self, after_imu: Callable[[int], None]) -> None:
+        self.after_imu = after_imu
+
+    def on_sample(self, pipeline: EstimationPipeline, sample: Sample, result: Any) -> None:
+        if type(sample) is ImuSample:
+            self.after_imu(sample.t_ns)
+
+    def on_output(self, pipeline: EstimationPipeline, output: Output) -> None:
+        pass
+
+
+def feed(sim: SimResult, est: StiffnessFrontEnd[Any], after_imu: Callable[[int], None]) -> float:
+    """Push the wheel speeds, steering angles and IMU samples of ``sim`` through the pipeline
+    with ``est`` as its lateral estimator, calling ``after_imu(t_ns)`` after each IMU sample.
+    Returns the wall time spent in ``est.on_imu``, s."""
+    timed = _Timed(est)
+    pipeline = EstimationPipeline(
+        PipelineConfig(),
+        sim.vehicle,
+        baselines={"estimator": timed},
+        observers=[_AfterImu(after_imu)],
+    )
+    pipeline.push_all(
+        stream_samples(wheel_speeds=sim.wheel_speeds, steering=sim.steering, imu=sim.imu)
+    )
+    return timed.busy_s
+
+
+def truth_at(sim: SimResult, t_ns: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The truth at the stamps ``t_ns``: stiffness at the next truth sample (K, 3), yaw rate and
+    lateral speed at the CG (both linearly interpolated), (K,)."""
+    tr = sim.truth
+    j = np.searchsorted(tr.t_ns, t_ns).clip(0, tr.t_ns.size - 1)
+    t_tr = (tr.t_ns - tr.t_ns[0]).astype(float)
+    t_est = (t_ns - tr.t_ns[0]).astype(float)
+    r = np.interp(t_est, t_tr, tr.yaw_rate_rad_s)
+    # base_link is at the rear axle: vy_cg = vy_base + lr r
+    vy = np.interp(t_est, t_tr, tr.velocity_m_s[:, 1]) + sim.vehicle.lr_m * r
+    return tr.stiffness[j], r, vy
+
+
 def run(sim: SimResult, cfg: StiffnessEstimatorConfig, seed: int) -> dict[str, np.ndarray]:
     """Replay ``sim`` through the estimator; arrays on the IMU grid.
 
@@ -100,18 +166,6 @@ def run(sim: SimResult, cfg: StiffnessEstimatorConfig, seed: int) -> dict[str, n
     hand-overs to Algorithm 1 and its drops by the NIS gate).
     """
     est = StiffnessEstimator(cfg, sim.vehicle, np.random.default_rng(seed))
-    ws, st, imu = sim.wheel_speeds, sim.steering, sim.imu
-    ev: list[tuple[int, int, Any]] = [
-        (int(t), 0, v) for t, v in zip(ws.t_ns, ws.wheel_speed_rad_s, strict=False)
-    ]
-    ev += [(int(t), 1, float(v)) for t, v in zip(st.t_ns, st.angle_rad, strict=False)]
-    ev += [
-        (int(t), 2, (g, a))
-        for t, g, a in zip(
-            imu.t_ns, imu.angular_velocity_rad_s, imu.linear_acceleration_m_s2, strict=False
-        )
-    ]
-    ev.sort(key=lambda e: (e[0], e[1]))
     out: dict[str, list[Any]] = {
         "t": [],
         "c": [],
@@ -123,39 +177,24 @@ def run(sim: SimResult, cfg: StiffnessEstimatorConfig, seed: int) -> dict[str, n
         "cx_active": [],
         "ready": [],
     }
-    dt_total = 0.0
-    for t, kind, v in ev:
-        if kind == 0:
-            est.on_wheel_speeds(t, v)
-        elif kind == 1:
-            est.on_steering(t, v)
-        else:
-            t0 = time.perf_counter()
-            est.on_imu(t, v[0], v[1])
-            dt_total += time.perf_counter() - t0
-            e = est.estimate()
-            out["t"].append(t)
-            out["c"].append(e.stiffness)
-            out["std"].append(e.stiffness_std)
-            out["vy"].append(e.vy_m_s)
-            out["r"].append(e.yaw_rate_rad_s)
-            out["gyro_bias"].append(float(e.gyro_bias_rad_s[2]))
-            out["active"].append(e.active)
-            out["cx_active"].append(bool(getattr(e, "cx_active", e.active)))
-            out["ready"].append(est.mpf.initialized)
+
+    def record(t: int) -> None:
+        e = est.estimate()
+        out["t"].append(t)
+        out["c"].append(e.stiffness)
+        out["std"].append(e.stiffness_std)
+        out["vy"].append(e.vy_m_s)
+        out["r"].append(e.yaw_rate_rad_s)
+        out["gyro_bias"].append(float(e.gyro_bias_rad_s[2]))
+        out["active"].append(e.active)
+        out["cx_active"].append(bool(e.cx_active))
+        out["ready"].append(est.mpf.initialized)
+
+    busy_s = feed(sim, est, record)
     res = {k: np.asarray(v) for k, v in out.items()}
-    tr = sim.truth
-    j = np.searchsorted(tr.t_ns, res["t"]).clip(0, tr.t_ns.size - 1)
-    res["truth_c"] = tr.stiffness[j]
-    t_tr = (tr.t_ns - tr.t_ns[0]).astype(float)
-    t_est = (res["t"] - tr.t_ns[0]).astype(float)
-    res["truth_r"] = np.interp(t_est, t_tr, tr.yaw_rate_rad_s)
-    # base_link is at the rear axle: vy_cg = vy_base + lr r
-    res["truth_vy"] = (
-        np.interp(t_est, t_tr, tr.velocity_m_s[:, 1]) + sim.vehicle.lr_m * res["truth_r"]
-    )
+    res["truth_c"], res["truth_r"], res["truth_vy"] = truth_at(sim, res["t"])
     res["t_s"] = (res["t"] - res["t"][0]) * 1e-9
-    res["step_ms"] = np.array(1e3 * dt_total / max(len(out["t"]), 1))
+    res["step_ms"] = np.array(1e3 * busy_s / max(len(out["t"]), 1))
     final = est.estimate().mean_log_predictive
     res["mean_log_predictive"] = np.array(np.nan if final is None else final)
     res["grid_handovers"] = np.array(est.handover_count)

@@ -7,7 +7,7 @@ rate, rad/s; front and rear cornering stiffness, N/rad); vX, the steering and th
 are inputs (the truth), the outputs the lateral accelerometer and the gyro. The model is
 :func:`~tire_estimation.core.stiffness_model.linearize` at the stiffness itself (so with the
 friction-limited tyre the force is exact), differentiated as the EKF baseline does
-(:func:`~tire_estimation.core.stiffness_baselines.model_jacobian`).
+(:func:`~tire_estimation.evaluation.stiffness_baselines.model_jacobian`).
 
 The noise model is the filter's: the accelerometer and gyro noise ``R``, the state jitter, and
 the stiffness noise of the paper's eq. (8): ``w_k ~ N(mu, Sigma)`` drawn afresh at every IMU
@@ -30,9 +30,10 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from tire_estimation.core.stiffness_baselines import model, model_jacobian
 from tire_estimation.core.stiffness_config import StiffnessEstimatorConfig
+from tire_estimation.core.stiffness_filter import model
 from tire_estimation.core.stiffness_model import SingleTrackParams
+from tire_estimation.evaluation.stiffness_baselines import model_jacobian
 from tire_estimation.sim.simulator import SimResult
 
 F64 = NDArray[np.float64]

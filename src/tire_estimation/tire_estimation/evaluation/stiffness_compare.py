@@ -3,9 +3,10 @@
 Berntorp & Di Cairano, IEEE TCST 2018, Sec. VI: the same bias-free ``stiffness_step`` drives
 (simulator seeds) go through Algorithm 1 (:class:`StiffnessEstimator` with
 :func:`~tire_estimation.evaluation.stiffness.eval_config`, initial stiffness 0.7 of nominal)
-and the baselines of :mod:`tire_estimation.core.stiffness_baselines`, and the point-mass filter
-of :mod:`tire_estimation.core.stiffness_grid` (not in the paper), which share every setting of
-the same name with that configuration (``BaselineConfig.sharing``)::
+and the baselines of :mod:`tire_estimation.evaluation.stiffness_baselines`, and the point-mass
+filter of :mod:`tire_estimation.core.stiffness_grid` (not in the paper), which share every setting
+of the same name with that configuration (``BaselineConfig.sharing``) and run behind Algorithm 1's
+front-end (:class:`~tire_estimation.core.stiffness_frontend.StiffnessFrontEnd`)::
 
     python -m tire_estimation.evaluation.stiffness_compare --out DIR --runs R \\
         --particles 50 100 200 500 [--seeds S ...] [--jobs J]
@@ -41,7 +42,7 @@ import time
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any
 
 import matplotlib
 
@@ -50,24 +51,24 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.ticker import NullFormatter
 
-from tire_estimation.core.stiffness_baselines import (
-    AugPfConfig,
-    AugPfEstimator,
-    BaselineEstimator,
-    EkfConfig,
-    EkfEstimator,
-    RlsConfig,
-    RlsEstimator,
-)
-from tire_estimation.core.stiffness_estimator import StiffnessEstimate, StiffnessEstimator
-from tire_estimation.core.stiffness_grid import GridConfig, GridEstimator
+from tire_estimation.core.stiffness_estimator import StiffnessEstimator
+from tire_estimation.core.stiffness_frontend import StiffnessFrontEnd
+from tire_estimation.core.stiffness_grid import GridConfig
 from tire_estimation.evaluation.stiffness import (
     NO_BIAS,
     eval_config,
+    feed,
     parse_set,
     sine_aggregate,
     sine_run_scores,
+    truth_at,
     truth_over_nominal,
+)
+from tire_estimation.evaluation.stiffness_baselines import (
+    AugPfConfig,
+    BaselineEstimator,
+    EkfConfig,
+    RlsConfig,
 )
 from tire_estimation.sim import SimResult, simulate
 
@@ -93,19 +94,9 @@ DETERMINISTIC = (("ekf", "C2"), ("rls", "C1"), ("grid", "C4"))
 NO_CX = ("rls", "grid")
 
 
-class Estimator(Protocol):
-    """What :func:`replay` drives (``StiffnessEstimator`` and the baselines)."""
-
-    def on_wheel_speeds(self, t_ns: int, wheel_speed_rad_s: Any) -> None: ...
-
-    def on_steering(self, t_ns: int, angle_rad: float) -> None: ...
-
-    def on_imu(self, t_ns: int, gyro_rad_s: Any, accel_m_s2: Any) -> None: ...
-
-    def estimate(self) -> StiffnessEstimate: ...
-
-
-def replay(sim: SimResult, est: Estimator, ready: Callable[[], bool]) -> dict[str, np.ndarray]:
+def replay(
+    sim: SimResult, est: StiffnessFrontEnd[Any], ready: Callable[[], bool]
+) -> dict[str, np.ndarray]:
     """Feed ``sim`` through ``est`` in stamp order; arrays on the IMU grid.
 
     Keys: ``t_s`` (from the first IMU sample), ``c``/``std`` (K, 3), ``vy`` (CG), ``ready``,
@@ -113,49 +104,25 @@ def replay(sim: SimResult, est: Estimator, ready: Callable[[], bool]) -> dict[st
     ``truth_c`` (stiffness at the next truth sample), ``truth_vy`` (CG, interpolated) and
     ``step_ms`` (mean wall time of ``on_imu``).
     """
-    ws, st, imu = sim.wheel_speeds, sim.steering, sim.imu
-    events: list[tuple[int, int, Any]] = [
-        (int(t), 0, v) for t, v in zip(ws.t_ns, ws.wheel_speed_rad_s, strict=True)
-    ]
-    events += [(int(t), 1, float(v)) for t, v in zip(st.t_ns, st.angle_rad, strict=True)]
-    events += [
-        (int(t), 2, (g, a))
-        for t, g, a in zip(
-            imu.t_ns, imu.angular_velocity_rad_s, imu.linear_acceleration_m_s2, strict=True
-        )
-    ]
-    events.sort(key=lambda e: (e[0], e[1]))
     t_ns: list[int] = []
     c: list[np.ndarray] = []
     std: list[np.ndarray] = []
     vy: list[float] = []
     rdy: list[bool] = []
     act: list[bool] = []
-    busy_s = 0.0
-    for t, kind, v in events:
-        if kind == 0:
-            est.on_wheel_speeds(t, v)
-        elif kind == 1:
-            est.on_steering(t, v)
-        else:
-            t0 = time.perf_counter()
-            est.on_imu(t, v[0], v[1])
-            busy_s += time.perf_counter() - t0
-            e = est.estimate()
-            t_ns.append(t)
-            c.append(e.stiffness)
-            std.append(e.stiffness_std)
-            vy.append(e.vy_m_s)
-            rdy.append(ready())
-            act.append(bool(e.active))
+
+    def record(t: int) -> None:
+        e = est.estimate()
+        t_ns.append(t)
+        c.append(e.stiffness)
+        std.append(e.stiffness_std)
+        vy.append(e.vy_m_s)
+        rdy.append(ready())
+        act.append(bool(e.active))
+
+    busy_s = feed(sim, est, record)
     tt = np.asarray(t_ns)
-    tr = sim.truth
-    j = np.searchsorted(tr.t_ns, tt).clip(0, tr.t_ns.size - 1)
-    t_tr = (tr.t_ns - tr.t_ns[0]).astype(float)
-    t_est = (tt - tr.t_ns[0]).astype(float)
-    truth_r = np.interp(t_est, t_tr, tr.yaw_rate_rad_s)
-    # base_link is at the rear axle: vy_cg = vy_base + lr r
-    truth_vy = np.interp(t_est, t_tr, tr.velocity_m_s[:, 1]) + sim.vehicle.lr_m * truth_r
+    truth_c, _, truth_vy = truth_at(sim, tt)
     return {
         "t_s": (tt - tt[0]) * 1e-9,
         "c": np.asarray(c),
@@ -163,7 +130,7 @@ def replay(sim: SimResult, est: Estimator, ready: Callable[[], bool]) -> dict[st
         "vy": np.asarray(vy),
         "ready": np.asarray(rdy, dtype=bool),
         "active": np.asarray(act, dtype=bool),
-        "truth_c": tr.stiffness[j],
+        "truth_c": truth_c,
         "truth_vy": truth_vy,
         "step_ms": np.asarray(1e3 * busy_s / max(len(t_ns), 1)),
     }
@@ -223,15 +190,12 @@ def run_seed(seed: int, particles: list[int], initial_vy_std_m_s: float | None) 
         cfg = configs(n, initial_vy_std_m_s)
         alg1 = StiffnessEstimator(cfg["alg1"], sim.vehicle, np.random.default_rng(fseed))
         out["alg1"][str(n)] = scores(replay(sim, alg1, lambda e=alg1: e.mpf.initialized))
-        aug = AugPfEstimator(cfg["augpf"], sim.vehicle, np.random.default_rng(fseed))
+        aug = BaselineEstimator(cfg["augpf"], sim.vehicle, np.random.default_rng(fseed))
         out["augpf"][str(n)] = scores(replay(sim, aug, lambda e=aug: e.initialized))
     cfg = configs(particles[0], initial_vy_std_m_s)
-    ekf = EkfEstimator(cfg["ekf"], sim.vehicle)
-    out["ekf"]["-"] = scores(replay(sim, ekf, lambda: ekf.initialized))
-    rls = RlsEstimator(cfg["rls"], sim.vehicle)
-    out["rls"]["-"] = scores(replay(sim, rls, lambda: rls.initialized))
-    grid = GridEstimator(cfg["grid"], sim.vehicle)
-    out["grid"]["-"] = scores(replay(sim, grid, lambda: grid.initialized))
+    for m, _ in DETERMINISTIC:
+        est = BaselineEstimator(cfg[m], sim.vehicle)
+        out[m]["-"] = scores(replay(sim, est, lambda e=est: e.initialized))
     return out
 
 
@@ -277,21 +241,14 @@ def run_sine_seed(
 
 def _estimator(
     method: str, cfg: dict[str, Any], sim: SimResult, fseed: int
-) -> tuple[Estimator, Callable[[], bool]]:
+) -> tuple[StiffnessFrontEnd[Any], Callable[[], bool]]:
     """The estimator of ``method`` (a key of :func:`configs`) for ``sim`` and its ready test;
     the particle filters take the generator seed ``fseed``."""
     if method == "alg1":
         alg1 = StiffnessEstimator(cfg["alg1"], sim.vehicle, np.random.default_rng(fseed))
         return alg1, lambda: alg1.mpf.initialized
-    base: BaselineEstimator
-    if method == "augpf":
-        base = AugPfEstimator(cfg["augpf"], sim.vehicle, np.random.default_rng(fseed))
-    elif method == "ekf":
-        base = EkfEstimator(cfg["ekf"], sim.vehicle)
-    elif method == "rls":
-        base = RlsEstimator(cfg["rls"], sim.vehicle)
-    else:
-        base = GridEstimator(cfg[method], sim.vehicle)
+    rng = np.random.default_rng(fseed) if method == "augpf" else None
+    base = BaselineEstimator(cfg[method], sim.vehicle, rng)
     return base, lambda: base.initialized
 
 

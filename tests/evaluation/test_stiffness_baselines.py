@@ -8,27 +8,27 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from tire_estimation.core.stiffness_baselines import (
-    AugPf,
-    AugPfConfig,
-    AugPfEstimator,
-    BaselineConfig,
-    EkfConfig,
-    EkfEstimator,
-    Measurement,
-    RlsConfig,
-    RlsEstimator,
-    friction_saturation,
-    gaussian_logpdf,
-    model,
-    model_jacobian,
-)
 from tire_estimation.core.stiffness_config import StiffnessEstimatorConfig
-from tire_estimation.core.stiffness_estimator import StiffnessEstimate
+from tire_estimation.core.stiffness_filter import (
+    BaselineConfig,
+    Measurement,
+    friction_saturation,
+    model,
+)
+from tire_estimation.core.stiffness_frontend import StiffnessEstimate
 from tire_estimation.core.stiffness_model import SingleTrackParams, slip_angles
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.errors import ConfigError
 from tire_estimation.evaluation.stiffness import NO_BIAS, truth_over_nominal
+from tire_estimation.evaluation.stiffness_baselines import (
+    AugPf,
+    AugPfConfig,
+    BaselineEstimator,
+    EkfConfig,
+    RlsConfig,
+    gaussian_logpdf,
+    model_jacobian,
+)
 from tire_estimation.evaluation.stiffness_compare import replay
 from tire_estimation.sim import SimResult, simulate
 
@@ -201,7 +201,7 @@ def test_augpf_shapes_weights_and_frozen_stiffness() -> None:
 # ------------------------------------------------------------------ learning on the simulator
 def test_augpf_learns_cy_front_and_tracks_vy(sim: SimResult) -> None:
     cfg = AugPfConfig(n_particles=100, **SHARED)
-    est = AugPfEstimator(cfg, sim.vehicle, np.random.default_rng(100))
+    est = BaselineEstimator(cfg, sim.vehicle, np.random.default_rng(100))
     vy_rmse, before, after = _scores(sim, est)
     assert isinstance(est.estimate(), StiffnessEstimate)
     # from 70 % of nominal: within 10 % before and 15 % after the 50 % step
@@ -211,7 +211,7 @@ def test_augpf_learns_cy_front_and_tracks_vy(sim: SimResult) -> None:
 
 
 def test_ekf_learns_cy_front_and_tracks_vy(sim: SimResult) -> None:
-    est = EkfEstimator(EkfConfig(**SHARED), sim.vehicle)
+    est = BaselineEstimator(EkfConfig(**SHARED), sim.vehicle)
     vy_rmse, before, after = _scores(sim, est)
     assert before < 0.05
     assert after < 0.05
@@ -224,7 +224,7 @@ def test_rls_learns_cy_front_and_tracks_vy() -> None:
     # first locks onto ~20 % of the true stiffness (slip angles of a KF with that stiffness
     # explain the measured forces) and escapes only slowly (forgetting 0.998)
     full = simulate("stiffness_step", seed=0, minutes=1.0, sensors=NO_BIAS)
-    est = RlsEstimator(RlsConfig(**SHARED), full.vehicle)
+    est = BaselineEstimator(RlsConfig(**SHARED), full.vehicle)
     res = replay(full, est, lambda: est.initialized)
     t = res["t_s"]
     rel = res["c"][:, 1] / res["truth_c"][:, 1] - 1.0
@@ -248,7 +248,7 @@ def test_rls_with_the_friction_tyre_on_snow() -> None:
     err = {}
     for mu in (0.0, 0.3):
         cfg = RlsConfig(initial_stiffness_factor=start, friction_coefficient=mu)
-        est = RlsEstimator(cfg, snow.vehicle)
+        est = BaselineEstimator(cfg, snow.vehicle)
         res = replay(snow, est, lambda e=est: e.initialized)
         rel = res["c"] / res["truth_c"] - 1.0
         err[mu] = rel[res["t_s"] > res["t_s"][-1] - 5.0, 1:].mean(axis=0)
@@ -260,7 +260,11 @@ def test_augpf_reproducible_with_the_same_seed() -> None:
     short = simulate("stiffness_step", seed=1, minutes=0.1, sensors=NO_BIAS)
     cfg = AugPfConfig(n_particles=32, **SHARED)
     runs = [
-        replay(short, AugPfEstimator(cfg, short.vehicle, np.random.default_rng(s)), lambda: True)
+        replay(
+            short,
+            BaselineEstimator(cfg, short.vehicle, np.random.default_rng(s)),
+            lambda: True,
+        )
         for s in (5, 5, 6)
     ]
     np.testing.assert_array_equal(runs[0]["c"], runs[1]["c"])
@@ -269,7 +273,7 @@ def test_augpf_reproducible_with_the_same_seed() -> None:
 
 
 def test_bad_input_is_counted_and_reset_forgets() -> None:
-    est = EkfEstimator(EkfConfig(), VehicleParams())
+    est = BaselineEstimator(EkfConfig(), VehicleParams())
     est.on_wheel_speeds(10, [1.0, 2.0, 3.0])
     est.on_steering(20, float("nan"))
     est.on_imu(30, [0.0, 0.0, 0.0], [0.0, 0.0, 9.81])
@@ -287,3 +291,20 @@ def test_bad_input_is_counted_and_reset_forgets() -> None:
     est.reset()
     assert not est.initialized
     assert est.estimate().reason == "not initialized"
+
+
+def test_a_measured_speed_freezes_cx_as_in_algorithm_1() -> None:
+    # the front-end is Algorithm 1's: without wheel speeds the slip (eq. 3) is unknown, so
+    # the EKF's Cx stays at the initial guess however much ax varies
+    est = BaselineEstimator(EkfConfig(**SHARED), VehicleParams())
+    for k in range(600):
+        t = 1_000_000_000 + k * 10_000_000
+        est.on_velocity(t, 20.0)
+        est.on_steering(t + 1, 0.02)
+        est.on_imu(t + 2, [0.0, 0.0, 0.0], [0.5 * np.sin(0.05 * k), 0.0, 9.81])
+    e = est.estimate()
+    assert e.active and not e.cx_active
+    assert e.reason == "excited (Cx frozen: no wheel speeds)"
+    assert e.stiffness[0] == pytest.approx(0.7 * e.nominal[0], rel=1e-12)
+    with pytest.raises(TypeError, match="BaselineConfig"):
+        BaselineEstimator(BaselineConfig(), VehicleParams())

@@ -1,28 +1,32 @@
-"""Baselines of the tyre-stiffness estimator: AUGPF, EKF and KF + RLS.
+"""Baselines of the tyre-stiffness estimator: AUGPF, EKF and KF + RLS, and the grid on its own.
 
 Berntorp & Di Cairano, "Tire-stiffness and vehicle-state estimation based on noise-adaptive
 particle filtering", IEEE TCST 2018, compare Algorithm 1 (``core.stiffness_mpf``) with a
 state-augmented particle filter (AUGPF, Sec. V-VI), a Kalman filter for the lateral dynamics
-feeding a linear regression (RLS, Sec. VI-A) and an EKF (Sec. VII). The three estimators here
-use the single-track model of ``core.stiffness_model`` (eq. 1-12, with ``w = C - C_n``, eq. 7)
-and one shared sample-by-sample front-end (:class:`BaselineEstimator`: the callbacks, input
-checks and activation logic of
-:class:`~tire_estimation.core.stiffness_estimator.StiffnessEstimator`, returning the same
-:class:`~tire_estimation.core.stiffness_estimator.StiffnessEstimate`). Only the filter differs:
+feeding a linear regression (RLS, Sec. VI-A) and an EKF (Sec. VII). The three filters here use
+the single-track model of ``core.stiffness_model`` (eq. 1-12, with ``w = C - C_n``, eq. 7) in
+the form of :func:`~tire_estimation.core.stiffness_filter.model`, and run behind Algorithm 1's
+own front-end (:class:`BaselineEstimator`, a
+:class:`~tire_estimation.core.stiffness_frontend.StiffnessFrontEnd`: the same callbacks, input
+checks, activation and replay, returning the same
+:class:`~tire_estimation.core.stiffness_frontend.StiffnessEstimate`). Only the filter differs:
 
-* :class:`AugPfEstimator` (:class:`AugPf`): bootstrap particle filter on the augmented state
+* :class:`AugPf` (:class:`AugPfConfig`): bootstrap particle filter on the augmented state
   ``[vX, vY, r, dCx, dCy_f, dCy_r]``; the stiffness deviation is a Gaussian random walk
   (artificial dynamics), the proposal is the prior (eq. 9 + random walk), the weights are the
   Gaussian likelihood of the IMU measurement (eq. 12 with ``R``), systematic resampling. Left
   out w.r.t. the paper's AUGPF: the three extra states of the inverse-Wishart random walk of
   the noise variances (the paper's AUGPF has 9 states, this one 6).
-* :class:`EkfEstimator` (:class:`AugEkf`): extended Kalman filter on the same 6 states and
+* :class:`AugEkf` (:class:`EkfConfig`): extended Kalman filter on the same 6 states and
   artificial dynamics, Jacobians of ``core.stiffness_model.linearize`` by central differences
   in the vehicle states (the model is affine in ``w``: that block is exact).
-* :class:`RlsEstimator` (:class:`KfRls`): Kalman filter on ``[vY, r]`` with ``vX`` the measured
+* :class:`KfRls` (:class:`RlsConfig`): Kalman filter on ``[vY, r]`` with ``vX`` the measured
   speed (see :class:`RlsConfig`), feeding a recursive least squares with forgetting that
   regresses the measured lateral acceleration and yaw acceleration on the slip angles to get
   ``[Cy_f, Cy_r]``; ``Cx`` is not estimated.
+
+:class:`BaselineEstimator` also runs the point-mass filter of ``core.stiffness_grid``
+(:class:`~tire_estimation.core.stiffness_grid.GridConfig`) on its own.
 
 With ``friction_coefficient`` mu > 0 all three use the friction-limited lateral tyre of
 Algorithm 1 (``saturation_peak`` = ``friction``): ``Fy = mu Fz tanh(C alpha / (mu Fz))`` per axle,
@@ -40,169 +44,43 @@ stiffness estimate (particle spread, ``sqrt(diag P)``), not the std of the stiff
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields
-from typing import Any, TypeVar
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
 from tire_estimation.core import resampling
-from tire_estimation.core.activation_replay import ActivationReplay
-from tire_estimation.core.stiffness_config import require_tyre_shape
-from tire_estimation.core.stiffness_estimator import SlidingWindow, StiffnessEstimate
-from tire_estimation.core.stiffness_model import (
-    NAMES,
-    SingleTrackParams,
-    linearize,
-    roll_compensate,
-    saturation_slip_at,
-    wheel_speed_gain,
+from tire_estimation.core.stiffness_filter import (
+    JACOBIAN_STEP,
+    BaselineConfig,
+    FilterEstimate,
+    Measurement,
+    StiffnessFilter,
+    friction_saturation,
+    imu_noise_cov,
+    measurement_cov,
+    model,
+    stiffness_bounds,
 )
+from tire_estimation.core.stiffness_frontend import StiffnessFrontEnd
+from tire_estimation.core.stiffness_grid import GridConfig, GridEkf
+from tire_estimation.core.stiffness_model import SingleTrackParams, linearize
 from tire_estimation.core.validation import (
-    require_choice,
     require_int_range,
     require_non_negative,
     require_positive,
     require_range,
 )
 from tire_estimation.core.vehicle import VehicleParams
-from tire_estimation.errors import ConfigError, InputError
+from tire_estimation.errors import ConfigError
 
 F64 = NDArray[np.float64]
-DRIVE_CHOICES = ("vehicle", "front", "rear", "all")
-#: Central-difference steps of the numeric Jacobians in [vX m/s, vY m/s, r rad/s].
-JACOBIAN_STEP = np.array([1e-3, 1e-3, 1e-4])
 #: Central-difference steps in ``w`` (friction-limited tyre only), fraction of ``C_n``.
 W_JACOBIAN_STEP_FRACTION = 1e-4
 _LOG_2PI = math.log(2.0 * math.pi)
 
-C = TypeVar("C", bound="BaselineConfig")
-
 
 # ---------------------------------------------------------------------------- configuration
-@dataclass(frozen=True)
-class BaselineConfig:
-    """Settings shared by the baselines (names and defaults as ``StiffnessEstimatorConfig``).
-
-    Attributes:
-        drive: driven axle whose Cx is estimated: ``vehicle``, ``front``, ``rear`` or ``all``.
-        initial_stiffness_factor: initial guess of every stiffness, fraction of nominal, 1
-            (default 1.0).
-        initial_stiffness_std_fraction: prior std of the stiffness, fraction of nominal, 1
-            (default 0.3, paper Sec. VI-A).
-        min_stiffness_fraction: lower projection bound, fraction of nominal, 1 (default 0.05).
-        max_stiffness_fraction: upper projection bound, fraction of nominal, 1 (default 3.0).
-        accel_noise_std_m_s2: accelerometer white-noise std (R of eq. 12), m/s^2 (0.05).
-        gyro_noise_std_rad_s: gyro white-noise std (R of eq. 12), rad/s (0.00175).
-        wheel_speed_noise_std_m_s: std of the axle-mean ``R_w omega``, carried into ``R``
-            through the slip (eq. 2-3) as in Algorithm 1, m/s (0.035).
-        initial_vx_std_m_s: initial std of vX around the measured speed, m/s (0.3).
-        initial_vy_std_m_s: initial std of vY, m/s (0.3).
-        initial_yaw_rate_std_rad_s: initial std of the yaw rate, rad/s (0.0175).
-        wheel_radius_m: effective wheel radius, m; 0 = the vehicle's nominal radius (0.0).
-        rolling_resistance_n: known constant longitudinal resistance, N (0.0).
-        drag_n_s2_m2: known aerodynamic drag coefficient k (F = k vX^2), N s^2/m^2 (0.0).
-        roll_gain: c_phi g of Sec. II-A, 1 (0.0).
-        friction_coefficient: road friction coefficient mu of Algorithm 1's friction-limited
-            lateral tyre ``Fy = mu Fz tanh(C alpha / (mu Fz))`` per axle (static axle load
-            ``Fz``), 1; 0 keeps the linear tyre of eq. (2) (0.0).
-        tyre_shape: ``tanh`` or ``magic_formula``, as Algorithm 1's (``tanh``).
-        magic_formula_shape_c: shape factor C of the ``magic_formula`` tyre, 1 (1.3).
-        magic_formula_curvature_e: curvature factor E of the ``magic_formula`` tyre, 1 (0.0).
-        min_speed_m_s: below this speed nothing is learned, m/s (5.0).
-        activation_window_s: window of the RMS steering angle, s (1.0).
-        activation_steer_rad: minimum RMS road-wheel angle to learn (Sec. V), rad (0.003).
-        activation_replay_s: when learning starts, rewind the filter to the onset of the
-            steering within this time and replay the inputs since with learning on, as
-            Algorithm 1's, s (0.0 = off).
-        activation_accel_x_window_s: window of the std of the measured ax, s (3.0).
-        activation_accel_x_std_m_s2: minimum std of the measured ax to learn Cx, m/s^2 (0.2).
-        max_gap_s: a larger gap between IMU samples re-initializes the filter, s (0.5).
-        max_input_age_s: wheel speed / steering / velocity older than this are stale, s (0.2).
-    """
-
-    drive: str = "vehicle"
-    initial_stiffness_factor: float = 1.0
-    initial_stiffness_std_fraction: float = 0.3
-    min_stiffness_fraction: float = 0.05
-    max_stiffness_fraction: float = 3.0
-    accel_noise_std_m_s2: float = 0.05
-    gyro_noise_std_rad_s: float = 0.00175
-    wheel_speed_noise_std_m_s: float = 0.035
-    initial_vx_std_m_s: float = 0.3
-    initial_vy_std_m_s: float = 0.3
-    initial_yaw_rate_std_rad_s: float = 0.0175
-    wheel_radius_m: float = 0.0
-    rolling_resistance_n: float = 0.0
-    drag_n_s2_m2: float = 0.0
-    roll_gain: float = 0.0
-    friction_coefficient: float = 0.0
-    tyre_shape: str = "tanh"
-    magic_formula_shape_c: float = 1.3
-    magic_formula_curvature_e: float = 0.0
-    min_speed_m_s: float = 5.0
-    activation_window_s: float = 1.0
-    activation_steer_rad: float = 0.003
-    activation_replay_s: float = 0.0
-    activation_accel_x_window_s: float = 3.0
-    activation_accel_x_std_m_s2: float = 0.2
-    max_gap_s: float = 0.5
-    max_input_age_s: float = 0.2
-
-    def __post_init__(self) -> None:
-        require_choice("drive", self.drive, DRIVE_CHOICES)
-        require_range("activation_replay_s", self.activation_replay_s, 0.0, 10.0)
-        require_range("initial_stiffness_factor", self.initial_stiffness_factor, 0.05, 5.0)
-        require_range(
-            "initial_stiffness_std_fraction", self.initial_stiffness_std_fraction, 1e-4, 5.0
-        )
-        require_range("min_stiffness_fraction", self.min_stiffness_fraction, 0.0, 1.0)
-        require_range("max_stiffness_fraction", self.max_stiffness_fraction, 1.0, 100.0)
-        for name in (
-            "accel_noise_std_m_s2",
-            "gyro_noise_std_rad_s",
-            "min_speed_m_s",
-            "activation_window_s",
-            "activation_accel_x_window_s",
-            "max_gap_s",
-            "max_input_age_s",
-        ):
-            require_positive(name, getattr(self, name))
-        for name in (
-            "wheel_speed_noise_std_m_s",
-            "initial_vx_std_m_s",
-            "initial_vy_std_m_s",
-            "initial_yaw_rate_std_rad_s",
-            "rolling_resistance_n",
-            "drag_n_s2_m2",
-            "activation_steer_rad",
-            "activation_accel_x_std_m_s2",
-        ):
-            require_non_negative(name, getattr(self, name))
-        require_range("wheel_radius_m", self.wheel_radius_m, 0.0, 1.5)
-        if 0.0 < self.wheel_radius_m < 0.1:
-            raise ConfigError("wheel_radius_m", self.wheel_radius_m, "must be 0 or >= 0.1")
-        require_range("roll_gain", self.roll_gain, -0.5, 5.0)
-        if self.friction_coefficient != 0.0:
-            require_range("friction_coefficient", self.friction_coefficient, 0.1, 5.0)
-        require_tyre_shape(self)
-
-    @classmethod
-    def sharing(cls: type[C], other: Any, **overrides: Any) -> C:
-        """This config with the :class:`BaselineConfig` fields copied from ``other``.
-
-        Every field declared on :class:`BaselineConfig` that ``other`` (a dataclass, e.g. a
-        ``StiffnessEstimatorConfig``) also has is copied; the method's own fields (e.g.
-        ``RlsConfig.forgetting``, which is not the NiW forgetting of Algorithm 1) keep their
-        defaults unless given in ``overrides``. E.g. ``AugPfConfig.sharing(alg1_config,
-        n_particles=100)`` initializes a baseline with the values Algorithm 1 uses for the
-        variables in common (paper Sec. VI-A).
-        """
-        names = {f.name for f in fields(BaselineConfig)}
-        shared = {f.name: getattr(other, f.name) for f in fields(other) if f.name in names}
-        return cls(**{**shared, **overrides})
-
-
 @dataclass(frozen=True)
 class AugPfConfig(BaselineConfig):
     """AUGPF: bootstrap particle filter on ``[vX, vY, r, dCx, dCy_f, dCy_r]``.
@@ -315,77 +193,6 @@ class RlsConfig(BaselineConfig):
 
 
 # ---------------------------------------------------------------------------- model helpers
-@dataclass(frozen=True)
-class Measurement:
-    """One IMU step as seen by a filter.
-
-    Attributes:
-        y: [ax, ay (roll compensated), r] of eq. (12), (3,).
-        delta_rad: road-wheel angle, rad.
-        wheel_speed_m_s: (front, rear) axle mean ``R_w omega``, m/s.
-        speed_m_s: measured speed (undriven axle, or the velocity input), m/s.
-        vx_measured: ``speed_m_s`` is a measured vX that replaces the estimate (no wheels).
-    """
-
-    y: F64
-    delta_rad: float
-    wheel_speed_m_s: tuple[float, float]
-    speed_m_s: float
-    vx_measured: bool
-
-
-@dataclass(frozen=True)
-class FilterEstimate:
-    """Point estimate of a baseline filter.
-
-    Attributes:
-        stiffness: [Cx, Cy_f, Cy_r], (3,).
-        stiffness_std: posterior std of the stiffness estimate, (3,).
-        state: [vX, vY, r], (3,).
-        state_cov: covariance of the state, (3, 3).
-        n_eff: effective sample size (nan for the Kalman filters).
-        bias: [b_ax, b_ay, b_r] where the filter estimates the IMU biases, else None.
-    """
-
-    stiffness: F64
-    stiffness_std: F64
-    state: F64
-    state_cov: F64
-    n_eff: float
-    bias: F64 | None = None
-
-
-def friction_saturation(p: SingleTrackParams, w: F64) -> tuple[F64, F64] | None:
-    """Per-row saturation slips ``alpha_s = mu Fz / C`` at ``C = C_n + w``, or None (linear).
-
-    ``w`` (N, 3) -> two (N,) arrays (``stiffness_model.saturation_slip_at``); None where ``p``
-    has the linear tyre (``friction_coefficient`` 0).
-    """
-    if p.saturation_slip_front_rad <= 0.0 and p.saturation_slip_rear_rad <= 0.0:
-        return None
-    c_n = np.asarray(p.nominal, dtype=float)
-    return saturation_slip_at(p, c_n[1] + w[:, 1], c_n[2] + w[:, 2])
-
-
-def model(
-    x: F64, w: F64, delta_rad: float, wheel_speed_m_s: tuple[float, float], p: SingleTrackParams
-) -> tuple[F64, F64, F64, F64]:
-    """State derivative and measurement mean with stiffness ``C_n + w``, per row.
-
-    ``x`` (N, 3), ``w`` (N, 3) -> ``rate`` (N, 3), ``y_hat`` (N, 3), ``a`` (N, 3, 3) and ``d``
-    (N, 3, 3) of :func:`~tire_estimation.core.stiffness_model.linearize`. With the
-    friction-limited tyre ``a`` and ``d`` are taken at each row's own ``alpha_s = mu Fz / C``
-    (:func:`friction_saturation`), so ``rate`` and ``y_hat`` are the exact model at ``w``
-    while ``a`` and ``d`` are secants, not derivatives.
-    """
-    lin = linearize(x, delta_rad, wheel_speed_m_s, p, friction_saturation(p, w))
-    # eq. (9)-(10): dx/dt = rate_n(x) + a(x) w
-    rate = lin.rate + np.einsum("nij,nj->ni", lin.a, w)
-    # eq. (12): y = h(x) + d(x) w + e
-    y_hat = lin.h + np.einsum("nij,nj->ni", lin.d, w)
-    return rate, y_hat, lin.a, lin.d
-
-
 def model_jacobian(
     x: F64, w: F64, delta_rad: float, wheel_speed_m_s: tuple[float, float], p: SingleTrackParams
 ) -> tuple[F64, F64, F64, F64, F64, F64]:
@@ -418,29 +225,6 @@ def model_jacobian(
     return rate[0], y_hat[0], d_rate, d_meas, d_rate_w, d_meas_w
 
 
-def measurement_cov(
-    r_cov: F64,
-    x: F64,
-    delta_rad: float,
-    wheel_speed_m_s: tuple[float, float],
-    p: SingleTrackParams,
-    cx: F64,
-    wheel_speed_std_m_s: float,
-) -> F64:
-    """IMU noise ``R`` (3, 3) plus the wheel-speed noise carried into ``y``, (N, 3, 3).
-
-    As Algorithm 1 (``StiffnessMpf.measurement_cov``): ``R + s^2 sum_axles g g^T`` with ``g``
-    from :func:`~tire_estimation.core.stiffness_model.wheel_speed_gain` at Cx = ``cx`` (N,).
-    """
-    n = x.shape[0]
-    out = np.broadcast_to(r_cov, (n, 3, 3)).copy()
-    if wheel_speed_std_m_s <= 0.0:
-        return out
-    g = wheel_speed_gain(x, delta_rad, wheel_speed_m_s, p, cx)
-    # eq. (2)-(3): Cov = R + s^2 G^T G
-    return out + wheel_speed_std_m_s**2 * np.einsum("nai,naj->nij", g, g)
-
-
 def gaussian_logpdf(e: F64, cov: F64) -> F64:
     """Log N(e; 0, cov) per row: ``e`` (N, m), ``cov`` (N, m, m) -> (N,)."""
     chol = np.linalg.cholesky(cov)
@@ -449,48 +233,8 @@ def gaussian_logpdf(e: F64, cov: F64) -> F64:
     return -0.5 * (np.sum(z * z, axis=-1) + log_det + e.shape[-1] * _LOG_2PI)
 
 
-def _stiffness_bounds(config: BaselineConfig, nominal: F64) -> tuple[F64, F64]:
-    """Bounds of ``w = C - C_n`` (Sec. V projection)."""
-    return (
-        config.min_stiffness_fraction * nominal - nominal,
-        config.max_stiffness_fraction * nominal - nominal,
-    )
-
-
-def _r_cov(config: BaselineConfig) -> F64:
-    return np.diag(
-        [
-            config.accel_noise_std_m_s2**2,
-            config.accel_noise_std_m_s2**2,
-            config.gyro_noise_std_rad_s**2,
-        ]
-    )
-
-
-class BaselineFilter:
-    """Interface of a baseline filter driven by :class:`BaselineEstimator`."""
-
-    initialized: bool = False
-
-    def initialize(self, x0: F64, x0_std: F64) -> None:
-        """Start at state ``x0`` (3,) with std ``x0_std`` (3,) and the prior stiffness."""
-        raise NotImplementedError
-
-    def predict(self, dt_s: float, learn: bool, learn_cx: bool) -> None:
-        """Time update by ``dt_s`` with the inputs of the last :meth:`update`."""
-        raise NotImplementedError
-
-    def update(self, meas: Measurement, learn: bool, learn_cx: bool) -> None:
-        """Measurement update at one IMU sample."""
-        raise NotImplementedError
-
-    def estimate(self) -> FilterEstimate:
-        """Current point estimate."""
-        raise NotImplementedError
-
-
 # ---------------------------------------------------------------------------- AUGPF
-class AugPf(BaselineFilter):
+class AugPf(StiffnessFilter):
     """Bootstrap particle filter on ``[vX, vY, r, w]``, vectorized over particles.
 
     Args:
@@ -507,8 +251,8 @@ class AugPf(BaselineFilter):
         self.rng = rng
         self.n = config.n_particles
         self.nominal = np.asarray(params.nominal, dtype=float)
-        self.lower, self.upper = _stiffness_bounds(config, self.nominal)
-        self.r_cov = _r_cov(config)
+        self.lower, self.upper = stiffness_bounds(config, self.nominal)
+        self.r_cov = imu_noise_cov(config)
         self.jitter = np.array(
             [
                 config.state_jitter_vx_m_s_sqrt_s,
@@ -603,7 +347,7 @@ class AugPf(BaselineFilter):
 
 
 # ---------------------------------------------------------------------------- EKF
-class AugEkf(BaselineFilter):
+class AugEkf(StiffnessFilter):
     """Extended Kalman filter on ``z = [vX, vY, r, w]`` (6,).
 
     Args:
@@ -615,8 +359,8 @@ class AugEkf(BaselineFilter):
         self.config = config
         self.params = params
         self.nominal = np.asarray(params.nominal, dtype=float)
-        self.lower, self.upper = _stiffness_bounds(config, self.nominal)
-        self.r_cov = _r_cov(config)
+        self.lower, self.upper = stiffness_bounds(config, self.nominal)
+        self.r_cov = imu_noise_cov(config)
         self.q_state = np.array(
             [
                 config.process_vx_m_s_sqrt_s,
@@ -710,7 +454,7 @@ class AugEkf(BaselineFilter):
 
 
 # ---------------------------------------------------------------------------- KF + RLS
-class KfRls(BaselineFilter):
+class KfRls(StiffnessFilter):
     """Kalman filter on ``[vY, r]`` (``vX`` measured) feeding an RLS of ``[Cy_f, Cy_r]``.
 
     Regression (eq. 1b-c with eq. 2 and 4, linear in ``theta = [Cy_f, Cy_r]``), two rows per
@@ -736,7 +480,7 @@ class KfRls(BaselineFilter):
         self.config = config
         self.params = params
         self.nominal = np.asarray(params.nominal, dtype=float)
-        self.lower, self.upper = _stiffness_bounds(config, self.nominal)
+        self.lower, self.upper = stiffness_bounds(config, self.nominal)
         self.q_state = np.array(
             [config.process_vy_m_s_sqrt_s, config.process_yaw_rate_rad_s_sqrt_s]
         )
@@ -875,34 +619,20 @@ class KfRls(BaselineFilter):
 
 
 # ---------------------------------------------------------------------------- front-end
-def _is_int(x: Any) -> bool:
-    return isinstance(x, (int, np.integer)) and not isinstance(x, bool)
-
-
-def _vector(value: Any, n: int, what: str) -> F64:
-    v = np.asarray(value, dtype=float).reshape(-1)
-    if v.shape != (n,):
-        raise InputError("wrong_length", f"{what}: need {n} values, got {v.shape[0]}")
-    if not np.all(np.isfinite(v)):
-        raise InputError("nan", f"{what}: non-finite value")
-    return v
-
-
-class BaselineEstimator:
-    """Sample-by-sample front-end of a baseline filter (as ``StiffnessEstimator``).
-
-    The IMU drives the filter; the latest wheel speeds (or measured speed) and steering angle
-    are its inputs. Activation (Sec. V) as in ``StiffnessEstimator``: the stiffness is learned
-    above ``min_speed_m_s`` with an RMS steering angle of at least ``activation_steer_rad``;
-    Cx also needs a std of the measured ax of at least ``activation_accel_x_std_m_s2``. Bad
-    input never raises: it is dropped and counted in :attr:`stats`. Subclasses build the
-    filter in :meth:`make_filter`.
+class BaselineEstimator(StiffnessFrontEnd[StiffnessFilter]):
+    """A baseline filter behind Algorithm 1's front-end; the filter follows the type of
+    ``config``: :class:`AugPf` (:class:`AugPfConfig`), :class:`AugEkf` (:class:`EkfConfig`),
+    :class:`KfRls` (:class:`RlsConfig`) or the point-mass filter
+    :class:`~tire_estimation.core.stiffness_grid.GridEkf`
+    (:class:`~tire_estimation.core.stiffness_grid.GridConfig`).
 
     Args:
-        config: a :class:`BaselineConfig` subclass.
+        config: the filter's configuration.
         vehicle: geometry, nominal stiffness and drive.
-        rng: random generator of every draw (only the AUGPF draws).
+        rng: random generator of every draw (only the AUGPF draws; default seed 0).
     """
+
+    config: BaselineConfig
 
     def __init__(
         self,
@@ -910,295 +640,32 @@ class BaselineEstimator:
         vehicle: VehicleParams,
         rng: np.random.Generator | None = None,
     ) -> None:
-        self.config = config
-        self.vehicle = vehicle
-        self.rng = rng if rng is not None else np.random.default_rng(0)
-        drive = vehicle.drive if config.drive == "vehicle" else config.drive
-        self.params = SingleTrackParams.from_vehicle(
-            vehicle,
-            drive=drive,
-            wheel_radius_m=config.wheel_radius_m or None,
-            rolling_resistance_n=config.rolling_resistance_n,
-            drag_n_s2_m2=config.drag_n_s2_m2,
-            roll_gain=config.roll_gain,
-            friction_coefficient=config.friction_coefficient,
-            tyre_shape=config.tyre_shape,
-            magic_formula_shape_c=config.magic_formula_shape_c,
-            magic_formula_curvature_e=config.magic_formula_curvature_e,
-        )
-        self.nominal = np.asarray(self.params.nominal, dtype=float)
-        self.stats: dict[str, int] = {}
-        self.reset()
+        if not isinstance(config, (AugPfConfig, EkfConfig, RlsConfig, GridConfig)):
+            raise TypeError(f"no baseline filter for {type(config).__name__}")
+        super().__init__(config, vehicle, rng if rng is not None else np.random.default_rng(0))
 
-    def make_filter(self) -> BaselineFilter:
-        """The filter of this baseline."""
-        raise NotImplementedError
-
-    def reset(self) -> None:
-        """Forget everything learned and all inputs."""
-        self.filter = self.make_filter()
-        self._replay: ActivationReplay[BaselineFilter, tuple[float | None, Measurement, bool]]
-        self._replay = ActivationReplay(
-            self.config.activation_replay_s, shared=(self.rng, self.config, self.params)
-        )
-        self._last: dict[str, int | None] = {
-            "imu": None,
-            "wheel": None,
-            "steering": None,
-            "velocity": None,
-        }
-        self._wheel: F64 | None = None
-        self._steer = 0.0
-        self._vx_meas: float | None = None
-        self._steer_window = SlidingWindow(self.config.activation_window_s)
-        self._accel_x_window = SlidingWindow(self.config.activation_accel_x_window_s)
-        self._active = False
-        self._cx_active = False
-        self._reason = "not initialized"
-        self._t_ns = 0
-
-    @property
-    def initialized(self) -> bool:
-        """The filter runs (a speed input arrived and the speed was high enough)."""
-        return self.filter.initialized
-
-    # ------------------------------------------------------------------ inputs
-    def _drop(self, kind: str) -> None:
-        self.stats[kind] = self.stats.get(kind, 0) + 1
-
-    def _check_stamp(self, stream: str, t_ns: Any) -> int:
-        if not _is_int(t_ns):
-            raise InputError("bad_stamp", f"{stream}: stamp must be an integer, got {t_ns!r}")
-        last = self._last[stream]
-        if last is not None and int(t_ns) <= last:
-            kind = "duplicate" if int(t_ns) == last else "out_of_order"
-            raise InputError(kind, f"{stream}: stamp {t_ns} not after {last}")
-        return int(t_ns)
-
-    def _fresh(self, stream: str, t_ns: int) -> bool:
-        last = self._last[stream]
-        return last is not None and (t_ns - last) * 1e-9 <= self.config.max_input_age_s
-
-    def on_wheel_speeds(self, t_ns: int, wheel_speed_rad_s: Any) -> None:
-        """Wheel speeds (fl, fr, rl, rr), rad/s."""
-        try:
-            t = self._check_stamp("wheel", t_ns)
-            ws = _vector(wheel_speed_rad_s, 4, "wheel speeds")
-            if np.any(np.abs(ws) > 1000.0):
-                raise InputError("out_of_range", "wheel speed above 1000 rad/s")
-        except (InputError, TypeError, ValueError) as exc:
-            self._drop(exc.kind if isinstance(exc, InputError) else "bad_value")
-            return
-        self._last["wheel"] = t
-        self._wheel = ws
-
-    def on_steering(self, t_ns: int, angle_rad: float) -> None:
-        """Mean road-wheel steer angle delta, rad (positive left)."""
-        try:
-            t = self._check_stamp("steering", t_ns)
-            a = float(_vector(angle_rad, 1, "steering")[0])
-            if abs(a) > 1.2:
-                raise InputError("out_of_range", f"steering angle {a} rad")
-        except (InputError, TypeError, ValueError) as exc:
-            self._drop(exc.kind if isinstance(exc, InputError) else "bad_value")
-            return
-        self._last["steering"] = t
-        self._steer = a
-
-    def on_velocity(self, t_ns: int, vx_m_s: float) -> None:
-        """Measured longitudinal speed, m/s (used when there are no wheel speeds)."""
-        try:
-            t = self._check_stamp("velocity", t_ns)
-            v = float(_vector(vx_m_s, 1, "velocity")[0])
-            if abs(v) > 150.0:
-                raise InputError("out_of_range", f"speed {v} m/s")
-        except (InputError, TypeError, ValueError) as exc:
-            self._drop(exc.kind if isinstance(exc, InputError) else "bad_value")
-            return
-        self._last["velocity"] = t
-        self._vx_meas = v
-
-    def on_imu(self, t_ns: int, gyro_rad_s: Any, accel_m_s2: Any) -> None:
-        """IMU sample in ``base_link`` axes; runs one filter step."""
-        try:
-            t = self._check_stamp("imu", t_ns)
-            gyro = _vector(gyro_rad_s, 3, "gyro")
-            acc = _vector(accel_m_s2, 3, "accel")
-        except (InputError, TypeError, ValueError) as exc:
-            self._drop(exc.kind if isinstance(exc, InputError) else "bad_value")
-            return
-        last = self._last["imu"]
-        self._last["imu"] = t
-        self._t_ns = t
-        have_wheel = self._wheel is not None and self._fresh("wheel", t)
-        have_vel = self._vx_meas is not None and self._fresh("velocity", t)
-        if not (have_wheel or have_vel):
-            self._reason = "no speed input"
-            self._active = self._cx_active = False
-            self._drop("no_speed")
-            return
-        r_w = self.params.wheel_radius_m
-        if have_wheel:
-            assert self._wheel is not None
-            wf = float(0.5 * r_w * (self._wheel[0] + self._wheel[1]))
-            wr = float(0.5 * r_w * (self._wheel[2] + self._wheel[3]))
-            speed = wr if self.params.drive == "front" else min(wf, wr)
-        else:
-            assert self._vx_meas is not None
-            wf = wr = speed = self._vx_meas
-        steer = self._steer if self._fresh("steering", t) else 0.0
-        # eq. (12) y = [ax, ay / (1 + c_phi g), r]
-        y = np.array([acc[0], roll_compensate(float(acc[1]), self.params.roll_gain), gyro[2]])
+    def make_filter(self) -> StiffnessFilter:
+        """A fresh filter of the configuration's type."""
         c = self.config
-        dt = None if last is None else (t - last) * 1e-9
-        if dt is not None and dt > c.max_gap_s:
-            self._drop("gap")
-            self.filter.initialized = False
-        if not self.filter.initialized:
-            if speed < 0.5 * c.min_speed_m_s:
-                self._reason = "speed below minimum"
-                self._active = self._cx_active = False
-                return
-            x0 = np.array([speed, 0.0, float(gyro[2])])
-            std = np.array(
-                [c.initial_vx_std_m_s, c.initial_vy_std_m_s, c.initial_yaw_rate_std_rad_s]
-            )
-            self.filter.initialize(x0, std)
-            self._steer_window.reset()
-            self._accel_x_window.reset()
-            self._replay.clear()
-            self._active = False
-            dt = None
-        was_active = self._active
-        # Sec. V activation over sliding windows (as StiffnessEstimator)
-        self._steer_window.add(t, steer)
-        self._accel_x_window.add(t, float(acc[0]))
-        if speed < c.min_speed_m_s:
-            self._active, self._reason = False, "speed below minimum"
-        elif self._steer_window.rms < c.activation_steer_rad:
-            self._active, self._reason = False, "no lateral excitation"
-        else:
-            self._active, self._reason = True, "excited"
-        cx_excited = self._accel_x_window.std >= c.activation_accel_x_std_m_s2
-        self._cx_active = self._active and cx_excited
-        if self._active and not self._cx_active:
-            self._reason = "excited (Cx frozen: no longitudinal excitation)"
-        if self._active and not was_active:
-            # learn from the onset of the excitation (core/activation_replay, as Algorithm 1)
-            threshold = c.activation_steer_rad
-            got = self._replay.rewind(excited=lambda step: abs(step[1].delta_rad) >= threshold)
-            if got is not None:
-                self.filter, steps = got
-                for dt_s, past, past_cx in steps:
-                    if dt_s is not None:
-                        self.filter.predict(dt_s, True, past_cx)
-                    self.filter.update(past, True, past_cx)
-        if dt is not None:
-            self.filter.predict(dt, self._active, self._cx_active)
-        meas = Measurement(
-            y=y,
-            delta_rad=steer,
-            wheel_speed_m_s=(wf, wr),
-            speed_m_s=speed,
-            vx_measured=not have_wheel,
-        )
-        self.filter.update(meas, self._active, self._cx_active)
-        if speed < c.min_speed_m_s:
-            # nothing below the minimum speed is ever learned, not even in a replay
-            self._replay.clear()
-        elif not self._active:
-            self._replay.record(t, (dt, meas, cx_excited), self.filter)
-
-    # ------------------------------------------------------------------ outputs
-    def estimate(self) -> StiffnessEstimate:
-        """Current estimate; biases zero where not estimated, ``n_eff`` nan for the KFs."""
-        e = self.filter.estimate()
-        vx, vy, r = (float(v) for v in e.state)
-        bias = np.zeros(3) if e.bias is None else np.asarray(e.bias, dtype=float)
-        return StiffnessEstimate(
-            t_ns=self._t_ns,
-            names=NAMES,
-            stiffness=e.stiffness,
-            stiffness_std=e.stiffness_std,
-            nominal=self.nominal.copy(),
-            active=self._active,
-            cx_active=self._cx_active,
-            reason=self._reason,
-            gyro_bias_rad_s=np.array([0.0, 0.0, bias[2]]),
-            accel_bias_m_s2=np.array([bias[0], bias[1], 0.0]),
-            n_eff=e.n_eff,
-            vx_m_s=vx,
-            vy_m_s=vy,
-            yaw_rate_rad_s=r,
-            sideslip_rad=math.atan2(vy, max(vx, 1e-3)),
-            covariance=e.state_cov,
-        )
-
-
-class AugPfEstimator(BaselineEstimator):
-    """AUGPF baseline (:class:`AugPf`) behind the shared front-end."""
-
-    config: AugPfConfig
-
-    def __init__(
-        self, config: AugPfConfig, vehicle: VehicleParams, rng: np.random.Generator
-    ) -> None:
-        super().__init__(config, vehicle, rng)
-
-    def make_filter(self) -> BaselineFilter:
-        """A fresh :class:`AugPf`."""
-        return AugPf(self.config, self.params, self.rng)
-
-
-class EkfEstimator(BaselineEstimator):
-    """EKF baseline (:class:`AugEkf`) behind the shared front-end (deterministic)."""
-
-    config: EkfConfig
-
-    def __init__(
-        self,
-        config: EkfConfig,
-        vehicle: VehicleParams,
-        rng: np.random.Generator | None = None,
-    ) -> None:
-        super().__init__(config, vehicle, rng)
-
-    def make_filter(self) -> BaselineFilter:
-        """A fresh :class:`AugEkf`."""
-        return AugEkf(self.config, self.params)
-
-
-class RlsEstimator(BaselineEstimator):
-    """KF + RLS baseline (:class:`KfRls`) behind the shared front-end (deterministic)."""
-
-    config: RlsConfig
-
-    def __init__(
-        self,
-        config: RlsConfig,
-        vehicle: VehicleParams,
-        rng: np.random.Generator | None = None,
-    ) -> None:
-        super().__init__(config, vehicle, rng)
-
-    def make_filter(self) -> BaselineFilter:
-        """A fresh :class:`KfRls`."""
-        return KfRls(self.config, self.params)
+        if isinstance(c, AugPfConfig):
+            return AugPf(c, self.params, self.rng)
+        if isinstance(c, EkfConfig):
+            return AugEkf(c, self.params)
+        if isinstance(c, RlsConfig):
+            return KfRls(c, self.params)
+        assert isinstance(c, GridConfig)
+        return GridEkf(c, self.params)
 
 
 __all__ = [
+    "W_JACOBIAN_STEP_FRACTION",
     "AugEkf",
     "AugPf",
     "AugPfConfig",
-    "AugPfEstimator",
-    "BaselineConfig",
     "BaselineEstimator",
-    "BaselineFilter",
     "EkfConfig",
-    "EkfEstimator",
-    "FilterEstimate",
     "KfRls",
-    "Measurement",
     "RlsConfig",
-    "RlsEstimator",
+    "gaussian_logpdf",
+    "model_jacobian",
 ]
