@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from tire_estimation.core.input_checks import finite_vector, stamp_after
 from tire_estimation.core.single_track import (
     SingleTrackParams,
     continuous_matrices,
@@ -129,27 +130,11 @@ class LinearLateralKF:
     def _drop(self, kind: str) -> None:
         self.stats[kind] = self.stats.get(kind, 0) + 1
 
-    @staticmethod
-    def _finite(value: Any, n: int, what: str) -> F64:
-        v = np.asarray(value, dtype=float).reshape(-1)
-        if v.shape != (n,):
-            raise InputError("wrong_length", f"{what}: need {n} values, got {v.shape[0]}")
-        if not np.all(np.isfinite(v)):
-            raise InputError("nan", f"{what}: non-finite value")
-        return v
-
-    def _accept(self, last: int | None, t_ns: Any, what: str) -> int:
-        if not isinstance(t_ns, (int, np.integer)) or isinstance(t_ns, bool):
-            raise InputError("bad_stamp", f"{what}: stamp must be an integer")
-        if last is not None and int(t_ns) <= last:
-            raise InputError("duplicate" if int(t_ns) == last else "out_of_order", what)
-        return int(t_ns)
-
     def on_wheel_speeds(self, t_ns: int, wheel_speed_rad_s: Any) -> None:
         """Wheel speeds (fl, fr, rl, rr), rad/s; vx = mean rear wheel speed x nominal radius."""
         try:
-            t = self._accept(self._t_vx, t_ns, "wheel speeds")
-            ws = self._finite(wheel_speed_rad_s, 4, "wheel speeds")
+            t = stamp_after("wheel speeds", t_ns, self._t_vx)
+            ws = finite_vector(wheel_speed_rad_s, 4, "wheel speeds")
         except (InputError, TypeError, ValueError) as exc:
             self._drop(exc.kind if isinstance(exc, InputError) else "bad_value")
             return
@@ -158,8 +143,8 @@ class LinearLateralKF:
     def on_velocity(self, t_ns: int, vx_m_s: float) -> None:
         """Measured longitudinal speed, m/s."""
         try:
-            t = self._accept(self._t_vx, t_ns, "velocity")
-            v = float(self._finite(vx_m_s, 1, "velocity")[0])
+            t = stamp_after("velocity", t_ns, self._t_vx)
+            v = float(finite_vector(vx_m_s, 1, "velocity")[0])
         except (InputError, TypeError, ValueError) as exc:
             self._drop(exc.kind if isinstance(exc, InputError) else "bad_value")
             return
@@ -168,8 +153,8 @@ class LinearLateralKF:
     def on_steering(self, t_ns: int, angle_rad: float) -> None:
         """Mean road-wheel steer angle, rad (positive left)."""
         try:
-            t = self._accept(self._t_steer, t_ns, "steering")
-            a = float(self._finite(angle_rad, 1, "steering")[0])
+            t = stamp_after("steering", t_ns, self._t_steer)
+            a = float(finite_vector(angle_rad, 1, "steering")[0])
         except (InputError, TypeError, ValueError) as exc:
             self._drop(exc.kind if isinstance(exc, InputError) else "bad_value")
             return
@@ -181,9 +166,9 @@ class LinearLateralKF:
     def on_imu(self, t_ns: int, gyro_rad_s: Any, accel_m_s2: Any) -> None:
         """IMU sample in base_link axes: one predict + update step."""
         try:
-            t = self._accept(self._t_imu, t_ns, "imu")
-            gyro = self._finite(gyro_rad_s, 3, "gyro")
-            acc = self._finite(accel_m_s2, 3, "accel")
+            t = stamp_after("imu", t_ns, self._t_imu)
+            gyro = finite_vector(gyro_rad_s, 3, "gyro")
+            acc = finite_vector(accel_m_s2, 3, "accel")
         except (InputError, TypeError, ValueError) as exc:
             self._drop(exc.kind if isinstance(exc, InputError) else "bad_value")
             return

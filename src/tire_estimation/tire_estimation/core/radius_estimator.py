@@ -29,6 +29,7 @@ from scipy.special import chdtri
 from tire_estimation.core import niw
 from tire_estimation.core.aug_kf import AugKf
 from tire_estimation.core.config import RadiusEstimatorConfig
+from tire_estimation.core.input_checks import stamp_after
 from tire_estimation.core.radius_model import FL, FR, RL, RR, RadiusMotionModel
 from tire_estimation.core.radius_mpf import MpfEstimate, RadiusMPF
 from tire_estimation.core.vehicle import VehicleParams
@@ -365,16 +366,7 @@ class RadiusEstimator:
         self.stats[kind] = self.stats.get(kind, 0) + 1
 
     def _check_order(self, stream: str, t_ns: int) -> None:
-        if type(t_ns) is not int and (
-            isinstance(t_ns, bool) or not isinstance(t_ns, (int, np.integer))
-        ):
-            raise InputError("bad_stamp", f"{stream}: stamp must be an integer, got {t_ns!r}")
-        last = self._streams[stream].last_t_ns
-        if last is not None:
-            if t_ns == last:
-                raise InputError("duplicate", f"{stream}: duplicate stamp {t_ns}")
-            if t_ns < last:
-                raise InputError("out_of_order", f"{stream}: stamp {t_ns} before {last}")
+        stamp_after(stream, t_ns, self._streams[stream].last_t_ns)
 
     # ------------------------------------------------------------------ inputs
     def on_steering(self, t_ns: int, angle_rad: float) -> None:

@@ -35,6 +35,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tire_estimation.core.activation_replay import ActivationReplay
+from tire_estimation.core.input_checks import finite_vector, stamp_after
 from tire_estimation.core.stiffness_config import StiffnessEstimatorConfig
 from tire_estimation.core.stiffness_filter import (
     BaselineConfig,
@@ -170,19 +171,6 @@ def single_track_params(config: FrontEndConfig, vehicle: VehicleParams) -> Singl
     )
 
 
-def _is_int(x: Any) -> bool:
-    return isinstance(x, (int, np.integer)) and not isinstance(x, bool)
-
-
-def _vector(value: Any, n: int, what: str) -> F64:
-    v = np.asarray(value, dtype=float).reshape(-1)
-    if v.shape != (n,):
-        raise InputError("wrong_length", f"{what}: need {n} values, got {v.shape[0]}")
-    if not np.all(np.isfinite(v)):
-        raise InputError("nan", f"{what}: non-finite value")
-    return v
-
-
 def _drop_kind(exc: Exception) -> str:
     return exc.kind if isinstance(exc, InputError) else "bad_value"
 
@@ -254,19 +242,13 @@ class StiffnessFrontEnd(Generic[F]):
         self.stats[kind] = self.stats.get(kind, 0) + 1
 
     def _check_stamp(self, stream: str, t_ns: Any) -> int:
-        if not _is_int(t_ns):
-            raise InputError("bad_stamp", f"{stream}: stamp must be an integer, got {t_ns!r}")
-        last = self._last[stream]
-        if last is not None and int(t_ns) <= last:
-            kind = "duplicate" if int(t_ns) == last else "out_of_order"
-            raise InputError(kind, f"{stream}: stamp {t_ns} not after {last}")
-        return int(t_ns)
+        return stamp_after(stream, t_ns, self._last[stream])
 
     def _accept(self, stream: str, t_ns: Any, value: Any, n: int) -> F64 | None:
         """The ``n`` values of an input sample, or None (dropped and counted)."""
         try:
             t = self._check_stamp(stream, t_ns)
-            v = _vector(value, n, stream)
+            v = finite_vector(value, n, stream)
             if np.any(np.abs(v) > _LIMITS[stream]):
                 raise InputError("out_of_range", f"{stream}: |value| above {_LIMITS[stream]}")
         except (InputError, TypeError, ValueError) as exc:
@@ -326,8 +308,8 @@ class StiffnessFrontEnd(Generic[F]):
         """IMU sample in ``base_link`` axes; runs one filter step."""
         try:
             t = self._check_stamp("imu", t_ns)
-            gyro = _vector(gyro_rad_s, 3, "gyro")
-            acc = _vector(accel_m_s2, 3, "accel")
+            gyro = finite_vector(gyro_rad_s, 3, "gyro")
+            acc = finite_vector(accel_m_s2, 3, "accel")
         except (InputError, TypeError, ValueError) as exc:
             self._drop(_drop_kind(exc))
             return

@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from tire_estimation.core.input_checks import stamp_after
 from tire_estimation.core.single_track import SingleTrackModel, SingleTrackParams
 from tire_estimation.core.validation import (
     require_choice,
@@ -476,15 +477,7 @@ class TyreForceEstimator:
         self.stats[kind] = self.stats.get(kind, 0) + 1
 
     def _check_stamp(self, stream: str, t_ns: int) -> int:
-        if isinstance(t_ns, bool) or not isinstance(t_ns, (int, np.integer)):
-            raise InputError("bad_stamp", f"{stream}: stamp must be an integer, got {t_ns!r}")
-        last = self._held[stream].t_ns
-        if last is not None:
-            if t_ns == last:
-                raise InputError("duplicate", f"{stream}: duplicate stamp {t_ns}")
-            if t_ns < last:
-                raise InputError("out_of_order", f"{stream}: stamp {t_ns} before {last}")
-        return int(t_ns)
+        return stamp_after(stream, t_ns, self._held[stream].t_ns)
 
     @staticmethod
     def _vector(kind: str, values: Any, n: int) -> F64:
