@@ -87,11 +87,15 @@ def test_any_interleaving_of_ordered_streams_gives_the_merged_order() -> None:
             assert _feed([(t, k) for _, _, t, k in arrivals]) != expected
 
 
-def test_late_samples_are_released_at_once() -> None:
+def test_late_samples_are_released_at_once_and_counted() -> None:
     buf = ReorderBuffer()
     buf.push(_MAKE["wheel"](100))
     assert _names(buf.push(_MAKE["gnss"](90))) == [(90, "gnss")]
+    assert _names(buf.push(_MAKE["wheel"](80))) == [(80, "wheel")]
     assert len(buf) == 0
+    assert buf.late == {"gnss_fix": 1, "wheel_speeds": 1}
+    assert buf.push(_MAKE["imu"](110)) == []  # ahead of the clock: held, not late
+    assert buf.late["imu"] == 0
 
 
 def test_held_samples_are_released_when_the_clock_stops() -> None:

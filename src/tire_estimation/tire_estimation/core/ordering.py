@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import heapq
 import itertools
+from collections import Counter
 
 from tire_estimation.core.samples import MeasuredVelocity, Sample, WheelSpeeds
 
@@ -44,6 +45,9 @@ class ReorderBuffer:
         self.clock: tuple[int, int] | None = None
         #: the newest stamp seen on any stream
         self.newest_ns: int | None = None
+        #: samples that arrived behind the watermark (released at once, out of order), per
+        #: stream
+        self.late: Counter[str] = Counter()
 
     def __len__(self) -> int:
         return len(self._held)
@@ -57,9 +61,12 @@ class ReorderBuffer:
             mark = (t_ns - self.delay_ns, prio)
             if self.clock is None or mark > self.clock:
                 self.clock = mark
+            elif (t_ns, prio) <= self.clock:
+                self.late[sample.KIND] += 1
             heapq.heappush(self._held, (t_ns, prio, next(self._seq), sample))
             return self._release(self.clock, self.newest_ns - self.max_hold_ns)
         if self.clock is not None and (t_ns, prio) <= self.clock:
+            self.late[sample.KIND] += 1
             return [sample]
         heapq.heappush(self._held, (t_ns, prio, next(self._seq), sample))
         return self._release(self.clock, self.newest_ns - self.max_hold_ns)

@@ -246,8 +246,6 @@ class EstimationPipeline:
         )
         #: samples received, per stream
         self.received: Counter[str] = Counter()
-        #: samples dropped by the pipeline, ``<stream>:<kind>``
-        self.dropped: Counter[str] = Counter()
         periods = config.periods
         self._period_ns = {
             "odometry": round(periods.odometry_s * 1e9),

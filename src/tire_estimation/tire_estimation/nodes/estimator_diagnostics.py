@@ -62,6 +62,9 @@ def statuses(
             values[f"received.{stream}"] = str(received.get(stream, 0))
         for key, count in sorted(dropped.items()):
             values[f"dropped.{key}"] = str(count)
+        # processed out of stamp order: arrived more than reorder_delay_s behind the wheel speeds
+        for key, count in sorted(pipeline.buffer.late.items()):
+            values[f"late.{key}"] = str(count)
         for key, count in sorted(radius.stats.items()):
             values[f"dropped.core.{key}"] = str(count)
         if any(dropped.values()) and main.level == DiagnosticStatus.OK:
