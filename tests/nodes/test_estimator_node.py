@@ -419,3 +419,27 @@ def test_gnss_velocity_is_subscribed_used_and_bad_ones_are_counted(
     # two radii, which a straight drive observes weakly); 1 mm catches a velocity misuse
     assert np.all(np.abs(est.radius_error_m) < 1e-3), est.radius_error_m
     node.destroy_node()
+
+
+def test_each_wheel_says_whether_it_learns_and_why_not(ros: Any, tmp_path: Path) -> None:
+    """Below the speed gate the wheels' statuses warn that the radius is not learned yet (the
+    published value is the prior); above it they learn and count the time learned."""
+    from diagnostic_msgs.msg import DiagnosticStatus
+
+    node = _node(ros, tmp_path, persistence_file="")
+    cb = _callbacks(node)
+    t = _drive(cb, 1_000_000_000_000, 20.0, speed_m_s=3.0)
+
+    def wheels() -> dict[str, Any]:
+        return {s.name: s for s in node.diagnostic_statuses() if s.name.endswith(("_rl", "_rr"))}
+
+    slow = wheels()
+    assert len(slow) == 2
+    for st in slow.values():
+        assert st.level == DiagnosticStatus.WARN and st.message == "not learned yet: low speed"
+        assert {kv.key: kv.value for kv in st.values}["learned_s"] == "0.0"
+    _drive(cb, t + 10_000_000, 20.0, speed_m_s=20.0)
+    for st in wheels().values():
+        assert st.level == DiagnosticStatus.OK and st.message == "learning"
+        assert float({kv.key: kv.value for kv in st.values}["learned_s"]) > 5.0
+    node.destroy_node()

@@ -125,10 +125,17 @@ class ReplayReport:
         ]
         truth = r.get("rmse_vs_truth_m") or {}
         final_truth = r.get("final_error_vs_truth_m") or {}
+        learning = r.get("learning") or {}
         for w, est in r["final_radius_error_m"].items():
             if est is None:
-                lines.append(f"  {w}: no estimate")
+                lines.append(f"  {w}: no estimate (the radius MPF never initialized)")
                 continue
+            learn = learning.get(w)
+            if learn is not None and learn["learned_s"] <= 0.0:
+                why = ", ".join(f"{k} {v:.0f} s" for k, v in learn["paused_s"].items())
+                lines.append(
+                    f"  {w}: NEVER LEARNED: the estimate below is the prior (paused: {why})"
+                )
             std = r["final_radius_error_std_m"][w]
             text = f"  {w}: radius error {1e3 * est:+.3f} mm ± {1e3 * std:.3f} mm"
             if final_truth.get(w) is not None:
@@ -590,6 +597,9 @@ def build_metrics(
             truth,
             nominal,
         )
+    radii["learning"] = ev.learning_metrics(
+        arr["t_ns"], trace.wheel_names, arr["active"], trace.reason
+    )
     if arr["radius_noise_std_m"].size:
         radii["final_radius_noise_std_m"] = dict(
             zip(trace.wheel_names, arr["radius_noise_std_m"][-1].tolist(), strict=True)

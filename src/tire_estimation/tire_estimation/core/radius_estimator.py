@@ -349,6 +349,11 @@ class RadiusEstimator:
         self._brake_decel = 0.0
         self._set_cache(self.mpf.estimate())
 
+    @property
+    def active_time_s(self) -> float:
+        """Time the radii have been learned since the start (or the last reset), s."""
+        return self._active_time_s
+
     def _set_cache(self, est: MpfEstimate) -> None:
         """Remember the MPF estimate (valid until the filter state changes)."""
         self._cache = est

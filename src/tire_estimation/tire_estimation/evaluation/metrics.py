@@ -42,6 +42,37 @@ def time_to_converge_s(t_s: F64, error_m: F64, tol_m: float = CONVERGED_M) -> fl
     return float(t_s[bad[-1] + 1])
 
 
+def learning_metrics(
+    t_ns: NDArray[np.int64],
+    wheel_names: tuple[str, ...],
+    active: NDArray[np.bool_],
+    reasons: list[str],
+) -> dict[str, Any]:
+    """Per wheel: how long the radius was learned (s and share of the time with an estimate)
+    and, for the time it was not, the estimator's reasons (s each).
+
+    ``t_ns`` (K,) the estimate times, ``active`` (K, W) learning flags, ``reasons`` (K,) the
+    estimator's state reason; each sample stands for the time to the next one."""
+    out: dict[str, Any] = {}
+    if t_ns.size == 0:
+        return {w: {"learned_s": 0.0, "share": 0.0, "paused_s": {}} for w in wheel_names}
+    dt = np.diff(t_ns) * 1e-9
+    dt = np.append(dt, np.median(dt) if dt.size else 0.0)
+    total = float(dt.sum())
+    for j, w in enumerate(wheel_names):
+        on = np.asarray(active[:, j], dtype=bool)
+        paused: dict[str, float] = {}
+        for k in np.flatnonzero(~on):
+            paused[reasons[k]] = paused.get(reasons[k], 0.0) + float(dt[k])
+        learned = float(dt[on].sum())
+        out[w] = {
+            "learned_s": learned,
+            "share": learned / total if total > 0 else 0.0,
+            "paused_s": dict(sorted(paused.items(), key=lambda kv: -kv[1])),
+        }
+    return out
+
+
 def radius_metrics(
     t_ns: NDArray[np.int64],
     start_ns: int,

@@ -71,20 +71,24 @@ def statuses(
             main.message = f"running; {sum(dropped.values())} input samples dropped"
         main.values = _values(values)
         out.append(main)
+        learned_s = radius.active_time_s
         for i, wheel in enumerate(est.wheels):
             active = bool(est.active[i])
-            st = _status(
-                f"tire_estimation: {wheel}",
-                hardware_id,
-                DiagnosticStatus.OK,
-                "learning" if active else "holding",
-            )
+            if active:
+                level, message = DiagnosticStatus.OK, "learning"
+            elif learned_s > 0.0:
+                level, message = DiagnosticStatus.OK, f"holding: {est.state_reason}"
+            else:
+                # the published radius is the prior: say so
+                level, message = DiagnosticStatus.WARN, f"not learned yet: {est.state_reason}"
+            st = _status(f"tire_estimation: {wheel}", hardware_id, level, message)
             st.values = _values(
                 {
                     "radius_error_mm": f"{1e3 * float(est.radius_error_m[i]):.3f}",
                     "radius_error_std_mm": f"{1e3 * float(est.radius_error_std_m[i]):.3f}",
                     "radius_noise_std_mm": f"{1e3 * float(est.radius_noise_std_m[i]):.4f}",
                     "active": str(active).lower(),
+                    "learned_s": f"{learned_s:.1f}",
                 }
             )
             out.append(st)
