@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import shlex
-import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -63,9 +62,3 @@ def add_convert_parser(subparsers: Any) -> argparse.ArgumentParser:
     revs.add_argument("--overwrite", action="store_true", help="replace an existing bag")
     revs.set_defaults(func=_cmd_revs250lm)
     return conv
-
-
-if __name__ == "__main__":  # pragma: no cover - use the main entry point
-    from tire_estimation.cli import main
-
-    sys.exit(main(["convert", *sys.argv[1:]]))
