@@ -26,6 +26,7 @@ import yaml
 from tire_estimation.bag import topics
 from tire_estimation.bag.reader import BagData, TopicInfo, read_bag
 from tire_estimation.core import yamlio
+from tire_estimation.core.axle_check import AxleCheck
 from tire_estimation.core.config import RadiusEstimatorConfig
 from tire_estimation.core.deflation import DeflationDetectorConfig
 from tire_estimation.core.geodesy import LocalTangentPlane
@@ -145,6 +146,14 @@ class ReplayReport:
                     f" mm, RMSE {1e3 * truth[w]:.3f} mm"
                 )
             lines.append(text)
+        rear = (r.get("axles") or {}).get("rear")
+        if rear is not None and rear["split_observable"] is False:
+            known = [v for v in r["final_radius_error_m"].values() if v is not None]
+            common = f"{1e3 * sum(known) / len(known):+.3f} mm" if known else "none"
+            lines.append(
+                f"  REAR AXLE: the left-right split is {rear['reason']}: {common} (mean of the "
+                "two estimates above, which do not tell the two tyres apart)"
+            )
         base = r.get("baseline")
         if base and base.get("final_error_vs_truth_m"):
             errs = ", ".join(
@@ -463,7 +472,9 @@ def run_replay(
     if rank_effects and trace.innov_t_ns:
         residual_report = _assess_effects(bag, cfg, trace, rank_seeds)
     t_run = time.perf_counter()
-    metrics = build_metrics(bag, trace, cfg, lateral, imu_lateral, residual_report, detection)
+    metrics = build_metrics(
+        bag, trace, cfg, lateral, imu_lateral, residual_report, detection, pipeline.axles
+    )
     metrics["wall_s"] = time.perf_counter() - wall0
     metrics["timing_s"] = {"read": t_read - wall0, "estimate": t_run - t_read}
     metrics["realtime_factor"] = metrics["duration_s"] / max(metrics["wall_s"], 1e-9)
@@ -565,6 +576,7 @@ def build_metrics(
     imu_lateral: dict[str, ImuLateralTrace] | None = None,
     residual_report: dict[str, Any] | None = None,
     detection: dict[str, Any] | None = None,
+    axles: AxleCheck | None = None,
 ) -> dict[str, Any]:
     """The contract's metrics.json content (minus the wall-clock fields).
 
@@ -597,6 +609,8 @@ def build_metrics(
             truth,
             nominal,
         )
+    if axles is not None:
+        radii["axles"] = {a: dataclasses.asdict(axles.status(a)) for a in ("front", "rear")}
     radii["learning"] = ev.learning_metrics(
         arr["t_ns"], trace.wheel_names, arr["active"], trace.reason
     )

@@ -15,7 +15,9 @@ The estimator node, the bag replay and the campaigns push the same typed samples
   radii after wheel-speed samples, stiffness after IMU samples, the lateral state of the
   tyre-force KF while it runs and of the stiffness MPF otherwise,
 * the deflation detector (:class:`~tire_estimation.core.deflation_monitor.DeflationMonitor`)
-  fed with the published odometry and radii, exactly as the detector node is fed by topics.
+  fed with the published odometry and radii, exactly as the detector node is fed by topics,
+* the check whether each axle's left-right split is observable
+  (:class:`~tire_estimation.core.axle_check.AxleCheck`).
 
 ``push(sample)`` returns the outputs due; observers (:class:`Observer`) see every processed
 sample with the estimator's result and every output, for traces and reports.
@@ -31,6 +33,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from tire_estimation.core.axle_check import AxleCheck
 from tire_estimation.core.config import RadiusEstimatorConfig
 from tire_estimation.core.deflation import DeflationDetectorConfig
 from tire_estimation.core.deflation_monitor import DeflationMonitor, MonitorConfig, MonitorStep
@@ -225,10 +228,13 @@ class EstimationPipeline:
         self.config = config
         self.vehicle = vehicle
         self.radius: RadiusEstimator | None = None
+        #: whether each axle's left-right radius split is observable (with the radius MPF)
+        self.axles: AxleCheck | None = None
         if config.radius is not None:
             self.radius = RadiusEstimator(
                 config.radius, vehicle, np.random.default_rng(config.seed)
             )
+            self.axles = AxleCheck(vehicle)
         self.stiffness: StiffnessEstimator | None = None
         if config.stiffness is not None:
             rng = np.random.default_rng([config.seed, STIFFNESS_RNG_KEY])
@@ -298,6 +304,8 @@ class EstimationPipeline:
             ws = sample.wheel_speed_rad_s
             if self.radius is not None:
                 self.radius.on_wheel_speeds(t, ws)
+            if self.axles is not None:
+                self.axles.on_wheel_speeds(ws)
             if self.tyre_force is not None:
                 self.tyre_force.on_wheel_speeds(t, ws)
             for est in self._lateral_imu:
@@ -308,6 +316,8 @@ class EstimationPipeline:
             gyro, acc = sample.angular_velocity_rad_s, sample.linear_acceleration_m_s2
             if self.radius is not None:
                 self.radius.on_imu(t, gyro, acc)
+            if self.axles is not None:
+                self.axles.on_imu(gyro)
             if self.tyre_force is not None:
                 self.tyre_force.on_imu(t, gyro, acc)
             for est in self._lateral_imu:

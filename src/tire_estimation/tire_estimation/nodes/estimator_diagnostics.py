@@ -67,6 +67,9 @@ def statuses(
             values[f"late.{key}"] = str(count)
         for key, count in sorted(radius.stats.items()):
             values[f"dropped.core.{key}"] = str(count)
+        if pipeline.axles is not None:
+            for axle in ("front", "rear"):
+                values[f"axle.{axle}.split"] = pipeline.axles.status(axle).reason
         if any(dropped.values()) and main.level == DiagnosticStatus.OK:
             main.message = f"running; {sum(dropped.values())} input samples dropped"
         main.values = _values(values)
@@ -81,6 +84,14 @@ def statuses(
             else:
                 # the published radius is the prior: say so
                 level, message = DiagnosticStatus.WARN, f"not learned yet: {est.state_reason}"
+            axle = "front" if wheel in ("wheel_fl", "wheel_fr") else "rear"
+            if (
+                pipeline.axles is not None
+                and pipeline.axles.status(axle).split_observable is False
+            ):
+                # the two tyres of this axle cannot be told apart: only their mean is learned
+                level = DiagnosticStatus.WARN
+                message += f"; {axle} left-right split unobservable (equal wheel speeds in turns)"
             st = _status(f"tire_estimation: {wheel}", hardware_id, level, message)
             st.values = _values(
                 {
