@@ -86,6 +86,7 @@ def _cmd_replay(args: argparse.Namespace) -> int:
         stiffness=False if args.no_stiffness else None,
         rank_effects=args.rank_effects,
         rank_seeds=args.rank_seeds,
+        write_config=args.write_config,
     )
     print(report.summary())
     return 0
@@ -147,6 +148,16 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="N",
         help="with --rank-effects: run the base model and every re-run with N filter seeds "
         "(seed .. seed+N-1) and profile their mean likelihood (N times the re-runs; default 1)",
+    )
+    rep.add_argument(
+        "--write-config",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="with --rank-effects: add the significant effects to the model one at a time "
+        "(at most 3, each at its profile estimate, ranking the rest again), write them as a "
+        "params file that --config and the node's --params-file load, and report the fit "
+        "before and after",
     )
     rep.add_argument(
         "--no-stiffness",

@@ -184,11 +184,40 @@ class ReplayReport:
                     f"  stiffness relative RMSE vs truth ({stiff['rel_rmse_window']}): {errs}"
                 )
         lines.extend(_detection_lines(m.get("detection") or {}, m.get("events") or []))
+        loop = m.get("closed_loop")
+        if loop is not None:
+            lines.extend(_closed_loop_lines(loop))
         res = m["residuals"]
         if res["consistent"] is not None:
             lines.append(f"  innovations consistent: {res['consistent']}")
         lines.append(f"  report: {self.out_dir / 'metrics.json'}")
         return "\n".join(lines)
+
+
+def _closed_loop_lines(loop: dict[str, Any]) -> list[str]:
+    """The effects added by ``--write-config`` and the fit before and after."""
+    effects = ", ".join(f"{e['effect']} {e['estimate']:g} {e['unit']}" for e in loop["effects"])
+    lines = [f"  closed loop: {effects or 'no effect added'} -> {loop['config_file']}"]
+    for name, why in loop.get("not_sized", {}).items():
+        lines.append(f"    left out {name}: {why}")
+    b, a = loop["before"], loop["after"]
+    for label, key, fmt in (
+        ("position RMSE", "position_rmse_m", "{:.2f} m"),
+        ("mean NIS", "mean_nis", "{:.2f}"),
+        ("consistent", "consistent", "{}"),
+    ):
+        if b[key] is None and a[key] is None:
+            continue
+        before = "n/a" if b[key] is None else fmt.format(b[key])
+        after = "n/a" if a[key] is None else fmt.format(a[key])
+        lines.append(f"    {label}: {before} before, {after} after")
+    for w, v in b["final_radius_error_m"].items():
+        after_v = a["final_radius_error_m"].get(w)
+        if after_v is not None:
+            lines.append(
+                f"    {w}: radius error {1e3 * v:+.3f} mm before, {1e3 * after_v:+.3f} mm after"
+            )
+    return lines
 
 
 def _detection_lines(det: dict[str, Any], events: list[dict[str, Any]]) -> list[str]:
@@ -361,6 +390,7 @@ def run_replay(
     rank_effects: bool = False,
     rank_seeds: int = 1,
     observers: Sequence[Observer] = (),
+    write_config: Path | None = None,
 ) -> ReplayReport:
     """Replay ``bag_path`` through the estimators; write ``out_dir/metrics.json`` + PNGs.
 
@@ -385,6 +415,8 @@ def run_replay(
         raise ConfigError("rank_seeds", rank_seeds, "must be an integer >= 1")
     if rank_seeds > 1 and not rank_effects:
         raise ConfigError("rank_seeds", rank_seeds, "needs rank_effects (--rank-effects)")
+    if write_config is not None and not rank_effects:
+        raise ConfigError("write_config", str(write_config), "needs rank_effects (--rank-effects)")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     stale = out / "metrics.json"
@@ -469,12 +501,17 @@ def run_replay(
     imu_lateral = {name: rec.finish(t_est - t_read) for name, rec in imu_recs.items()}
     detection = _detection_metrics(bag, pipeline, detect_rec)
     residual_report = None
+    closed_loop = None
     if rank_effects and trace.innov_t_ns:
         residual_report = _assess_effects(bag, cfg, trace, rank_seeds)
+        if write_config is not None:
+            closed_loop = _close_loop(bag, cfg, trace, residual_report, rank_seeds, write_config)
     t_run = time.perf_counter()
     metrics = build_metrics(
         bag, trace, cfg, lateral, imu_lateral, residual_report, detection, pipeline.axles
     )
+    if closed_loop is not None:
+        metrics["closed_loop"] = closed_loop
     metrics["wall_s"] = time.perf_counter() - wall0
     metrics["timing_s"] = {"read": t_read - wall0, "estimate": t_run - t_read}
     metrics["realtime_factor"] = metrics["duration_s"] / max(metrics["wall_s"], 1e-9)
@@ -702,6 +739,119 @@ def _lateral_metrics(bag: BagData, lateral: LateralTrace | None) -> dict[str, An
     return out
 
 
+#: at most this many effects are added to the model by ``--write-config``
+MAX_CLOSED_LOOP_EFFECTS = 3
+
+
+def _fit_summary(bag: BagData, trace: RadiusTrace, report: dict[str, Any]) -> dict[str, Any]:
+    """What a run of the radius MPF says: final radii, position RMSE, consistency, fit."""
+    from tire_estimation.evaluation.residuals import neg_log_likelihood
+
+    arr = trace.arrays()
+    ltp = LocalTangentPlane(*trace.origin_lla) if trace.origin_lla is not None else None
+    ref_en, against = _reference_positions(bag, arr["t_ns"], ltp)
+    pos = ev.position_rmse_m(arr["pose"][:, :2], ref_en) if ref_en is not None else None
+    final = (
+        dict(zip(trace.wheel_names, arr["radius_error_m"][-1].tolist(), strict=True))
+        if arr["t_ns"].size
+        else {}
+    )
+    accepted = arr["nis"][arr["accepted"]] if arr["nis"].size else arr["nis"]
+    return {
+        "final_radius_error_m": final,
+        "position_rmse_m": pos,
+        "position_against": against,
+        "mean_nis": float(np.mean(accepted)) if accepted.size else None,
+        "neg_log_likelihood": neg_log_likelihood(trace),
+        "consistent": report.get("consistent"),
+    }
+
+
+def _close_loop(
+    bag: BagData,
+    cfg: RadiusEstimatorConfig,
+    trace: RadiusTrace,
+    report: dict[str, Any],
+    n_seeds: int,
+    path: Path,
+) -> dict[str, Any]:
+    """Add the most significant effect to the model at its profile estimate, rank the rest
+    again against that model, and repeat (at most :data:`MAX_CLOSED_LOOP_EFFECTS`, while an
+    effect's likelihood-ratio score is at or above the threshold); write the resulting
+    parameters to ``path`` as a params file the replay (``--config``) and the node
+    (``--params-file``) load; return the fit before and after."""
+    from tire_estimation.evaluation import residuals
+
+    before = _fit_summary(bag, trace, report)
+    added: list[dict[str, Any]] = []
+    cfg_k, trace_k, report_k = cfg, trace, report
+    threshold = float(report["tests"].get("likelihood_ratio_threshold", residuals.SCORE_THRESHOLD))
+    not_sized: dict[str, str] = {}
+    for _ in range(MAX_CLOSED_LOOP_EFFECTS):
+        done = {e["effect"] for e in added} | set(not_sized)
+        significant = [
+            e
+            for e in report_k.get("ranked_effects", [])
+            if e["score"] >= threshold and e["effect"] not in done
+        ]
+        # an estimate on the rim of its scan grid is a monotone profile: the data do not size
+        # the effect (it trades off against what the model already has), so it is not added
+        for e in significant:
+            grid = residuals.DEFAULT_GRIDS.get(e["effect"], ())
+            if grid and e["estimate"] in (min(grid), max(grid)) and e["estimate"] != 0.0:
+                not_sized[e["effect"]] = (
+                    f"profile optimum at the rim of the scan grid ({e['estimate']:g} "
+                    f"{e['unit']}, score {e['score']:.1f}): not sized by these data"
+                )
+        significant = [e for e in significant if e["effect"] not in not_sized]
+        if not significant:
+            break
+        top = significant[0]
+        field = residuals.CONFIG_FIELDS[top["effect"]]
+        added.append(
+            {**{k: top[k] for k in ("effect", "score", "estimate", "unit")}, "field": field}
+        )
+        cfg_k = RadiusEstimatorConfig.from_dict({**cfg_k.to_dict(), field: top["estimate"]})
+        trace_k = run_radius(cfg_k, bag.vehicle, _radius_samples(bag))
+        report_k = _assess_effects(bag, cfg_k, trace_k, n_seeds)
+    # the whole radius section that differs from the defaults (the run's own settings and the
+    # added effects), so that --config FILE alone reproduces the "after" run
+    defaults = RadiusEstimatorConfig().to_dict()
+    params = {f"radius.{k}": v for k, v in cfg_k.to_dict().items() if v != defaults.get(k)}
+    text = "# Effects found in the residuals of " + str(bag.path) + " and sized by their\n"
+    text += "# profile likelihood (tire-estimation replay --rank-effects --write-config):\n"
+    for e in added:
+        text += f"#   {e['effect']}: {e['estimate']:g} {e['unit']} (score {e['score']:.1f})\n"
+    for name, why in not_sized.items():
+        text += f"#   left out: {name}: {why}\n"
+    if not added:
+        text += "#   none sized above the likelihood-ratio threshold: the model is not changed\n"
+    text += yaml.safe_dump({NODE_NAME: {"ros__parameters": params}}, sort_keys=True)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(text)
+    except OSError as exc:
+        raise ConfigError("--write-config", str(path), f"cannot write: {exc}") from exc
+    return {
+        "config_file": str(path),
+        "effects": added,
+        "not_sized": not_sized,
+        "before": before,
+        "after": _fit_summary(bag, trace_k, report_k),
+    }
+
+
+def _radius_samples(bag: BagData) -> Any:
+    """The samples the radius MPF uses (no tyre forces, no measured velocity)."""
+    return stream_samples(
+        wheel_speeds=bag.wheel_speeds,
+        steering=bag.steering,
+        imu=bag.imu,
+        gnss=bag.gnss,
+        gnss_velocity=bag.gnss_velocity,
+    )
+
+
 def _assess_effects(
     bag: BagData, cfg: RadiusEstimatorConfig, trace: RadiusTrace, n_seeds: int = 1
 ) -> dict[str, Any]:
@@ -716,15 +866,8 @@ def _assess_effects(
     seeds = [cfg.seed + k for k in range(n_seeds)]
 
     def run(values: dict[str, Any], seed: int) -> RadiusTrace:
-        samples = stream_samples(
-            wheel_speeds=bag.wheel_speeds,
-            steering=bag.steering,
-            imu=bag.imu,
-            gnss=bag.gnss,
-            gnss_velocity=bag.gnss_velocity,
-        )
         config = RadiusEstimatorConfig.from_dict({**values, "seed": seed})
-        return run_radius(config, bag.vehicle, samples)
+        return run_radius(config, bag.vehicle, _radius_samples(bag))
 
     def rerun(effect: str, value: float) -> list[RadiusTrace]:
         values = {**cfg.to_dict(), **residuals.effect_overrides(effect, value)}
