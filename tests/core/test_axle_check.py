@@ -48,7 +48,7 @@ def test_a_normal_drive_has_observable_splits() -> None:
         st = p.axles.status(axle)
         assert st.split_observable is True, st
         assert st.turning_samples >= 300
-        assert st.equal_share < 0.2
+        assert 0.8 < st.slope < 1.2
 
 
 def test_a_locked_rear_axle_is_found_and_the_front_is_not_blamed() -> None:
@@ -56,7 +56,7 @@ def test_a_locked_rear_axle_is_found_and_the_front_is_not_blamed() -> None:
     assert p.axles is not None
     rear = p.axles.status("rear")
     assert rear.split_observable is False
-    assert rear.equal_share > 0.99
+    assert abs(rear.slope) < 0.05
     assert "common radius" in rear.reason
     assert p.axles.status("front").split_observable is True
 
@@ -75,8 +75,8 @@ def test_no_verdict_without_turns_or_gyro() -> None:
 
 
 def test_config_is_validated() -> None:
-    with pytest.raises(ConfigError, match="equal_fraction"):
-        AxleCheckConfig(equal_fraction=1.5)
+    with pytest.raises(ConfigError, match="locked_slope"):
+        AxleCheckConfig(locked_slope=1.5)
 
 
 def test_the_replay_reports_the_unobservable_split(tmp_path: Path) -> None:
@@ -92,3 +92,21 @@ def test_the_replay_reports_the_unobservable_split(tmp_path: Path) -> None:
     assert "REAR AXLE: the left-right split is unobservable" in report.summary()
     written = json.loads((tmp_path / "out" / "metrics.json").read_text())
     assert written["radii"]["axles"]["rear"]["split_observable"] is False
+
+
+def test_a_spool_turns_the_heading_over_to_the_gyro_and_a_free_axle_does_not() -> None:
+    """The simulator's locked rear axle (both wheels at the mean of their free-rolling speeds):
+    the check finds it and the radius MPF takes the heading change from the gyro; on the same
+    drive with a free axle nothing changes (no gyro heading)."""
+    from tire_estimation.sim import SensorConfig
+
+    for locked in (False, True):
+        sim = simulate(
+            "robustness", seed=3, minutes=3, sensors=SensorConfig(wheel_speed_rear_locked=locked)
+        )
+        p = _pipeline(sim)
+        assert p.radius is not None and p.axles is not None
+        rear = p.axles.status("rear")
+        assert rear.split_observable is (not locked), rear
+        assert (p.radius.gyro_heading_samples > 1000) is locked
+        assert p.axles.status("front").split_observable is True

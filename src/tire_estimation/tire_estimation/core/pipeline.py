@@ -234,7 +234,7 @@ class EstimationPipeline:
             self.radius = RadiusEstimator(
                 config.radius, vehicle, np.random.default_rng(config.seed)
             )
-            self.axles = AxleCheck(vehicle)
+            self.axles = self.radius.axles
         self.stiffness: StiffnessEstimator | None = None
         if config.stiffness is not None:
             rng = np.random.default_rng([config.seed, STIFFNESS_RNG_KEY])
@@ -304,8 +304,6 @@ class EstimationPipeline:
             ws = sample.wheel_speed_rad_s
             if self.radius is not None:
                 self.radius.on_wheel_speeds(t, ws)
-            if self.axles is not None:
-                self.axles.on_wheel_speeds(ws)
             if self.tyre_force is not None:
                 self.tyre_force.on_wheel_speeds(t, ws)
             for est in self._lateral_imu:
@@ -316,8 +314,6 @@ class EstimationPipeline:
             gyro, acc = sample.angular_velocity_rad_s, sample.linear_acceleration_m_s2
             if self.radius is not None:
                 self.radius.on_imu(t, gyro, acc)
-            if self.axles is not None:
-                self.axles.on_imu(gyro)
             if self.tyre_force is not None:
                 self.tyre_force.on_imu(t, gyro, acc)
             for est in self._lateral_imu:

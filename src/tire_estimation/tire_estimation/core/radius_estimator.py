@@ -28,6 +28,7 @@ from scipy.special import chdtri
 
 from tire_estimation.core import niw
 from tire_estimation.core.aug_kf import AugKf
+from tire_estimation.core.axle_check import AxleCheck
 from tire_estimation.core.config import RadiusEstimatorConfig
 from tire_estimation.core.input_checks import stamp_after
 from tire_estimation.core.radius_model import FL, FR, RL, RR, RadiusMotionModel
@@ -308,6 +309,10 @@ class RadiusEstimator:
                 gnss_bias_fraction=c.gnss_bias_fraction,
             )
         self.stats: dict[str, int] = {}
+        #: whether each axle's two wheels can be told apart (gyro against wheel speeds)
+        self.axles = AxleCheck(vehicle)
+        #: wheel-speed samples whose rear heading change came from the gyro (locked rear axle)
+        self.gyro_heading_samples = 0
         self.reset()
 
     # ------------------------------------------------------------------ housekeeping
@@ -422,6 +427,7 @@ class RadiusEstimator:
             if total - total == 0.0:
                 stream.last_t_ns = t_ns
                 self._imu = (t_ns, gyro, acc)
+                self.axles.on_imu(gyro)
                 return
         try:
             self._check_order("imu", t_ns)
@@ -435,6 +441,7 @@ class RadiusEstimator:
             return
         stream.last_t_ns = int(t_ns)
         self._imu = (int(t_ns), gyro, acc)
+        self.axles.on_imu(gyro)
 
     def _parse_wheels(self, wheel_speed_rad_s: Any) -> F64:
         if isinstance(wheel_speed_rad_s, Mapping):
@@ -481,6 +488,9 @@ class RadiusEstimator:
                 self._drop(exc.kind if isinstance(exc, InputError) else "bad_value")
                 return
             t_ns = int(t_ns)
+        self.axles.on_wheel_speeds(ws)
+        if self.axles.locked("rear"):
+            ws = self._rear_heading_from_gyro(t_ns, ws)
         if self._speed_gain:
             # speed-dependent radius r = r_n + delta + k v^2 (r_n nominal, delta the radius
             # error at standstill); with k v^2 ~ k omega^2 r_n^2:
@@ -533,6 +543,22 @@ class RadiusEstimator:
             self._prev_v = None
             return
         self._step(dt, t_ns, prev, prev_rear, w3, w4)
+
+    def _rear_heading_from_gyro(self, t_ns: int, ws: F64) -> F64:
+        """A locked rear axle (both wheels turn alike): the rear wheel speeds are replaced by
+        their mean -+ the half difference that eq. (6b) gives the gyro's yaw rate, so that the
+        heading change comes from the gyro and the speed from the mean; only the common radius
+        of the axle is then learned (the split the filter shows is not a measurement)."""
+        imu = self._imu
+        if imu is None or (t_ns - imu[0]) * 1e-9 > self.config.imu_timeout_s:
+            return ws
+        self.gyro_heading_samples += 1
+        mean = 0.5 * float(ws[RL] + ws[RR])
+        # eq. (6b) with equal radii: yaw_rate = r_n (w4 - w3) / l_T
+        half = 0.5 * float(imu[1][2]) * self._track_width_m / self._nominal_radius_m
+        out = ws.copy()
+        out[RL], out[RR] = mean - half, mean + half
+        return out
 
     def _load_scale(self, t_ns: int, ws: F64) -> F64:
         """Per-wheel speed factor ``1 + c dFz_i / r_nominal`` of the load-dependent radius."""

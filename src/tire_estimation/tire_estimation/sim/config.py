@@ -59,6 +59,9 @@ class SensorConfig:
     wheel_speed_timeout_s: float = 0.2
     #: Injected: stamps are late by this much (the stamp of a sample is measurement time + this).
     wheel_speed_time_offset_s: float = 0.0
+    #: Injected: a locked rear axle (spool): both rear wheels turn at the mean of their
+    #: free-rolling speeds (the scrubbing tyres' yaw moment is not simulated).
+    wheel_speed_rear_locked: bool = False
 
     # --- steering (mean road-wheel angle) ---
     steering_rate_hz: float = 100.0
@@ -159,6 +162,7 @@ class SensorConfig:
         require_range(p + "gnss_gm_tau_s", self.gnss_gm_tau_s, 0.01, 1e5)
         require_range(p + "gnss_covariance_scale", self.gnss_covariance_scale, 0.01, 100.0)
         _require_bool(p + "gnss_velocity_enabled", self.gnss_velocity_enabled)
+        _require_bool(p + "wheel_speed_rear_locked", self.wheel_speed_rear_locked)
         require_range(
             p + "gnss_velocity_noise_std_m_s", self.gnss_velocity_noise_std_m_s, 0.0, 10.0
         )

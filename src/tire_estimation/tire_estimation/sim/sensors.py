@@ -102,8 +102,12 @@ def wheel_speeds(
     t_meas = t_stamp - offset
     dt = log.dt_s
     out = np.zeros((t_stamp.size, 4))
+    omegas = log.wheel_omega_rad_s
+    if cfg.wheel_speed_rear_locked:
+        omegas = omegas.copy()
+        omegas[:, 2] = omegas[:, 3] = 0.5 * (omegas[:, 2] + omegas[:, 3])
     for i in range(4):
-        omega = log.wheel_omega_rad_s[:, i]
+        omega = omegas[:, i]
         # wheel angle by the trapezoidal rule; a tiny ramp keeps it strictly increasing at rest
         theta = np.concatenate([[0.0], np.cumsum(0.5 * (omega[1:] + omega[:-1]) * dt)])
         theta += np.arange(theta.size) * 1e-12
