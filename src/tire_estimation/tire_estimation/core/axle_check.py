@@ -97,6 +97,9 @@ class AxleCheck:
         # discounted sums of x^2, x w, w^2, x y, w y per axle
         self._sums = {axle: [0.0] * 5 for axle in AXLES}
         self._turning = dict.fromkeys(AXLES, 0)
+        # the slope of the last verdict, kept while the recent turns carry too little
+        # information (a straight stretch does not undo what the turns showed)
+        self._decided: dict[str, float] = {}
 
     def on_imu(self, gyro_rad_s: Any) -> None:
         """The latest gyro yaw rate (z), rad/s."""
@@ -133,13 +136,16 @@ class AxleCheck:
         return sxx - sxw * sxw / sww if sww > 0.0 else 0.0
 
     def slope(self, axle: str) -> float:
-        """Least-squares slope of the measured on the expected difference (split fitted)."""
+        """Least-squares slope of the measured on the expected difference (split fitted), or
+        the slope of the last verdict while the recent turns carry too little information."""
         sxx, sxw, sww, sxy, swy = self._sums[axle]
         det = sxx * sww - sxw * sxw
         if det <= 0.0 or self._info(axle) < self._min_info:
-            return math.nan
+            return self._decided.get(axle, math.nan)
         # normal equations of y = slope x + c w: slope = (sww sxy - sxw swy) / det
-        return (sww * sxy - sxw * swy) / det
+        slope = (sww * sxy - sxw * swy) / det
+        self._decided[axle] = slope
+        return slope
 
     def locked(self, axle: str) -> bool:
         """True when ``axle``'s split is unobservable (:meth:`status` says False)."""
