@@ -16,8 +16,8 @@ The estimator node, the bag replay and the campaigns push the same typed samples
   tyre-force KF while it runs and of the stiffness MPF otherwise,
 * the deflation detector (:class:`~tire_estimation.core.deflation_monitor.DeflationMonitor`)
   fed with the published odometry and radii, exactly as the detector node is fed by topics,
-* the check whether each axle's left-right split is observable
-  (:class:`~tire_estimation.core.axle_check.AxleCheck`).
+* and exposes the radius MPF's check whether each axle's left-right split is observable
+  (:attr:`axles`, :class:`~tire_estimation.core.axle_check.AxleCheck`).
 
 ``push(sample)`` returns the outputs due; observers (:class:`Observer`) see every processed
 sample with the estimator's result and every output, for traces and reports.
