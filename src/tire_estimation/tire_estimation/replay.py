@@ -49,7 +49,7 @@ from tire_estimation.evaluation.runner import (
 )
 from tire_estimation.node_config import EstimatorNodeOptions, periods_of
 from tire_estimation.params import build_config, parameter_specs
-from tire_estimation.sources import bag_samples, sample_count, stream_samples
+from tire_estimation.sources import bag_samples, sample_count
 
 NODE_NAME = "estimator_node"
 T = TypeVar("T")
@@ -812,7 +812,7 @@ def _close_loop(
             {**{k: top[k] for k in ("effect", "score", "estimate", "unit")}, "field": field}
         )
         cfg_k = RadiusEstimatorConfig.from_dict({**cfg_k.to_dict(), field: top["estimate"]})
-        trace_k = run_radius(cfg_k, bag.vehicle, _radius_samples(bag))
+        trace_k = run_radius(cfg_k, bag.vehicle, bag_samples(bag, radius_only=True))
         report_k = _assess_effects(bag, cfg_k, trace_k, n_seeds)
     # the whole radius section that differs from the defaults (the run's own settings and the
     # added effects), so that --config FILE alone reproduces the "after" run
@@ -841,17 +841,6 @@ def _close_loop(
     }
 
 
-def _radius_samples(bag: BagData) -> Any:
-    """The samples the radius MPF uses (no tyre forces, no measured velocity)."""
-    return stream_samples(
-        wheel_speeds=bag.wheel_speeds,
-        steering=bag.steering,
-        imu=bag.imu,
-        gnss=bag.gnss,
-        gnss_velocity=bag.gnss_velocity,
-    )
-
-
 def _assess_effects(
     bag: BagData, cfg: RadiusEstimatorConfig, trace: RadiusTrace, n_seeds: int = 1
 ) -> dict[str, Any]:
@@ -867,7 +856,7 @@ def _assess_effects(
 
     def run(values: dict[str, Any], seed: int) -> RadiusTrace:
         config = RadiusEstimatorConfig.from_dict({**values, "seed": seed})
-        return run_radius(config, bag.vehicle, _radius_samples(bag))
+        return run_radius(config, bag.vehicle, bag_samples(bag, radius_only=True))
 
     def rerun(effect: str, value: float) -> list[RadiusTrace]:
         values = {**cfg.to_dict(), **residuals.effect_overrides(effect, value)}

@@ -135,9 +135,10 @@ def sample_count(*streams: object) -> int:
     return sum(int(s.t_ns.size) for s in streams if s is not None)  # type: ignore[attr-defined]
 
 
-def bag_samples(bag: BagData) -> Iterator[Sample]:
+def bag_samples(bag: BagData, radius_only: bool = False) -> Iterator[Sample]:
     """The input samples of a bag. The measured velocity is used only when the bag has no wheel
-    speeds (a vehicle without them, such as the Revs export)."""
+    speeds (a vehicle without them, such as the Revs export); ``radius_only`` leaves out what
+    the radius MPF does not use (tyre forces, measured velocity)."""
     has_wheels = bag.wheel_speeds is not None and bag.wheel_speeds.t_ns.size > 0
     return stream_samples(
         wheel_speeds=bag.wheel_speeds,
@@ -145,8 +146,8 @@ def bag_samples(bag: BagData) -> Iterator[Sample]:
         imu=bag.imu,
         gnss=bag.gnss,
         gnss_velocity=bag.gnss_velocity,
-        tire_forces=bag.tire_forces,
-        velocity=None if has_wheels else bag.vehicle_velocity,
+        tire_forces=None if radius_only else bag.tire_forces,
+        velocity=None if has_wheels or radius_only else bag.vehicle_velocity,
     )
 
 
