@@ -55,7 +55,7 @@ def main() -> None:
     assert pipeline.stiffness is not None
     rec = ImuLateralRecorder(pipeline.stiffness)
     pipeline.observers.append(rec)
-    pipeline.push_all(stream_samples(imu=imu, steering=steer, velocity=vel))
+    pipeline.push_ordered(stream_samples(imu=imu, steering=steer, velocity=vel))
     arrays = rec.finish(0.0).arrays()
     np.savez(args.out, **arrays)
     t_s = (arrays["t_ns"] - arrays["t_ns"][0]) * 1e-9

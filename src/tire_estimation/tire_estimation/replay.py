@@ -15,7 +15,7 @@ import os
 import sys
 import tempfile
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TypeVar
@@ -263,6 +263,14 @@ def _progress_printer(total: int, enabled: bool) -> Any:
     return update
 
 
+def _with_progress(samples: Iterator[Any], update: Any) -> Iterator[Any]:
+    """``samples``, calling ``update(n)`` every 10 000."""
+    for n, sample in enumerate(samples):
+        if n % 10_000 == 0:
+            update(n)
+        yield sample
+
+
 def _truth_radius_error(bag: BagData) -> tuple[np.ndarray, tuple[str, ...], np.ndarray] | None:
     tr = bag.truth_wheel_radii
     if tr is None or tr.t_ns.size == 0:
@@ -476,7 +484,9 @@ def run_replay(
     if run_stiffness_mpf:
         lin_cfg = section_config(LinearLateralKFConfig, "linear_kf", sections.get("linear_kf", {}))
         baselines["linear_kf"] = LinearLateralKF(lin_cfg, bag.vehicle)
-    pipeline = EstimationPipeline(pipe_cfg, bag.vehicle, baselines)
+    # the node's outputs are made only for observers that want them (the detector is fed the
+    # same values either way)
+    pipeline = EstimationPipeline(pipe_cfg, bag.vehicle, baselines, outputs=bool(observers))
     radius_rec, force_rec, detect_rec = RadiusRecorder(), TyreForceRecorder(), DeflationRecorder()
     imu_recs: dict[str, ImuLateralRecorder] = {}
     if pipeline.stiffness is not None:
@@ -489,12 +499,10 @@ def run_replay(
         bag.wheel_speeds, bag.steering, bag.imu, bag.gnss, bag.gnss_velocity, bag.tire_forces
     )
     update = _progress_printer(total, progress)
-    push = pipeline.push
-    for n, sample in enumerate(bag_samples(bag)):
-        push(sample)
-        if update is not None and n % 10_000 == 0:
-            update(n)
-    pipeline.flush()
+    samples = bag_samples(bag)
+    if update is not None:
+        samples = _with_progress(samples, update)
+    pipeline.push_ordered(samples)
     t_est = time.perf_counter()
     trace = radius_rec.finish(pipeline)
     lateral = force_rec.finish(pipeline) if pipeline.tyre_force is not None else None

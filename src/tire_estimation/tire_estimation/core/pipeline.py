@@ -216,6 +216,9 @@ class EstimationPipeline:
         vehicle: the vehicle description.
         baselines: lateral estimators run beside the stiffness MPF (evaluation only), by name.
         observers: see every processed sample and every output.
+        outputs: make the odometry, radii, stiffness and lateral outputs (a node publishes
+            them); False (a replay that only records traces) makes only what the deflation
+            detector consumes, with the same values, and its statuses.
     """
 
     def __init__(
@@ -224,8 +227,10 @@ class EstimationPipeline:
         vehicle: VehicleParams,
         baselines: Mapping[str, LateralBaseline] | None = None,
         observers: Sequence[Observer] = (),
+        outputs: bool = True,
     ) -> None:
         self.config = config
+        self.outputs = outputs
         self.vehicle = vehicle
         self.radius: RadiusEstimator | None = None
         #: whether each axle's left-right radius split is observable (with the radius MPF)
@@ -274,6 +279,28 @@ class EstimationPipeline:
         for ready in self.buffer.push(sample):
             self._process(ready, out)
         return out
+
+    def push_ordered(self, samples: Iterable[Sample]) -> None:
+        """Process samples that are already in :func:`~tire_estimation.core.samples.order_key`
+        order (a merged recording, :func:`~tire_estimation.core.samples.merge`): the buffer
+        would release them in the same order, so it is passed by (same results as
+        :meth:`push`). A sample out of that order, and every one after it, goes through the
+        buffer (it is used late, as a live node uses a sample that arrives too late). Then
+        :meth:`flush`. The outputs go to the observers."""
+        received = self.received
+        process = self._process
+        last: tuple[int, int] | None = None
+        out: list[Output] = []
+        for sample in samples:
+            key = (sample.t_ns, sample.PRIORITY)
+            if len(self.buffer) == 0 and (last is None or key > last):
+                last = key
+                received[sample.KIND] += 1
+                process(sample, out)
+                out.clear()
+            else:
+                self.push(sample)
+        self.flush()
 
     def push_all(self, samples: Iterable[Sample]) -> None:
         """Push every sample and then :meth:`flush` (the outputs go to the observers)."""
@@ -365,10 +392,21 @@ class EstimationPipeline:
         odom_due, radii_due = self._due("odometry", t_ns), self._due("radii", t_ns)
         if not (odom_due or radii_due):
             return
-        assert self.radius is not None
-        est = self.radius.estimate()
+        radius = self.radius
+        assert radius is not None
         monitor = self.monitor
-        if odom_due:
+        if not self.outputs:
+            if monitor is None:
+                return
+            # what the detector consumes, the values the outputs would carry
+            if odom_due:
+                self._last_ns["odometry"] = t_ns
+                if radius.initialized:
+                    monitor.on_odometry(t_ns, radius.speed_m_s())
+            if not radii_due:
+                return
+        est = radius.estimate()
+        if odom_due and self.outputs:
             self._last_ns["odometry"] = t_ns
             if est.state != "initializing":
                 self._emit(OdometryOutput(t_ns, est), out)
@@ -376,7 +414,8 @@ class EstimationPipeline:
                     monitor.on_odometry(t_ns, float(est.speed_m_s))
         if radii_due:
             self._last_ns["radii"] = t_ns
-            self._emit(RadiiOutput(t_ns, est), out)
+            if self.outputs:
+                self._emit(RadiiOutput(t_ns, est), out)
             if monitor is not None:
                 step = monitor.on_radii(
                     t_ns,
@@ -392,7 +431,7 @@ class EstimationPipeline:
         self, stiffness: StiffnessEstimator, t_ns: int, out: list[Output]
     ) -> None:
         """Stiffness at its period and, while the tyre-force KF is silent, the lateral state."""
-        if not stiffness.mpf.initialized:
+        if not self.outputs or not stiffness.mpf.initialized:
             return
         stiff_due = self._due("stiffness", t_ns)
         last_tf = self._last_tyre_force_ns
@@ -410,6 +449,6 @@ class EstimationPipeline:
             self._emit(LateralOutput(t_ns, lateral_from_stiffness(est, self._lr_m)), out)
 
     def _lateral_output(self, t_ns: int, est: LateralEstimate, out: list[Output]) -> None:
-        if self._due("lateral", t_ns):
+        if self.outputs and self._due("lateral", t_ns):
             self._last_ns["lateral"] = t_ns
             self._emit(LateralOutput(t_ns, est), out)

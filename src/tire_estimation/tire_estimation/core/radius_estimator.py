@@ -355,6 +355,17 @@ class RadiusEstimator:
         self._set_cache(self.mpf.estimate())
 
     @property
+    def initialized(self) -> bool:
+        """True once the pose is initialized (the estimate's state is not ``initializing``)."""
+        return self._pose_ok
+
+    def speed_m_s(self) -> float:
+        """The estimate's ``speed_m_s`` without computing the rest of :meth:`estimate`."""
+        ws = self._prev_ws if self._prev_ws is not None else np.zeros(4)
+        # eq. (6a) with the learned mean radius errors
+        return _finite_or_zero(self._speed_yaw_rate(ws)[0])
+
+    @property
     def active_time_s(self) -> float:
         """Time the radii have been learned since the start (or the last reset), s."""
         return self._active_time_s

@@ -252,6 +252,9 @@ def order_key(sample: Sample) -> tuple[int, int]:
 
 
 def merge(streams: Iterable[Iterable[Sample]]) -> Iterator[Sample]:
-    """Merge per-stream sample sequences, each in stamp order, into one in :func:`order_key`
-    order (lazy; ties of equal key keep the order of ``streams``)."""
-    return heapq.merge(*streams, key=order_key)
+    """Merge per-stream sample sequences, each in strictly increasing stamp order, into one in
+    :func:`order_key` order (lazy)."""
+    keyed = [((s.t_ns, s.PRIORITY, s) for s in stream) for stream in streams]
+    # the keys of two samples are never equal (one priority per stream, stamps increase
+    # within a stream), so the samples themselves are never compared
+    return (entry[2] for entry in heapq.merge(*keyed))

@@ -39,7 +39,7 @@ def run_one(scenario: str, seed: int, minutes: float, locked: bool) -> dict[str,
         sim.vehicle,
         observers=[rec],
     )
-    pipeline.push_all(sim_samples(sim, tire_forces=False))
+    pipeline.push_ordered(sim_samples(sim, tire_forces=False))
     trace = rec.finish(pipeline).arrays()
     assert pipeline.radius is not None and pipeline.axles is not None
     true = sim.truth.wheel_radius_m[-1, 2:] - nominal

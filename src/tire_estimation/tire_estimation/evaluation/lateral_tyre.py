@@ -142,7 +142,7 @@ def run(
         vehicle or sim.vehicle,
         observers=[_Rows()],
     )
-    pipeline.push_all(
+    pipeline.push_ordered(
         stream_samples(
             wheel_speeds=sim.wheel_speeds, steering=sim.steering, imu=sim.imu, tire_forces=tf
         )

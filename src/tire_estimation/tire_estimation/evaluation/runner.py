@@ -174,7 +174,7 @@ def run_radius(
     pipeline = EstimationPipeline(
         PipelineConfig(seed=config.seed, radius=config), vehicle, observers=[recorder]
     )
-    pipeline.push_all(samples)
+    pipeline.push_ordered(samples)
     return recorder.finish(pipeline)
 
 

@@ -134,7 +134,7 @@ def feed(sim: SimResult, est: StiffnessFrontEnd[Any], after_imu: Callable[[int],
         baselines={"estimator": timed},
         observers=[_AfterImu(after_imu)],
     )
-    pipeline.push_all(
+    pipeline.push_ordered(
         stream_samples(wheel_speeds=sim.wheel_speeds, steering=sim.steering, imu=sim.imu)
     )
     return timed.busy_s
