@@ -500,7 +500,7 @@ class RadiusEstimator:
                 return
             t_ns = int(t_ns)
         self.axles.on_wheel_speeds(ws)
-        if self.axles.locked("rear"):
+        if self.config.locked_axle_gyro_heading and self.axles.locked("rear"):
             ws = self._rear_heading_from_gyro(t_ns, ws)
         if self._speed_gain:
             # speed-dependent radius r = r_n + delta + k v^2 (r_n nominal, delta the radius

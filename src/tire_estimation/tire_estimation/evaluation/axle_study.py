@@ -2,10 +2,11 @@
 
 Each seed simulates the same drive twice, with free rear wheels and with a spool
 (``SensorConfig.wheel_speed_rear_locked``: both rear wheels turn at the mean of their
-free-rolling speeds), and runs the radius MPF with its defaults through the pipeline. Printed
-per run: the final error of each rear radius and of their mean (the common radius) against the
-truth, relative to the nominal radius, the rear axle's verdict and slope, and how many
-wheel-speed samples took their heading change from the gyro.
+free-rolling speeds), and runs the radius MPF with its defaults and
+``locked_axle_gyro_heading`` on through the pipeline. Printed per run: the final error of
+each rear radius and of their mean (the common radius) against the truth, relative to the
+nominal radius, the rear axle's verdict and slope, and how many wheel-speed samples took
+their heading change from the gyro.
 
     python -m tire_estimation.evaluation.axle_study --scenario robustness --minutes 10 --seeds 20
 """
@@ -35,7 +36,9 @@ def run_one(scenario: str, seed: int, minutes: float, locked: bool) -> dict[str,
     nominal = sim.vehicle.nominal_tire_radius_m
     rec = RadiusRecorder()
     pipeline = EstimationPipeline(
-        PipelineConfig(seed=seed, radius=RadiusEstimatorConfig(seed=seed)),
+        PipelineConfig(
+            seed=seed, radius=RadiusEstimatorConfig(seed=seed, locked_axle_gyro_heading=True)
+        ),
         sim.vehicle,
         observers=[rec],
     )
