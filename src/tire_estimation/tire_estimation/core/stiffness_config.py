@@ -161,8 +161,7 @@ class StiffnessEstimatorConfig:
             which then go on learning and follow later changes, and publishes its cornering
             stiffness until ``grid_publish_s`` or until its NIS gate
             (``grid_handover_max_nis``) trips; once per initialization or reset
-            (docs/results.md section 6, twenty-second and twenty-third sessions) (default
-            ``mpf``).
+            (docs/results.md section 6) (default ``mpf``).
         grid_handover_s: learning time of the grid before the hand-over, s (default 2.0).
         grid_handover_max_nis: the hand-over happens, and the grid stays published after it
             (``grid_publish_s``), only while the grid's normalized innovation squared (its
@@ -177,7 +176,7 @@ class StiffnessEstimatorConfig:
             ``grid_handover_max_nis`` (the stiffness changed, or the model stopped fitting);
             then it is dropped and Algorithm 1's estimate is published. Up to
             ``grid_handover_s``: dropped at the hand-over (default 30.0; docs/results.md
-            section 6, twenty-third session).
+            section 6).
         wheel_radius_m: effective wheel radius R_w of eq. (3), m; 0 uses the vehicle's nominal
             radius (default 0.0).
         rolling_resistance_n: known constant longitudinal resistance, N (default 0.0, the
