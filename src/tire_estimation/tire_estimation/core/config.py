@@ -94,9 +94,12 @@ class RadiusEstimatorConfig:
             learned radii are kept), s. Default 2.
         init_min_distance_m: distance between the two GNSS fixes that initialize the heading,
             m. Default 10.
-        min_speed_m_s: the radius estimation pauses below this speed, m/s. Default 7 (paper).
-        steering_heading_speed_m_s: below this speed the heading is propagated from the steer
-            angle (eq. 31a) instead of the wheel-speed difference, m/s. Default 11 (paper).
+        min_speed_m_s: the radius estimation pauses below this speed whatever the GNSS, m/s
+            (creeping: the wheel-speed sensors lose their resolution). Default 1.
+        steering_heading_speed_m_s: below this speed, while the radii are not learned, the
+            heading is propagated from the steer angle (eq. 31a) instead of the wheel-speed
+            difference, m/s; while they are learned it always comes from the wheel-speed
+            difference. Default 11 (paper).
         max_abs_ax_m_s2: pause when |longitudinal acceleration| exceeds this, m/s^2 (IMU when
             present, else derivative of the wheel speed). Default 2.0.
         max_abs_ay_m_s2: pause when |lateral acceleration| exceeds this, m/s^2 (IMU when
@@ -196,7 +199,7 @@ class RadiusEstimatorConfig:
     gnss_velocity_max_accel_m_s2: float = 0.5
     max_gap_s: float = 2.0
     init_min_distance_m: float = 10.0
-    min_speed_m_s: float = 7.0
+    min_speed_m_s: float = 1.0
     steering_heading_speed_m_s: float = 11.0
     max_abs_ax_m_s2: float = 2.0
     max_abs_ay_m_s2: float = 4.0

@@ -701,9 +701,13 @@ class RadiusEstimator:
             self._reason = "waiting for GNSS"
             self._t_pose_ns = t_ns
             return
-        self.mpf.predict_rear(dt, rear[0], rear[1], active, steer)
+        # eq. (31a), the heading from the steer angle, only while the radii are not learned:
+        # while they are, the heading change comes from the rear wheel-speed difference
+        # (eq. 6b), which is what makes the left-right radius difference observable
+        heading_steer = None if active else steer
+        self.mpf.predict_rear(dt, rear[0], rear[1], active, heading_steer)
         if self.kf is not None:
-            self.kf.predict(dt, ws, learn=active, steer_angle_rad=steer)
+            self.kf.predict(dt, ws, learn=active, steer_angle_rad=heading_steer)
         self._t_pose_ns = t_ns
         self._active = active
         self._reason = reason

@@ -33,6 +33,7 @@ SCENARIOS: dict[str, str] = {
     "diffusion": "mixed-road drive with slow pressure loss on up to four wheels "
     "(wheels, rate_kpa_per_min, start_min)",
     "city": "low-speed city driving with junction turns, stops and roundabouts",
+    "slow": "car-park / yard driving at 1-8 m/s: tight turns (5-12 m radius), creeping, stops",
     "stiffness_step": "Berntorp & Di Cairano 2018 sim study: square-wave steering and wheel "
     "torque at 22 m/s, tyre stiffness drops by 50 % at 30 s",
     "snow_sine": "snow (low mu, low stiffness): straight line then sine steering",
@@ -268,6 +269,58 @@ def _city_profile(
     return speed, _curvature_from_lateral(a_lat, speed)
 
 
+def _slow_profile(
+    rng: np.random.Generator, duration_s: float, t: F64, dt_s: float
+) -> tuple[F64, F64]:
+    """Speed reference and path curvature of slow manoeuvring (car park, yard, robot): straight
+    runs at 3-8 m/s, creeping at 1-2.5 m/s, tight turns of 5-12 m radius at 2-4 m/s through a
+    quarter to a half circle, stops. The curvature is set directly (not from a lateral
+    acceleration), so it holds at any speed."""
+    vt, vv = [0.0, 1.0], [0.0, 0.0]
+    kt, kv = [0.0], [0.0]
+    tk, v = 1.0, 0.0
+
+    def go(v_new: float, acc: float) -> None:
+        nonlocal tk, v
+        tk += max(abs(v_new - v) / acc, 0.5)
+        v = v_new
+        vt.append(tk)
+        vv.append(v)
+
+    def hold(seconds: float) -> None:
+        nonlocal tk
+        tk += seconds
+        vt.append(tk)
+        vv.append(v)
+
+    go(float(rng.uniform(3.0, 6.0)), 0.8)
+    while tk < duration_s:
+        kind = rng.choice(["straight", "creep", "turn", "stop"], p=[0.3, 0.15, 0.4, 0.15])
+        if kind == "straight":
+            go(float(rng.uniform(3.0, 8.0)), float(rng.uniform(0.5, 1.0)))
+            hold(float(rng.uniform(4.0, 15.0)))
+        elif kind == "creep":
+            go(float(rng.uniform(1.0, 2.5)), 0.6)
+            hold(float(rng.uniform(4.0, 12.0)))
+        elif kind == "turn":
+            go(float(rng.uniform(2.0, 4.0)), 0.8)
+            radius = float(rng.uniform(5.0, 12.0))
+            kappa = float(rng.choice([-1.0, 1.0])) / radius
+            angle = float(rng.uniform(0.5, 1.0)) * math.pi
+            # heading change = v * integral(kappa dt): the hold plus half of the two 1-s ramps
+            hold_s = max(0.5, angle * radius / v - 1.0)
+            kt.extend([tk, tk + 1.0, tk + 1.0 + hold_s, tk + 2.0 + hold_s])
+            kv.extend([0.0, kappa, kappa, 0.0])
+            hold(2.0 + hold_s)
+        else:
+            go(0.0, float(rng.uniform(0.8, 1.5)))
+            hold(float(rng.uniform(2.0, 8.0)))
+            go(float(rng.uniform(2.0, 5.0)), 0.8)
+    speed = np.maximum(_smooth(np.interp(t, vt, vv), int(1.0 / dt_s)), 0.0)
+    kappa_ref = _smooth(np.interp(t, kt, kv), int(0.5 / dt_s))
+    return speed, kappa_ref
+
+
 def _wheels_option(value: Any) -> tuple[str, ...]:
     if isinstance(value, str):
         items = [w.strip() for w in value.split(",") if w.strip()]
@@ -368,6 +421,19 @@ def _build_city(
 ) -> Plan:
     _, t = _grid(duration_s, dt_s)
     speed, kappa = _city_profile(rng, duration_s, t, dt_s)
+    plan = _base_plan(t, dt_s, speed, opts)
+    plan.curvature_ref_1_m = kappa
+    plan.initial_speed_m_s = 0.0
+    plan.initial_yaw_rad = float(rng.uniform(-math.pi, math.pi))
+    plan.steer_lag_s = 0.1
+    return plan
+
+
+def _build_slow(
+    opts: dict[str, Any], duration_s: float, rng: np.random.Generator, dt_s: float
+) -> Plan:
+    _, t = _grid(duration_s, dt_s)
+    speed, kappa = _slow_profile(rng, duration_s, t, dt_s)
     plan = _base_plan(t, dt_s, speed, opts)
     plan.curvature_ref_1_m = kappa
     plan.initial_speed_m_s = 0.0
@@ -477,6 +543,7 @@ _DEFS: dict[str, _ScenarioDef] = {
         30.0, {"wheels": "all", "rate_kpa_per_min": 1.5, "start_min": 5.0}, _build_diffusion
     ),
     "city": _ScenarioDef(20.0, {}, _build_city),
+    "slow": _ScenarioDef(10.0, {}, _build_slow),
     "stiffness_step": _ScenarioDef(
         1.0,
         {
