@@ -180,7 +180,7 @@ def test_estimator_without_replay_learns_from_the_activation_on() -> None:
 def test_replay_settles_the_rear_of_a_slow_snow_drive() -> None:
     # snow drive 0 from 150 %, the simulator's tyre curve: without the replay the rear Cy
     # leaves the 5 % band for good 3.95 s after activation, with it 0.32 s after
-    # (docs/results.md section 6, eighteenth session)
+    # (docs/results.md section 6, the table of options)
     overrides = {
         "niw_update": "rao_blackwellized",
         "friction_coefficient": 0.3,

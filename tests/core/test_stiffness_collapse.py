@@ -321,7 +321,7 @@ def test_held_mean_driving_the_state_keeps_it_on_track_before_the_excitation() -
 def test_the_tyres_own_curve_removes_the_tanh_offset_on_snow() -> None:
     # snow drive 17 from 75 %: the tanh tyre ends 2.0 / 2.7 % high (front / rear), the
     # simulator's own Magic Formula shape (C 1.3, E -0.5, ``tyre_shape``) within 0.5 %
-    # (docs/results.md section 6, sixteenth session)
+    # (docs/results.md section 6, "Snow and asphalt sine")
     overrides = {"niw_update": "rao_blackwellized", "friction_coefficient": 0.3}
     err = {}
     for shape in ("tanh", "magic_formula"):

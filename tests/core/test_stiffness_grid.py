@@ -178,7 +178,7 @@ def test_no_learning_within_the_hold_after_initialization() -> None:
 def test_grid_settles_a_snow_drive_that_algorithm_1_does_not() -> None:
     # snow drive 24 from 150 % of the truth, the simulator's tyre curve: Algorithm 1 (N = 200)
     # leaves the 5 % band for good 4.2 s after activation (rear +8 % at 1.5 s); the grid's rear
-    # settles within 1 s and ends within 1 % (docs/results.md section 6, twenty-second session)
+    # settles within 1 s and ends within 1 % (docs/results.md section 6, "The grid learns first")
     sim = simulate("snow_sine", seed=24, sensors=NO_BIAS)
     alg1 = eval_config(
         200,

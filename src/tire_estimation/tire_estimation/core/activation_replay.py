@@ -5,8 +5,8 @@ its threshold (Berntorp & Di Cairano 2018, Sec. V). On a snow sine drive the RMS
 over 1 s reaches 0.003 rad about 0.25 s after the steering starts; until then the particles'
 lateral speed runs on the prior stiffness, and from a prior at 150 % of the truth the filter's
 vY is off by +0.0045 m/s when learning starts (40 % of the true vY RMS over the next 0.5 s;
-docs/results.md, section 6, seventeenth session). The rear cornering stiffness then needs
-seconds to come down. Not in the paper.
+docs/results.md section 6, "What limits Algorithm 1 on snow"). The rear cornering stiffness
+then needs seconds to come down. Not in the paper.
 
 :class:`ActivationReplay` keeps copies of the filter taken while it does not learn, every
 ``horizon_s / 10``, and the inputs of every step since the oldest copy that is still needed
@@ -22,7 +22,7 @@ one run of 50 at -8.8 %). What was published before stays as it was.
 
 Experimental and off by default (``activation_replay_s`` 0): on 200 snow and 100 asphalt drives
 the replay from the onset settles the rear a little more often but ends more tanh runs above
-3 % (docs/results.md section 6, eighteenth session).
+3 % (docs/results.md section 6, the table of options).
 
 The front-end decides what a step holds (an opaque record); this module only keeps them in
 order. Copies are deep copies except for the objects named in ``shared`` (the random

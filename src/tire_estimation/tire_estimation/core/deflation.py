@@ -132,8 +132,8 @@ class DeflationDetectorConfig:
             (GNSS errors move every radius together) cancels, and a deflation of one wheel no
             longer drags the others into an alarm, but an equal loss on every wheel is not
             seen (that is what common_channel is for). Default 1, with common_channel: in the
-            ECE R-64 campaign traces (docs/campaign.md, Detector) this pair had no false alarm
-            on 92 h of robustness driving and 108 step cases and found 20 of 20 diffusions,
+            ECE R-64 campaign traces (docs/results.md section 7) this pair had no false alarm
+            in 103.3 h of robustness driving and 108 step cases and found 20 of 20 diffusions,
             where lambda = 0.5 alone (the previous default) gave the MPF 4 false alarms and
             missed 3 leaks on both rear tyres.
         common_channel: run the common-mode channel (module docstring; not in the paper): a

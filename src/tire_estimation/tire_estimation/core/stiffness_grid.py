@@ -14,7 +14,7 @@ multiple-model adaptive estimation, Magill 1965).
 Why: on the snow sine drives the friction-limited tyre explains nearly the same lateral
 acceleration and yaw rate with a larger stiffness at smaller slip angles, so the common scale of
 the two stiffnesses is weakly observable and Algorithm 1's statistics narrow on it early
-(docs/results.md section 6, nineteenth to twenty-first sessions); an EKF on the augmented state
+(docs/results.md section 6, "What limits Algorithm 1 on snow"); an EKF on the augmented state
 diverges from a start at 150 % (the model is far from linear in the stiffness over the prior).
 On a grid the stiffness enters the model exactly; only the state, which the IMU pins within
 millimetres per second, is linearized.
@@ -30,7 +30,7 @@ mean and covariance. ``forgetting`` lambda flattens the log-weights at every lea
 (``log q <- lambda log q``), so that the posterior keeps a memory of about ``1 / (1 - lambda)``
 steps. That is not enough to follow an abrupt change of the road: on ``stiffness_step`` the
 estimate stays at the stiffness from before the 50 % drop (docs/results.md section 6,
-twenty-second session).
+"The grid learns first").
 
 IMU biases: with a non-zero ``accel_bias_std_m_s2`` or ``gyro_bias_std_rad_s`` (Algorithm 1's
 fields and defaults, eq. 11-12) each cell's EKF carries ``[b_ax, b_ay, b_r]`` as random-walk
