@@ -541,3 +541,26 @@ def test_gnss_velocity_latency_is_found_from_the_velocity_innovations(latency_s:
         assert res["tests"]["likelihood_ratio_ok"] is True
         assert ranked["gnss_velocity_latency"]["score"] < rs.SCORE_THRESHOLD
     assert ranked["gnss_latency"]["score"] < rs.SCORE_THRESHOLD
+
+
+def test_explain_says_why_in_words() -> None:
+    """A consistent report needs no words; an inconsistent one names each failed test and the
+    suspected effect first, in words (not field names)."""
+    assert rs.explain({"consistent": True, "tests": {}, "suspected_effects": []}) == []
+    report = {
+        "consistent": False,
+        "tests": {
+            "mean_nis_ok": False,
+            "mean_nis": 3.5,
+            "mean_nis_bounds_95": [1.9, 2.1],
+            "white_decimated": False,
+            "ljung_box_decimated": {"p_along": 1e-6, "p_cross": 0.3},
+        },
+        "suspected_effects": [{"effect": "gnss_latency", "score": 12.0}],
+    }
+    lines = rs.explain(report)
+    assert len(lines) == 3
+    assert "fixes lag the wheel odometry" in lines[0] and "12.0" in lines[0]
+    assert "mean NIS 3.50, at most 2.10 expected" in lines[1]
+    assert "correlated" in lines[2] and "1e-06" in lines[2]
+    assert set(rs.EFFECT_WORDS) == {e.name for e in rs.EFFECTS}

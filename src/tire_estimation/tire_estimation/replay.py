@@ -37,6 +37,7 @@ from tire_estimation.core.tyre_force_kf import TyreForceKFConfig
 from tire_estimation.errors import BagError, ConfigError
 from tire_estimation.evaluation import metrics as ev
 from tire_estimation.evaluation.residuals import analyze_trace as analyze_residuals
+from tire_estimation.evaluation.residuals import explain as explain_residuals
 from tire_estimation.evaluation.runner import (
     DeflationRecorder,
     ImuLateralRecorder,
@@ -190,6 +191,7 @@ class ReplayReport:
         res = m["residuals"]
         if res["consistent"] is not None:
             lines.append(f"  innovations consistent: {res['consistent']}")
+            lines.extend(f"    why: {why}" for why in res.get("why", []))
         lines.append(f"  report: {self.out_dir / 'metrics.json'}")
         return "\n".join(lines)
 
@@ -689,6 +691,7 @@ def build_metrics(
             "tests": {"note": "no GNSS innovations: the radius MPF did not run on this bag"},
             "suspected_effects": [],
         }
+    residual_report["why"] = explain_residuals(residual_report)
     by_source: dict[str, Any] = {}
     if lateral is not None:
         by_source["tyre_force_kf"] = _lateral_metrics(bag, lateral)

@@ -371,6 +371,55 @@ def analyze(
     }
 
 
+#: What each effect looks like to a user, for :func:`explain`.
+EFFECT_WORDS: dict[str, str] = {
+    "gnss_latency": "the fixes lag the wheel odometry (GNSS latency)",
+    "wheel_speed_time_offset": "the wheel speeds lag the fixes (wheel-speed time offset)",
+    "gnss_lever_arm": "the GNSS antenna is not where vehicle.yaml puts it (lever arm)",
+    "gnss_lever_arm_y": "the GNSS antenna sits off the centre line (lateral lever arm)",
+    "radius_speed_dependence": "the tyres grow with speed (speed-dependent radius)",
+    "radius_load_dependence": "the loaded tyres roll smaller in curves (load-dependent radius)",
+    "road_grade": "the road is not flat (grades)",
+    "rear_brake_slip": "the rear wheels slip when braking (brake slip)",
+    "gnss_velocity_latency": "the receiver's velocity lags the wheel speeds (velocity latency)",
+}
+
+
+def explain(report: Mapping[str, Any]) -> list[str]:
+    """The verdict of an :func:`analyze` (or :func:`assess`) report in plain words: one line
+    per failed test, the most likely effect first; ``[]`` when the run is consistent."""
+    if report.get("consistent") is not False:
+        return []
+    tests = report.get("tests", {})
+    lines: list[str] = []
+    for eff in report.get("suspected_effects", []):
+        words = EFFECT_WORDS.get(eff["effect"], eff["effect"])
+        lines.append(
+            f"the residuals follow a pattern of {words}: score {eff['score']:.1f} "
+            f"(significant from {SCORE_THRESHOLD:g}); `--rank-effects --write-config FILE` "
+            "sizes it"
+        )
+    if tests.get("mean_nis_ok") is False:
+        _lo, hi = tests["mean_nis_bounds_95"]
+        lines.append(
+            f"the fixes disagree with the model by more than their stated accuracy (mean NIS "
+            f"{tests['mean_nis']:.2f}, at most {hi:.2f} expected): a missing effect, or a fix "
+            "covariance that is too small"
+        )
+    if tests.get("white_decimated") is False:
+        lb = tests.get("ljung_box_decimated", {})
+        lines.append(
+            "the position residuals are correlated over seconds (Ljung-Box p "
+            f"{lb.get('p_along', float('nan')):.1g} along track, "
+            f"{lb.get('p_cross', float('nan')):.1g} across): something the model lacks drifts "
+            "slowly, e.g. a time offset, a lever arm, or a GNSS error that wanders faster than "
+            "radius.gnss_bias_time_constant_s"
+        )
+    if tests.get("likelihood_ratio_ok") is False and not report.get("suspected_effects"):
+        lines.append("an effect improves the likelihood significantly (see ranked_effects)")
+    return lines
+
+
 def _effect(
     name: str, score: float, estimate: float | None, extra: dict[str, float] | None = None
 ) -> dict[str, Any]:

@@ -1,0 +1,31 @@
+"""The replay's consistency verdict says why in words when the model does not fit."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+import yaml
+
+from tire_estimation.cli import main
+
+
+def _replay(bag: Path, out: Path) -> dict:
+    cfg = out.parent / f"{out.name}.yaml"
+    cfg.write_text(yaml.safe_dump({"radius": {"n_particles": 100}}))
+    argv = ["replay", str(bag), "--out", str(out), "--config", str(cfg)]
+    assert main([*argv, "--no-progress", "--no-plots", "--no-stiffness"]) == 0
+    return json.loads((out / "metrics.json").read_text())["residuals"]
+
+
+def test_a_late_gnss_is_explained(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    bag = tmp_path / "late"
+    argv = ["simulate", "robustness", "--minutes", "3", "--seed", "5", "--out", str(bag)]
+    assert main([*argv, "--sensor", "gnss_latency_s=0.5"]) == 0
+    capsys.readouterr()
+    res = _replay(bag, tmp_path / "out")
+    printed = capsys.readouterr().out
+    assert res["consistent"] is False
+    assert res["why"] and all(isinstance(w, str) and len(w) > 20 for w in res["why"])
+    assert printed.count("    why: ") == len(res["why"])
