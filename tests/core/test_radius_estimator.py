@@ -251,8 +251,44 @@ def test_gates_pause_below_min_speed_and_when_braking():
     e = est.estimate()
     assert e.state == "paused" and e.state_reason == "braking" and e.active == (False, False)
     est.on_imu(t + 101 * 10_000_000, [0, 0, 0], [0.0, 0.0, 9.81])
-    est.on_wheel_speeds(t + 102 * 10_000_000, m_ws(5.0))
+    est.on_wheel_speeds(t + 102 * 10_000_000, m_ws(0.5))
     assert est.estimate().state_reason == "low speed"
+    # the floor is min_speed_m_s (1 m/s): at 2 m/s the radii are learned
+    est.on_wheel_speeds(t + 103 * 10_000_000, m_ws(2.0))
+    est.on_wheel_speeds(t + 104 * 10_000_000, m_ws(2.0))
+    e = est.estimate()
+    assert e.state == "running" and e.active == (True, True), e.state_reason
+
+
+def test_heading_from_wheel_speeds_while_learning_below_steering_heading_speed():
+    """Below ``steering_heading_speed_m_s`` the steer angle (eq. 31a) moves the heading only
+    while the radii are paused; while they are learned, equal rear wheel speeds mean straight
+    ahead whatever the steer angle says."""
+    m_ws = lambda v: np.full(4, v / R_NOM)  # noqa: E731
+
+    def yaw_change(min_speed_m_s: float) -> float:
+        cfg = RadiusEstimatorConfig(n_particles=100, min_speed_m_s=min_speed_m_s)
+        est = RadiusEstimator(cfg, VEH, np.random.default_rng(3))
+        est.on_imu(0, [0.0, 0.0, 0.0], [0.0, 0.0, 9.81])
+        est.on_gnss_enu(0, np.zeros(2), np.eye(2) * 1e-4)
+        for k in range(1, 301):  # 3 s straight at 5 m/s, wheels straight ahead
+            t = k * 10_000_000
+            est.on_imu(t, [0.0, 0.0, 0.0], [0.0, 0.0, 9.81])
+            est.on_wheel_speeds(t, m_ws(5.0))
+        est.on_gnss_enu(t, np.array([15.0, 0.0]), np.eye(2) * 1e-4)
+        yaw0 = est.estimate().pose[2]
+        for k in range(301, 501):  # 2 s more with a steer angle of 0.2 rad reported
+            t = k * 10_000_000
+            est.on_steering(t, 0.2)
+            est.on_imu(t, [0.0, 0.0, 0.0], [0.0, 0.0, 9.81])
+            est.on_wheel_speeds(t, m_ws(5.0))
+        return float(est.estimate().pose[2] - yaw0)
+
+    # learning at 5 m/s: the wheel-speed difference (none) sets the heading
+    assert abs(yaw_change(1.0)) < 0.01
+    # paused (5 m/s below a 7 m/s floor): the steer angle turns the heading, about
+    # v tan(0.2) / wheelbase = 0.37 rad/s for 2 s
+    assert yaw_change(7.0) > 0.5
 
 
 def test_config_validation_names_the_field():

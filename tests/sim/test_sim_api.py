@@ -28,6 +28,7 @@ def test_scenario_list_has_descriptions() -> None:
         "robustness",
         "diffusion",
         "city",
+        "slow",
         "stiffness_step",
         "snow_sine",
         "asphalt_sine",

@@ -197,3 +197,17 @@ def test_load_dependent_radius_injection() -> None:
     dr = loaded.truth.wheel_radius_m[:, 0] - base.truth.wheel_radius_m[:, 0]
     np.testing.assert_allclose(dr, c * (tf.fz_n[idx, 0] - fz_static_front), atol=1e-9)
     assert np.ptp(dr) > 4e-3  # load swings of several kN in the lane changes
+
+
+def test_slow_scenario_stays_slow_and_turns_tightly() -> None:
+    """``slow``: 1-8 m/s manoeuvring with turns of 5-12 m radius (path curvature = yaw rate /
+    speed), stops included."""
+    res = simulate("slow", seed=2, minutes=3.0)
+    tr = res.truth
+    v = tr.velocity_m_s[:, 0]
+    assert v.max() < 8.5
+    moving = v > 1.5
+    curvature = np.abs(tr.yaw_rate_rad_s[moving] / v[moving])
+    assert 1.0 / 12.5 < np.percentile(curvature, 99) < 1.0 / 4.5
+    assert np.mean(v < 0.1) > 0.005  # it stops
+    assert np.mean((v > 1.0) & (v < 4.0)) > 0.3  # most of it below 4 m/s
