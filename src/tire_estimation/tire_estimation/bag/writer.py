@@ -138,12 +138,23 @@ def fix_series(
     alt: NDArray[np.float64],
     cov: NDArray[np.float64],
     frame_id: str,
+    *,
+    covariance_type: int = mb.COVARIANCE_TYPE_KNOWN,
 ) -> TopicSeries:
-    """NavSatFix series (deg, deg, m) with ENU covariance ``cov`` (M, 3, 3) m^2."""
+    """NavSatFix series (deg, deg, m) with ENU covariance ``cov`` (M, 3, 3) m^2 and one
+    ``position_covariance_type`` for every message."""
     cov9 = np.ascontiguousarray(cov, dtype=np.float64).reshape(len(t_ns), 9)
 
     def build(i: int) -> Any:
-        return mb.nav_sat_fix(int(t_ns[i]), lat[i], lon[i], alt[i], cov9[i], frame_id=frame_id)
+        return mb.nav_sat_fix(
+            int(t_ns[i]),
+            lat[i],
+            lon[i],
+            alt[i],
+            cov9[i],
+            frame_id=frame_id,
+            covariance_type=covariance_type,
+        )
 
     values = {
         "latitude": lat,

@@ -1,4 +1,4 @@
-"""``tire-estimation convert comma2k19|revs250lm ...``: measured data to contract bags."""
+"""``tire-estimation convert comma2k19|revs250lm|husky ...``: measured data to contract bags."""
 
 from __future__ import annotations
 
@@ -36,12 +36,22 @@ def _cmd_revs250lm(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_husky(args: argparse.Namespace) -> int:
+    from tire_estimation.convert.husky import convert_husky
+
+    t0 = time.perf_counter()
+    command = _command(args, "husky", args.data_dir)
+    path = convert_husky(args.data_dir, args.out, overwrite=args.overwrite, command=command)
+    print(f"wrote {path} ({_size_mb(path):.1f} MB in {time.perf_counter() - t0:.1f} s)")
+    return 0
+
+
 def _size_mb(path: Path) -> float:
     return sum(p.stat().st_size for p in Path(path).rglob("*") if p.is_file()) / 1e6
 
 
 def add_convert_parser(subparsers: Any) -> argparse.ArgumentParser:
-    """Add ``convert`` (with ``comma2k19`` and ``revs250lm``) to the main CLI's sub-parsers."""
+    """Add ``convert`` (``comma2k19``, ``revs250lm``, ``husky``) to the main CLI's sub-parsers."""
     conv = subparsers.add_parser("convert", help="convert measured data to a contract bag")
     sub = conv.add_subparsers(dest="dataset", required=True, metavar="DATASET")
 
@@ -61,4 +71,15 @@ def add_convert_parser(subparsers: Any) -> argparse.ArgumentParser:
     revs.add_argument("--out", required=True, type=Path, help="bag directory to create")
     revs.add_argument("--overwrite", action="store_true", help="replace an existing bag")
     revs.set_defaults(func=_cmd_revs250lm)
+
+    husky = sub.add_parser(
+        "husky",
+        help="robot_localization's Clearpath Husky test1.bag (ROS 1: drive odometry, IMU, GPS)",
+    )
+    husky.add_argument(
+        "data_dir", type=Path, metavar="DATA_DIR", help="folder with test1.bag (or the bag)"
+    )
+    husky.add_argument("--out", required=True, type=Path, help="bag directory to create")
+    husky.add_argument("--overwrite", action="store_true", help="replace an existing bag")
+    husky.set_defaults(func=_cmd_husky)
     return conv
