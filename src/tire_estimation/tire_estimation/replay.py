@@ -192,6 +192,8 @@ class ReplayReport:
         if res["consistent"] is not None:
             lines.append(f"  innovations consistent: {res['consistent']}")
             lines.extend(f"    why: {why}" for why in res.get("why", []))
+        elif res.get("tests", {}).get("note"):
+            lines.append(f"  innovations not tested: {res['tests']['note']}")
         lines.append(f"  report: {self.out_dir / 'metrics.json'}")
         return "\n".join(lines)
 

@@ -42,6 +42,12 @@ def time_to_converge_s(t_s: F64, error_m: F64, tol_m: float = CONVERGED_M) -> fl
     return float(t_s[bad[-1] + 1])
 
 
+#: an interval between estimates longer than this many typical ones is a gap without estimate
+GAP_INTERVALS = 5.0
+#: the reason given for such gaps
+NO_ESTIMATE = "no estimate (pose re-initializing, or no GNSS)"
+
+
 def learning_metrics(
     t_ns: NDArray[np.int64],
     wheel_names: tuple[str, ...],
@@ -57,11 +63,19 @@ def learning_metrics(
     if t_ns.size == 0:
         return {w: {"learned_s": 0.0, "share": 0.0, "paused_s": {}} for w in wheel_names}
     dt = np.diff(t_ns) * 1e-9
-    dt = np.append(dt, np.median(dt) if dt.size else 0.0)
-    total = float(dt.sum())
+    typical = float(np.median(dt)) if dt.size else 0.0
+    dt = np.append(dt, typical)
+    # a gap of more than a few intervals had no estimate (the pose re-initializing, no fixes):
+    # the sample before it stands for one interval, the rest is counted apart
+    gap = np.maximum(dt - typical, 0.0) * (dt > GAP_INTERVALS * typical)
+    dt = dt - gap
+    no_estimate_s = float(gap.sum())
+    total = float(dt.sum()) + no_estimate_s
     for j, w in enumerate(wheel_names):
         on = np.asarray(active[:, j], dtype=bool)
         paused: dict[str, float] = {}
+        if no_estimate_s > 0.0:
+            paused[NO_ESTIMATE] = no_estimate_s
         for k in np.flatnonzero(~on):
             paused[reasons[k]] = paused.get(reasons[k], 0.0) + float(dt[k])
         learned = float(dt[on].sum())

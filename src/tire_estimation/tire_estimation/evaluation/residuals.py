@@ -228,7 +228,7 @@ def analyze(
     trace_t_ns: NDArray[np.int64],
     pose: F64,
     speed_m_s: F64,
-    min_speed_m_s: float = 3.0,
+    min_speed_m_s: float = 1.0,
     road_grade_rad: F64 | None = None,
     rear_brake_decel_m_s2: F64 | None = None,
 ) -> dict[str, Any]:
@@ -244,7 +244,7 @@ def analyze(
     base = innovation_tests(innov_m, innov_cov_m2, nis, accepted)
     base.pop("consistent", None)
     if trace_t_ns.size < 3:
-        return {"consistent": True, "tests": base, "suspected_effects": []}
+        return _untested(base)
     ok = accepted & np.isfinite(nis) & (innov_t_ns >= trace_t_ns[0]) & (nis > 0)
     reg = regressors_at(innov_t_ns[ok], trace_t_ns, pose, speed_m_s)
     if road_grade_rad is not None and road_grade_rad.shape == trace_t_ns.shape:
@@ -264,7 +264,7 @@ def analyze(
     reg = {k: v[moving] for k, v in reg.items()}
     nu = innov_m[ok_idx[moving]]
     if nu.shape[0] < 20:
-        return {"consistent": True, "tests": base, "suspected_effects": []}
+        return _untested(base)
     psi = reg["heading"]
     c, s = np.cos(psi), np.sin(psi)
     along = c * nu[:, 0] + s * nu[:, 1]
@@ -371,6 +371,23 @@ def analyze(
     }
 
 
+def _untested(base: dict[str, Any]) -> dict[str, Any]:
+    """Too few innovations while moving for the effect regressions: the verdict of the whole-run
+    tests alone (mean NIS, whiteness of the normalized innovations), or None (not tested) when
+    even those had too few innovations."""
+    tests = dict(base)
+    tests["note"] = "too few innovations while moving to test for effects"
+    if "mean_nis" not in base:
+        return {"consistent": None, "tests": tests, "suspected_effects": []}
+    _lo, hi = base["mean_nis_bounds_95"]
+    tests["mean_nis_ok"] = bool(base["mean_nis"] <= hi)
+    tests["white_normalized"] = bool(
+        base["ljung_box_p_east"] > 0.01 and base["ljung_box_p_north"] > 0.01
+    )
+    consistent = tests["mean_nis_ok"] and tests["white_normalized"]
+    return {"consistent": consistent, "tests": tests, "suspected_effects": []}
+
+
 #: What each effect looks like to a user, for :func:`explain`.
 EFFECT_WORDS: dict[str, str] = {
     "gnss_latency": "the fixes lag the wheel odometry (GNSS latency)",
@@ -414,6 +431,12 @@ def explain(report: Mapping[str, Any]) -> list[str]:
             f"{lb.get('p_cross', float('nan')):.1g} across): something the model lacks drifts "
             "slowly, e.g. a time offset, a lever arm, or a GNSS error that wanders faster than "
             "radius.gnss_bias_time_constant_s"
+        )
+    if tests.get("white_normalized") is False:
+        lines.append(
+            "the position residuals are correlated in time (Ljung-Box p "
+            f"{tests['ljung_box_p_east']:.1g} east, {tests['ljung_box_p_north']:.1g} north): "
+            "something the model lacks drifts slowly"
         )
     if tests.get("likelihood_ratio_ok") is False and not report.get("suspected_effects"):
         lines.append("an effect improves the likelihood significantly (see ranked_effects)")
