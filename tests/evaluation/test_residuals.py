@@ -564,3 +564,5 @@ def test_explain_says_why_in_words() -> None:
     assert "mean NIS 3.50, at most 2.10 expected" in lines[1]
     assert "correlated" in lines[2] and "1e-06" in lines[2]
     assert set(rs.EFFECT_WORDS) == {e.name for e in rs.EFFECTS}
+    report["suspected_effects"] = [{"effect": "road_grade", "score": 1.0}]
+    assert rs.explain(report)[0].startswith("no known effect is significant; the closest is")

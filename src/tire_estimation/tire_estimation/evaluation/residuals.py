@@ -411,11 +411,17 @@ def explain(report: Mapping[str, Any]) -> list[str]:
     lines: list[str] = []
     for eff in report.get("suspected_effects", []):
         words = EFFECT_WORDS.get(eff["effect"], eff["effect"])
-        lines.append(
-            f"the residuals follow a pattern of {words}: score {eff['score']:.1f} "
-            f"(significant from {SCORE_THRESHOLD:g}); `--rank-effects --write-config FILE` "
-            "sizes it"
-        )
+        if eff["score"] >= SCORE_THRESHOLD:
+            lines.append(
+                f"the residuals follow a pattern of {words}: score {eff['score']:.1f} "
+                f"(significant from {SCORE_THRESHOLD:g}); `--rank-effects --write-config FILE` "
+                "sizes it"
+            )
+        else:
+            lines.append(
+                f"no known effect is significant; the closest is {words} (score "
+                f"{eff['score']:.1f}, significant from {SCORE_THRESHOLD:g})"
+            )
     if tests.get("mean_nis_ok") is False:
         _lo, hi = tests["mean_nis_bounds_95"]
         lines.append(
