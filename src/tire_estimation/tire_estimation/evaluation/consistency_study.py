@@ -21,6 +21,8 @@ from typing import Any
 
 import numpy as np
 
+from tire_estimation.evaluation.sim_runs import key_values, simulated_radius_run
+
 
 def run_one(
     seed: int,
@@ -31,22 +33,10 @@ def run_one(
     skip_min: float = 3.0,
 ) -> dict[str, Any]:
     """One drive: verdict, mean NIS, whiteness p values, NEES of the rear radii."""
-    from tire_estimation.core.config import RadiusEstimatorConfig
-    from tire_estimation.core.pipeline import EstimationPipeline, PipelineConfig
     from tire_estimation.evaluation.residuals import analyze_trace
-    from tire_estimation.evaluation.runner import RadiusRecorder
-    from tire_estimation.sim import SensorConfig, simulate
-    from tire_estimation.sources import sim_samples
 
-    sim = simulate(scenario, seed=seed, minutes=minutes, sensors=SensorConfig(**sensors))
+    sim, _pipeline, trace = simulated_radius_run(scenario, seed, minutes, overrides, sensors)
     nominal = sim.vehicle.nominal_tire_radius_m
-    rec = RadiusRecorder()
-    cfg = RadiusEstimatorConfig.from_dict({"seed": seed, **overrides})
-    pipeline = EstimationPipeline(
-        PipelineConfig(seed=seed, radius=cfg), sim.vehicle, observers=[rec]
-    )
-    pipeline.push_ordered(sim_samples(sim, tire_forces=False))
-    trace = rec.finish(pipeline)
     a = trace.arrays()
     t = a["t_ns"]
     truth = np.column_stack(
@@ -73,14 +63,6 @@ def run_one(
     }
 
 
-def _pairs(items: Sequence[str]) -> dict[str, Any]:
-    out: dict[str, Any] = {}
-    for item in items:
-        key, _, value = item.partition("=")
-        out[key] = json.loads(value) if value not in ("true", "false") else value == "true"
-    return out
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     """Command line: run the seeds, print each run and a summary."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -104,7 +86,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         help="SensorConfig field of the simulated drives (JSON value)",
     )
     args = parser.parse_args(argv)
-    overrides, sensors = _pairs(args.set), _pairs(args.sensor)
+    overrides, sensors = key_values(args.set), key_values(args.sensor)
     rows = []
     for seed in range(args.first_seed, args.first_seed + args.seeds):
         row = run_one(seed, args.minutes, overrides, sensors, args.scenario, args.skip_min)

@@ -19,6 +19,8 @@ from typing import Any
 
 import numpy as np
 
+from tire_estimation.evaluation.sim_runs import key_values, simulated_radius_run
+
 #: RTK-grade GNSS for the simulator: ~2 cm horizontal per axis, 10 Hz, Doppler velocity on.
 RTK_SENSORS: dict[str, Any] = {
     "gnss_white_std_m": 0.015,
@@ -36,21 +38,9 @@ def run_one(
     sensors: Mapping[str, Any] = RTK_SENSORS,
 ) -> dict[str, Any]:
     """One drive: final rear errors relative to nominal, reported std, learned seconds."""
-    from tire_estimation.core.config import RadiusEstimatorConfig
-    from tire_estimation.core.pipeline import EstimationPipeline, PipelineConfig
-    from tire_estimation.evaluation.runner import RadiusRecorder
-    from tire_estimation.sim import SensorConfig, simulate
-    from tire_estimation.sources import sim_samples
-
-    sim = simulate(scenario, seed=seed, minutes=minutes, sensors=SensorConfig(**sensors))
+    sim, pipeline, run = simulated_radius_run(scenario, seed, minutes, overrides, sensors)
     nominal = sim.vehicle.nominal_tire_radius_m
-    rec = RadiusRecorder()
-    cfg = RadiusEstimatorConfig.from_dict({"seed": seed, **overrides})
-    pipeline = EstimationPipeline(
-        PipelineConfig(seed=seed, radius=cfg), sim.vehicle, observers=[rec]
-    )
-    pipeline.push_ordered(sim_samples(sim, tire_forces=False))
-    trace = rec.finish(pipeline).arrays()
+    trace = run.arrays()
     assert pipeline.radius is not None
     true = sim.truth.wheel_radius_m[-1, 2:] - nominal
     est = trace["radius_error_m"][-1]
@@ -64,14 +54,6 @@ def run_one(
         "z": (err / np.maximum(std, 1e-12)).tolist(),
         "learned_s": pipeline.radius.active_time_s,
     }
-
-
-def _overrides(items: Sequence[str]) -> dict[str, Any]:
-    out: dict[str, Any] = {}
-    for item in items:
-        key, _, value = item.partition("=")
-        out[key] = json.loads(value) if value not in ("true", "false") else value == "true"
-    return out
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -96,7 +78,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         help="radius estimator setting (JSON value)",
     )
     args = parser.parse_args(argv)
-    overrides = _overrides(args.set)
+    overrides = key_values(args.set)
     rows = []
     for seed in range(args.first_seed, args.first_seed + args.seeds):
         sensors = RTK_SENSORS if args.gnss == "rtk" else {}
