@@ -4,7 +4,7 @@ Fits, per axle at the measured slips (forces from ay and the yaw acceleration, a
 ``evaluation.axle_fit``), the friction-limited tanh tyre and Pacejka's Magic Formula (fixed
 C 1.3, E -0.5, or C and E fitted) and prints the fitted stiffness and the force RMSE, then the
 same for the total lateral force ``m ay`` (no yaw acceleration in it). Uses the measured vY,
-which the estimator does not get (docs/results.md section 6, "Revs: what sets the stiffness
+which the estimator does not get (docs/stiffness_limits.md, "Revs: what sets the stiffness
 scale").
 
     python scripts/revs250lm_tyre_shape_fit.py ../shared/data/revs_250lm

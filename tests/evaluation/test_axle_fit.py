@@ -2,7 +2,7 @@
 
 The simulator's drives have a known axle stiffness and a single-track yaw balance up to its
 four-wheel details; its truth is given at ``base_link`` (the rear-axle centre), so the tests move
-vY and ay to the centre of gravity first. Measured (docs/results.md section 6, "Revs: what sets
+vY and ay to the centre of gravity first. Measured (docs/stiffness_limits.md, "Revs: what sets
 the stiffness scale"): asphalt_sine 100.3k / 120.3k for 100k / 120k, snow_sine 50.6k / 60.7k for
 50k / 60k, yaw-moment R2 0.92 and 0.96.
 """

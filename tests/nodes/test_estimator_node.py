@@ -422,8 +422,8 @@ def test_gnss_velocity_is_subscribed_used_and_bad_ones_are_counted(
 
 
 def test_each_wheel_says_whether_it_learns_and_why_not(ros: Any, tmp_path: Path) -> None:
-    """Below the speed floor (1 m/s) the wheels' statuses warn that the radius is not learned yet (the
-    published value is the prior); above it they learn and count the time learned."""
+    """Below the speed floor (1 m/s) the wheels' statuses warn that the radius is not learned
+    yet (the published value is the prior); above it they learn and count the time learned."""
     from diagnostic_msgs.msg import DiagnosticStatus
 
     node = _node(ros, tmp_path, persistence_file="")

@@ -5,7 +5,7 @@ its threshold (Berntorp & Di Cairano 2018, Sec. V). On a snow sine drive the RMS
 over 1 s reaches 0.003 rad about 0.25 s after the steering starts; until then the particles'
 lateral speed runs on the prior stiffness, and from a prior at 150 % of the truth the filter's
 vY is off by +0.0045 m/s when learning starts (40 % of the true vY RMS over the next 0.5 s;
-docs/results.md section 6, "What limits Algorithm 1 on snow"). The rear cornering stiffness
+docs/stiffness_limits.md, "What limits Algorithm 1 on snow"). The rear cornering stiffness
 then needs seconds to come down. Not in the paper.
 
 :class:`ActivationReplay` keeps copies of the filter taken while it does not learn, every

@@ -14,7 +14,7 @@ multiple-model adaptive estimation, Magill 1965).
 Why: on the snow sine drives the friction-limited tyre explains nearly the same lateral
 acceleration and yaw rate with a larger stiffness at smaller slip angles, so the common scale of
 the two stiffnesses is weakly observable and Algorithm 1's statistics narrow on it early
-(docs/results.md section 6, "What limits Algorithm 1 on snow"); an EKF on the augmented state
+(docs/stiffness_limits.md, "What limits Algorithm 1 on snow"); an EKF on the augmented state
 diverges from a start at 150 % (the model is far from linear in the stiffness over the prior).
 On a grid the stiffness enters the model exactly; only the state, which the IMU pins within
 millimetres per second, is linearized.
