@@ -109,8 +109,8 @@ class RadiusEstimatorConfig:
         braking_decel_m_s2: a deceleration above this is treated as braking and pauses, m/s^2.
             Default 1.0.
         imu_timeout_s: IMU samples older than this are ignored by the gates, s. Default 0.5.
-        accel_filter_time_constant_s: low-pass time constant of the accelerations the gates
-            use (the wheel-speed derivative, the IMU's specific force), s. Default 0.3.
+        accel_filter_time_constant_s: low-pass time constant of the wheel-speed derivative, s.
+            Default 0.3.
         non_increasing_after_calibration: after ``calibration_time_s`` of active estimation
             the radii may only decrease (deflation, as in Section IV-B). Default False.
         calibration_time_s: active estimation time that ends the calibration, s. Default 1200.

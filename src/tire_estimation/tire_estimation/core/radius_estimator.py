@@ -339,8 +339,6 @@ class RadiusEstimator:
         self._init = _Init()
         self._steer: tuple[int, float] | None = None
         self._imu: tuple[int, F64, F64] | None = None
-        #: low-passed IMU specific force (x, y) for the gates, m/s^2
-        self._imu_lp: tuple[float, float] | None = None
         self._ax_lp = 0.0
         self._prev_v: float | None = None
         self._active = False
@@ -438,7 +436,6 @@ class RadiusEstimator:
             acc = linear_acceleration_m_s2.tolist()
             total = sum(gyro) + sum(acc)
             if total - total == 0.0:
-                self._filter_imu(t_ns, last, acc)
                 stream.last_t_ns = t_ns
                 self._imu = (t_ns, gyro, acc)
                 self.axles.on_imu(gyro)
@@ -453,24 +450,9 @@ class RadiusEstimator:
         except (InputError, TypeError, ValueError) as exc:
             self._drop(exc.kind if isinstance(exc, InputError) else "bad_value")
             return
-        self._filter_imu(int(t_ns), last, acc)
         stream.last_t_ns = int(t_ns)
         self._imu = (int(t_ns), gyro, acc)
         self.axles.on_imu(gyro)
-
-    def _filter_imu(self, t_ns: int, last_ns: int | None, acc: Any) -> None:
-        """Low-pass the horizontal specific force for the gates (first order, time constant
-        ``accel_filter_time_constant_s``, as the wheel-speed derivative): a vibrating IMU
-        (a robot on rough ground) would otherwise trip the braking gate sample by sample."""
-        ax, ay = float(acc[0]), float(acc[1])
-        if last_ns is None or self._imu_lp is None:
-            self._imu_lp = (ax, ay)
-            return
-        dt = (t_ns - last_ns) * 1e-9
-        # x += k (u - x), k = dt / (tau + dt)
-        k = dt / (self.config.accel_filter_time_constant_s + dt)
-        fx, fy = self._imu_lp
-        self._imu_lp = (fx + k * (ax - fx), fy + k * (ay - fy))
 
     def _parse_wheels(self, wheel_speed_rad_s: Any) -> F64:
         if isinstance(wheel_speed_rad_s, Mapping):
@@ -671,8 +653,8 @@ class RadiusEstimator:
         self._prev_v = v
         imu_ok = self._imu is not None and (t_ns - self._imu[0]) * 1e-9 <= c.imu_timeout_s
         steer_ok = self._steer is not None and (t_ns - self._steer[0]) * 1e-9 <= c.imu_timeout_s
-        if imu_ok and self._imu_lp is not None:
-            ax, ay = self._imu_lp
+        if imu_ok and self._imu is not None:
+            ax, ay = self._imu[2][0], self._imu[2][1]
         elif steer_ok and self._steer is not None:
             # lateral acceleration from the steer angle (independent of the radius estimates,
             # which may still be wrong while the filter converges)
