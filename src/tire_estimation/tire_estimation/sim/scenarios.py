@@ -416,30 +416,29 @@ def _build_diffusion(
     return plan
 
 
-def _build_city(
-    opts: dict[str, Any], duration_s: float, rng: np.random.Generator, dt_s: float
-) -> Plan:
-    _, t = _grid(duration_s, dt_s)
-    speed, kappa = _city_profile(rng, duration_s, t, dt_s)
-    plan = _base_plan(t, dt_s, speed, opts)
-    plan.curvature_ref_1_m = kappa
-    plan.initial_speed_m_s = 0.0
-    plan.initial_yaw_rad = float(rng.uniform(-math.pi, math.pi))
-    plan.steer_lag_s = 0.1
-    return plan
+def _from_standstill(
+    profile: Callable[[np.random.Generator, float, F64, float], tuple[F64, F64]],
+) -> Callable[[dict[str, Any], float, np.random.Generator, float], Plan]:
+    """A scenario builder that follows ``profile``'s speed and path curvature from standstill,
+    with a random initial heading."""
+
+    def build(
+        opts: dict[str, Any], duration_s: float, rng: np.random.Generator, dt_s: float
+    ) -> Plan:
+        _, t = _grid(duration_s, dt_s)
+        speed, kappa = profile(rng, duration_s, t, dt_s)
+        plan = _base_plan(t, dt_s, speed, opts)
+        plan.curvature_ref_1_m = kappa
+        plan.initial_speed_m_s = 0.0
+        plan.initial_yaw_rad = float(rng.uniform(-math.pi, math.pi))
+        plan.steer_lag_s = 0.1
+        return plan
+
+    return build
 
 
-def _build_slow(
-    opts: dict[str, Any], duration_s: float, rng: np.random.Generator, dt_s: float
-) -> Plan:
-    _, t = _grid(duration_s, dt_s)
-    speed, kappa = _slow_profile(rng, duration_s, t, dt_s)
-    plan = _base_plan(t, dt_s, speed, opts)
-    plan.curvature_ref_1_m = kappa
-    plan.initial_speed_m_s = 0.0
-    plan.initial_yaw_rad = float(rng.uniform(-math.pi, math.pi))
-    plan.steer_lag_s = 0.1
-    return plan
+_build_city = _from_standstill(_city_profile)
+_build_slow = _from_standstill(_slow_profile)
 
 
 def _square(t: F64, period_s: float) -> F64:
