@@ -52,3 +52,4 @@ def test_a_wheel_that_never_learned_is_reported(
         assert max(w["paused_s"], key=w["paused_s"].get) == "low speed"
     printed = capsys.readouterr().out
     assert printed.count("NEVER LEARNED: the estimate below is the prior (paused: low speed") == 2
+    assert printed.count("radius.min_speed_m_s sets the speed floor") == 2

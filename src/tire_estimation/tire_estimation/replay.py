@@ -135,6 +135,8 @@ class ReplayReport:
             learn = learning.get(w)
             if learn is not None and learn["learned_s"] <= 0.0:
                 why = ", ".join(f"{k} {v:.0f} s" for k, v in learn["paused_s"].items())
+                if "low speed" in learn["paused_s"]:
+                    why += "; radius.min_speed_m_s sets the speed floor"
                 lines.append(
                     f"  {w}: NEVER LEARNED: the estimate below is the prior (paused: {why})"
                 )
