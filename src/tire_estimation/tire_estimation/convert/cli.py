@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import shlex
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -16,34 +17,33 @@ def _command(args: argparse.Namespace, dataset: str, source: Path) -> str:
     return shlex.join(parts)
 
 
+def _convert(
+    args: argparse.Namespace, dataset: str, source: Path, convert: Callable[..., Path]
+) -> int:
+    """Run one converter on ``source`` and print what it wrote, its size and the time."""
+    t0 = time.perf_counter()
+    command = _command(args, dataset, source)
+    path = convert(source, args.out, overwrite=args.overwrite, command=command)
+    print(f"wrote {path} ({_size_mb(path):.1f} MB in {time.perf_counter() - t0:.1f} s)")
+    return 0
+
+
 def _cmd_comma2k19(args: argparse.Namespace) -> int:
     from tire_estimation.convert.comma2k19 import convert_comma2k19
 
-    t0 = time.perf_counter()
-    command = _command(args, "comma2k19", args.segment_dir)
-    path = convert_comma2k19(args.segment_dir, args.out, overwrite=args.overwrite, command=command)
-    print(f"wrote {path} ({_size_mb(path):.1f} MB in {time.perf_counter() - t0:.1f} s)")
-    return 0
+    return _convert(args, "comma2k19", args.segment_dir, convert_comma2k19)
 
 
 def _cmd_revs250lm(args: argparse.Namespace) -> int:
     from tire_estimation.convert.revs250lm import convert_revs250lm
 
-    t0 = time.perf_counter()
-    command = _command(args, "revs250lm", args.data_dir)
-    path = convert_revs250lm(args.data_dir, args.out, overwrite=args.overwrite, command=command)
-    print(f"wrote {path} ({_size_mb(path):.1f} MB in {time.perf_counter() - t0:.1f} s)")
-    return 0
+    return _convert(args, "revs250lm", args.data_dir, convert_revs250lm)
 
 
 def _cmd_husky(args: argparse.Namespace) -> int:
     from tire_estimation.convert.husky import convert_husky
 
-    t0 = time.perf_counter()
-    command = _command(args, "husky", args.data_dir)
-    path = convert_husky(args.data_dir, args.out, overwrite=args.overwrite, command=command)
-    print(f"wrote {path} ({_size_mb(path):.1f} MB in {time.perf_counter() - t0:.1f} s)")
-    return 0
+    return _convert(args, "husky", args.data_dir, convert_husky)
 
 
 def _size_mb(path: Path) -> float:
