@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tire_estimation.core.config import RadiusEstimatorConfig
+from tire_estimation.core.radius.config import RadiusEstimatorConfig
 from tire_estimation.replay import run_replay
 
 BAG = Path(__file__).resolve().parents[1] / "bags" / "comma2k19_rav4_seg40"

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 
-from tire_estimation.core.config import RadiusEstimatorConfig
+from tire_estimation.core.radius.config import RadiusEstimatorConfig
 from tire_estimation.evaluation.runner import run_radius
 from tire_estimation.sim import simulate
 from tire_estimation.sources import sim_samples

@@ -19,7 +19,7 @@ import numpy as np
 
 from tire_estimation.bag.reader import read_bag
 from tire_estimation.core.pipeline import EstimationPipeline, PipelineConfig
-from tire_estimation.core.stiffness_config import StiffnessEstimatorConfig
+from tire_estimation.core.stiffness.config import StiffnessEstimatorConfig
 from tire_estimation.evaluation.runner import ImuLateralRecorder
 from tire_estimation.replay import load_config_sections, replay_topics, section_config
 from tire_estimation.sources import stream_samples

@@ -22,7 +22,7 @@ from scipy.optimize import least_squares
 from scipy.signal import savgol_filter
 
 from tire_estimation.convert.revs250lm import load_revs, revs_vehicle
-from tire_estimation.core.stiffness_model import SingleTrackParams
+from tire_estimation.core.stiffness.model import SingleTrackParams
 from tire_estimation.evaluation.axle_fit import axle_forces_from_motion, reference_slip_angles
 
 F64 = NDArray[np.float64]

@@ -21,7 +21,7 @@ import numpy as np
 from snow_activation_vy import drive_args
 
 import tire_estimation.evaluation.stiffness as ev
-from tire_estimation.core.stiffness_estimator import StiffnessEstimator
+from tire_estimation.core.stiffness.estimator import StiffnessEstimator
 
 AFTER_S = (0.25, 0.5, 1.0, 2.0, 3.0)
 

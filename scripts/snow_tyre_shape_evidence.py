@@ -28,7 +28,7 @@ from numpy.typing import NDArray
 from scipy.optimize import least_squares
 from scipy.signal import savgol_filter
 
-from tire_estimation.core.stiffness_model import SingleTrackParams, lateral_slip_function
+from tire_estimation.core.stiffness.model import SingleTrackParams, lateral_slip_function
 from tire_estimation.evaluation.axle_fit import axle_forces_from_motion, reference_slip_angles
 from tire_estimation.evaluation.stiffness import (
     NO_BIAS,

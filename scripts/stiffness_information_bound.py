@@ -23,7 +23,7 @@ import numpy as np
 from snow_activation_vy import drive_args
 
 import tire_estimation.evaluation.stiffness as ev
-from tire_estimation.core.stiffness_estimator import StiffnessEstimator
+from tire_estimation.core.stiffness.estimator import StiffnessEstimator
 from tire_estimation.evaluation.stiffness_bound import (
     bound_noise,
     deterministic_crlb,

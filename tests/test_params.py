@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from tire_estimation.core.config import RadiusEstimatorConfig
+from tire_estimation.core.radius.config import RadiusEstimatorConfig
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.errors import ConfigError
 from tire_estimation.params import (

@@ -116,7 +116,7 @@ def test_rank_seeds_profiles_the_mean_likelihood_of_several_filter_seeds(
     lane_change_bag: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     from tire_estimation.bag.reader import read_bag
-    from tire_estimation.core.config import RadiusEstimatorConfig
+    from tire_estimation.core.radius.config import RadiusEstimatorConfig
     from tire_estimation.evaluation.residuals import neg_log_likelihood
     from tire_estimation.evaluation.runner import run_radius
     from tire_estimation.sources import bag_samples

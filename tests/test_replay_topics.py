@@ -47,7 +47,7 @@ def test_replay_feeds_the_gnss_velocity_when_switched_on(tmp_path) -> None:
     import numpy as np
 
     from tire_estimation.bag.writer import write_sim_bag
-    from tire_estimation.core.config import RadiusEstimatorConfig
+    from tire_estimation.core.radius.config import RadiusEstimatorConfig
     from tire_estimation.replay import run_replay
     from tire_estimation.sim import SensorConfig, simulate
 

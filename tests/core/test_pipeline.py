@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from tire_estimation.core.config import RadiusEstimatorConfig
 from tire_estimation.core.pipeline import EstimationPipeline, PipelineConfig
+from tire_estimation.core.radius.config import RadiusEstimatorConfig
 from tire_estimation.evaluation.runner import RadiusRecorder
 from tire_estimation.sim import simulate
 from tire_estimation.sources import sim_samples

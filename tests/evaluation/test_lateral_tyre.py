@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tire_estimation.core.stiffness_config import StiffnessEstimatorConfig
+from tire_estimation.core.stiffness.config import StiffnessEstimatorConfig
 from tire_estimation.evaluation import lateral_tyre
 
 MPF = lateral_tyre.STIFFNESS_MPF_SLOT

@@ -37,8 +37,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from tire_estimation.core.config import RadiusEstimatorConfig
 from tire_estimation.core.geodesy import LocalTangentPlane
+from tire_estimation.core.radius.config import RadiusEstimatorConfig
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.evaluation import residuals as rs
 from tire_estimation.evaluation.runner import RadiusTrace, run_radius

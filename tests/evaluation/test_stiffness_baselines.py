@@ -8,15 +8,15 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from tire_estimation.core.stiffness_config import StiffnessEstimatorConfig
-from tire_estimation.core.stiffness_filter import (
+from tire_estimation.core.stiffness.config import StiffnessEstimatorConfig
+from tire_estimation.core.stiffness.filter import (
     BaselineConfig,
     Measurement,
     friction_saturation,
     model,
 )
-from tire_estimation.core.stiffness_frontend import StiffnessEstimate
-from tire_estimation.core.stiffness_model import SingleTrackParams, slip_angles
+from tire_estimation.core.stiffness.frontend import StiffnessEstimate
+from tire_estimation.core.stiffness.model import SingleTrackParams, slip_angles
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.errors import ConfigError
 from tire_estimation.evaluation.stiffness import NO_BIAS, truth_over_nominal

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import tire_estimation.evaluation.stiffness as ev
-from tire_estimation.core.stiffness_estimator import StiffnessEstimator
+from tire_estimation.core.stiffness.estimator import StiffnessEstimator
 from tire_estimation.evaluation.stiffness_bound import (
     BoundNoise,
     bound_noise,

@@ -21,9 +21,9 @@ from typing import Any
 
 import numpy as np
 
-from tire_estimation.core.config import RadiusEstimatorConfig
 from tire_estimation.core.geodesy import LocalTangentPlane
-from tire_estimation.core.radius_estimator import RadiusEstimator
+from tire_estimation.core.radius.config import RadiusEstimatorConfig
+from tire_estimation.core.radius.estimator import RadiusEstimator
 from tire_estimation.core.vehicle import VehicleParams
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -75,8 +75,8 @@ def stiffness_step_time_ms(
     A simulated ``asphalt_sine`` drive is fed through :class:`StiffnessEstimator`; the steps of
     the ``seconds`` after its sine steering starts (at about 20 s; learning active) are timed.
     """
-    from tire_estimation.core.stiffness_config import StiffnessEstimatorConfig
-    from tire_estimation.core.stiffness_estimator import StiffnessEstimator
+    from tire_estimation.core.stiffness.config import StiffnessEstimatorConfig
+    from tire_estimation.core.stiffness.estimator import StiffnessEstimator
     from tire_estimation.sim import simulate
 
     settle_s = 22.0

@@ -1,5 +1,5 @@
 """Node-level options of the estimator node (the estimator itself is configured by
-:class:`~tire_estimation.core.config.RadiusEstimatorConfig`, the vehicle by
+:class:`~tire_estimation.core.radius.config.RadiusEstimatorConfig`, the vehicle by
 :class:`~tire_estimation.core.vehicle.VehicleParams`)."""
 
 from __future__ import annotations
@@ -94,7 +94,7 @@ def periods_of(options: EstimatorNodeOptions) -> PublishPeriods:
 @dataclass(frozen=True)
 class DetectorNodeOptions:
     """ROS-side options of ``detector_node`` (the CUSUM itself:
-    :class:`~tire_estimation.core.deflation.DeflationDetectorConfig`).
+    :class:`~tire_estimation.core.deflation.detector.DeflationDetectorConfig`).
 
     Attributes:
         vehicle_file: path of a vehicle.yaml giving the vehicle name; empty = use

@@ -199,9 +199,9 @@ def render_params_yaml(node_name: str, sections: list[tuple[str, type, str]]) ->
 
 def estimator_sections() -> list[tuple[str, type, str]]:
     """The parameter sections of ``estimator_node`` (node options, vehicle, radius filter)."""
-    from tire_estimation.core.config import RadiusEstimatorConfig
-    from tire_estimation.core.stiffness_config import StiffnessEstimatorConfig
-    from tire_estimation.core.tyre_force_kf import TyreForceKFConfig
+    from tire_estimation.core.lateral.tyre_force_kf import TyreForceKFConfig
+    from tire_estimation.core.radius.config import RadiusEstimatorConfig
+    from tire_estimation.core.stiffness.config import StiffnessEstimatorConfig
     from tire_estimation.core.vehicle import VehicleParams
     from tire_estimation.node_config import EstimatorNodeOptions
 
@@ -220,7 +220,7 @@ def estimator_sections() -> list[tuple[str, type, str]]:
 
 def detector_sections() -> list[tuple[str, type, str]]:
     """The parameter sections of ``detector_node`` (node options, vehicle identity, CUSUM)."""
-    from tire_estimation.core.deflation import DeflationDetectorConfig
+    from tire_estimation.core.deflation.detector import DeflationDetectorConfig
     from tire_estimation.node_config import DetectorNodeOptions, VehicleIdentity
 
     return [

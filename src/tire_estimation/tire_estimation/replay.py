@@ -1,7 +1,7 @@
 """``tire-estimation replay BAG --out DIR``: run the estimators over a bag, write a report.
 
 The bag is decoded once (only the topics used), its streams are fed in header-stamp order to
-the same :class:`~tire_estimation.core.radius_estimator.RadiusEstimator` the node uses, and
+the same :class:`~tire_estimation.core.radius.estimator.RadiusEstimator` the node uses, and
 ``DIR/metrics.json`` (contract v1) plus PNG plots are written. ``metrics.json`` is written last
 and atomically; a failed run removes any stale one, so no partial report looks like a result.
 """
@@ -26,14 +26,14 @@ import yaml
 from tire_estimation.bag import topics
 from tire_estimation.bag.reader import BagData, TopicInfo, read_bag
 from tire_estimation.core import yamlio
-from tire_estimation.core.axle_check import AxleCheck
-from tire_estimation.core.config import RadiusEstimatorConfig
-from tire_estimation.core.deflation import DeflationDetectorConfig
+from tire_estimation.core.deflation.detector import DeflationDetectorConfig
 from tire_estimation.core.geodesy import LocalTangentPlane
-from tire_estimation.core.linear_lateral_kf import LinearLateralKF, LinearLateralKFConfig
+from tire_estimation.core.lateral.linear_kf import LinearLateralKF, LinearLateralKFConfig
+from tire_estimation.core.lateral.tyre_force_kf import TyreForceKFConfig
 from tire_estimation.core.pipeline import EstimationPipeline, Observer, PipelineConfig
-from tire_estimation.core.stiffness_config import StiffnessEstimatorConfig
-from tire_estimation.core.tyre_force_kf import TyreForceKFConfig
+from tire_estimation.core.radius.axle_check import AxleCheck
+from tire_estimation.core.radius.config import RadiusEstimatorConfig
+from tire_estimation.core.stiffness.config import StiffnessEstimatorConfig
 from tire_estimation.errors import BagError, ConfigError
 from tire_estimation.evaluation import metrics as ev
 from tire_estimation.evaluation.residuals import analyze_trace as analyze_residuals

@@ -5,19 +5,19 @@ The estimator node, the bag replay and the campaigns push the same typed samples
 
 * the stamp ordering (:class:`~tire_estimation.core.ordering.ReorderBuffer`),
 * the routing of each sample to the estimators that use it: the tyre-radius MPF
-  (:class:`~tire_estimation.core.radius_estimator.RadiusEstimator`), the tyre-force lateral KF
-  (:class:`~tire_estimation.core.tyre_force_kf.TyreForceEstimator`), the stiffness MPF
-  (:class:`~tire_estimation.core.stiffness_estimator.StiffnessEstimator`) and any lateral
+  (:class:`~tire_estimation.core.radius.estimator.RadiusEstimator`), the tyre-force lateral KF
+  (:class:`~tire_estimation.core.lateral.tyre_force_kf.TyreForceEstimator`), the stiffness MPF
+  (:class:`~tire_estimation.core.stiffness.estimator.StiffnessEstimator`) and any lateral
   baselines the caller adds,
 * the random streams (``default_rng(seed)`` for the radius MPF,
   ``default_rng([seed, STIFFNESS_RNG_KEY])`` for the stiffness MPF),
 * the outputs at their periods in header time, with the node's topics' meaning: odometry and
   radii after wheel-speed samples, stiffness after IMU samples, the lateral state of the
   tyre-force KF while it runs and of the stiffness MPF otherwise,
-* the deflation detector (:class:`~tire_estimation.core.deflation_monitor.DeflationMonitor`)
+* the deflation detector (:class:`~tire_estimation.core.deflation.monitor.DeflationMonitor`)
   fed with the published odometry and radii, exactly as the detector node is fed by topics,
 * and exposes the radius MPF's check whether each axle's left-right split is observable
-  (:attr:`axles`, :class:`~tire_estimation.core.axle_check.AxleCheck`).
+  (:attr:`axles`, :class:`~tire_estimation.core.radius.axle_check.AxleCheck`).
 
 ``push(sample)`` returns the outputs due; observers (:class:`Observer`) see every processed
 sample with the estimator's result and every output, for traces and reports.
@@ -33,12 +33,17 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from tire_estimation.core.axle_check import AxleCheck
-from tire_estimation.core.config import RadiusEstimatorConfig
-from tire_estimation.core.deflation import DeflationDetectorConfig
-from tire_estimation.core.deflation_monitor import DeflationMonitor, MonitorConfig, MonitorStep
+from tire_estimation.core.deflation.detector import DeflationDetectorConfig
+from tire_estimation.core.deflation.monitor import DeflationMonitor, MonitorConfig, MonitorStep
+from tire_estimation.core.lateral.tyre_force_kf import (
+    LateralEstimate,
+    TyreForceEstimator,
+    TyreForceKFConfig,
+)
 from tire_estimation.core.ordering import ReorderBuffer
-from tire_estimation.core.radius_estimator import RadiusEstimate, RadiusEstimator
+from tire_estimation.core.radius.axle_check import AxleCheck
+from tire_estimation.core.radius.config import RadiusEstimatorConfig
+from tire_estimation.core.radius.estimator import RadiusEstimate, RadiusEstimator
 from tire_estimation.core.samples import (
     GnssFix,
     GnssVelocity,
@@ -49,13 +54,8 @@ from tire_estimation.core.samples import (
     TireForces,
     WheelSpeeds,
 )
-from tire_estimation.core.stiffness_config import StiffnessEstimatorConfig
-from tire_estimation.core.stiffness_estimator import StiffnessEstimate, StiffnessEstimator
-from tire_estimation.core.tyre_force_kf import (
-    LateralEstimate,
-    TyreForceEstimator,
-    TyreForceKFConfig,
-)
+from tire_estimation.core.stiffness.config import StiffnessEstimatorConfig
+from tire_estimation.core.stiffness.estimator import StiffnessEstimate, StiffnessEstimator
 from tire_estimation.core.validation import require_non_negative, require_positive
 from tire_estimation.core.vehicle import VehicleParams
 

@@ -26,7 +26,7 @@ from numpy.typing import NDArray
 from scipy.optimize import least_squares
 from scipy.signal import savgol_filter
 
-from tire_estimation.core.stiffness_model import (
+from tire_estimation.core.stiffness.model import (
     SingleTrackParams,
     lateral_slip_function,
     slip_angles,

@@ -24,8 +24,8 @@ import numpy as np
 
 def run_one(scenario: str, seed: int, minutes: float, locked: bool) -> dict[str, Any]:
     """One drive: final errors, the rear axle's verdict, the gyro-heading samples."""
-    from tire_estimation.core.config import RadiusEstimatorConfig
     from tire_estimation.core.pipeline import EstimationPipeline, PipelineConfig
+    from tire_estimation.core.radius.config import RadiusEstimatorConfig
     from tire_estimation.evaluation.runner import RadiusRecorder
     from tire_estimation.sim import SensorConfig, simulate
     from tire_estimation.sources import sim_samples

@@ -30,7 +30,7 @@ def run_seed(
     scenario: str, seed: int, minutes: float, amplitude_rad: float, wavelength_m: float
 ) -> list[dict[str, Any]]:
     """Both configurations on one simulated drive."""
-    from tire_estimation.core.config import RadiusEstimatorConfig
+    from tire_estimation.core.radius.config import RadiusEstimatorConfig
     from tire_estimation.evaluation.runner import run_radius
     from tire_estimation.sim import SensorConfig, simulate
     from tire_estimation.sources import sim_samples

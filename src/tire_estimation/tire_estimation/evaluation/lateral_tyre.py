@@ -3,10 +3,10 @@
 Runs, on a simulated drive (:class:`~tire_estimation.sim.streams.SimResult`),
 
 * (a) the tyre-force Kalman filter
-  (:class:`~tire_estimation.core.tyre_force_kf.TyreForceEstimator`),
+  (:class:`~tire_estimation.core.lateral.tyre_force_kf.TyreForceEstimator`),
 * (b) the linear single-track reference model alone (eq. 23-28, open loop, same inputs),
 * (c) the lateral state of the tyre-stiffness MPF (Berntorp & Di Cairano 2018,
-  :class:`~tire_estimation.core.stiffness_estimator.StiffnessEstimator`, key
+  :class:`~tire_estimation.core.stiffness.estimator.StiffnessEstimator`, key
   :data:`STIFFNESS_MPF_SLOT`), fed like :func:`tire_estimation.evaluation.stiffness.run` from
   the same drive's wheel speeds (its vx input), steering and IMU; it does not use the tyre
   forces. Its configuration is the default one (bias estimation on, as the simulated IMU has
@@ -43,10 +43,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from tire_estimation.core.lateral.tyre_force_kf import TyreForceKFConfig
 from tire_estimation.core.pipeline import EstimationPipeline, Output, PipelineConfig
 from tire_estimation.core.samples import Sample, TireForces
-from tire_estimation.core.stiffness_config import StiffnessEstimatorConfig
-from tire_estimation.core.tyre_force_kf import TyreForceKFConfig
+from tire_estimation.core.stiffness.config import StiffnessEstimatorConfig
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.evaluation import stiffness as stiffness_eval
 from tire_estimation.sim.dynamics import GRAVITY_M_S2

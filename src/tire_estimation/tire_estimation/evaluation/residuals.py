@@ -76,7 +76,7 @@ from numpy.typing import NDArray
 from scipy.special import chdtri
 
 from tire_estimation.core.geodesy import LocalTangentPlane
-from tire_estimation.core.radius_model import RL, RR
+from tire_estimation.core.radius.model import RL, RR
 from tire_estimation.evaluation.metrics import innovation_tests, ljung_box
 from tire_estimation.sim.streams import GnssStream, WheelSpeedStream
 

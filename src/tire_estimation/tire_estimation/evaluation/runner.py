@@ -14,14 +14,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from tire_estimation.core.config import RadiusEstimatorConfig
 from tire_estimation.core.pipeline import (
     DeflationOutput,
     EstimationPipeline,
     Output,
     PipelineConfig,
 )
-from tire_estimation.core.radius_estimator import RadiusEstimator
+from tire_estimation.core.radius.config import RadiusEstimatorConfig
+from tire_estimation.core.radius.estimator import RadiusEstimator
 from tire_estimation.core.samples import GnssFix, GnssVelocity, ImuSample, Sample, TireForces
 from tire_estimation.core.vehicle import VehicleParams
 

@@ -17,8 +17,8 @@ def simulated_radius_run(
     """Simulate ``scenario`` (seed, minutes, ``SensorConfig`` overrides ``sensors``) and push it
     through a pipeline with the radius MPF (``RadiusEstimatorConfig`` overrides ``radius``, the
     filter seeded with ``seed``). Returns (the simulation, the pipeline, the radius trace)."""
-    from tire_estimation.core.config import RadiusEstimatorConfig
     from tire_estimation.core.pipeline import EstimationPipeline, PipelineConfig
+    from tire_estimation.core.radius.config import RadiusEstimatorConfig
     from tire_estimation.evaluation.runner import RadiusRecorder
     from tire_estimation.sim import SensorConfig, simulate
     from tire_estimation.sources import sim_samples

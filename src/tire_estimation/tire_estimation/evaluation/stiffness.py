@@ -26,9 +26,9 @@ import numpy as np
 
 from tire_estimation.core.pipeline import EstimationPipeline, Output, PipelineConfig
 from tire_estimation.core.samples import ImuSample, Sample
-from tire_estimation.core.stiffness_config import StiffnessEstimatorConfig
-from tire_estimation.core.stiffness_estimator import StiffnessEstimator
-from tire_estimation.core.stiffness_frontend import StiffnessFrontEnd
+from tire_estimation.core.stiffness.config import StiffnessEstimatorConfig
+from tire_estimation.core.stiffness.estimator import StiffnessEstimator
+from tire_estimation.core.stiffness.frontend import StiffnessFrontEnd
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.sim import SensorConfig, SimResult, simulate
 from tire_estimation.sim.dynamics import GRAVITY_M_S2

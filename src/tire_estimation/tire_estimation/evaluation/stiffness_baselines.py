@@ -1,15 +1,15 @@
 """Baselines of the tyre-stiffness estimator: AUGPF, EKF and KF + RLS, and the grid on its own.
 
 Berntorp & Di Cairano, "Tire-stiffness and vehicle-state estimation based on noise-adaptive
-particle filtering", IEEE TCST 2018, compare Algorithm 1 (``core.stiffness_mpf``) with a
+particle filtering", IEEE TCST 2018, compare Algorithm 1 (``core.stiffness.mpf``) with a
 state-augmented particle filter (AUGPF, Sec. V-VI), a Kalman filter for the lateral dynamics
 feeding a linear regression (RLS, Sec. VI-A) and an EKF (Sec. VII). The three filters here use
-the single-track model of ``core.stiffness_model`` (eq. 1-12, with ``w = C - C_n``, eq. 7) in
-the form of :func:`~tire_estimation.core.stiffness_filter.model`, and run behind Algorithm 1's
+the single-track model of ``core.stiffness.model`` (eq. 1-12, with ``w = C - C_n``, eq. 7) in
+the form of :func:`~tire_estimation.core.stiffness.filter.model`, and run behind Algorithm 1's
 own front-end (:class:`BaselineEstimator`, a
-:class:`~tire_estimation.core.stiffness_frontend.StiffnessFrontEnd`: the same callbacks, input
+:class:`~tire_estimation.core.stiffness.frontend.StiffnessFrontEnd`: the same callbacks, input
 checks, activation and replay, returning the same
-:class:`~tire_estimation.core.stiffness_frontend.StiffnessEstimate`). Only the filter differs:
+:class:`~tire_estimation.core.stiffness.frontend.StiffnessEstimate`). Only the filter differs:
 
 * :class:`AugPf` (:class:`AugPfConfig`): bootstrap particle filter on the augmented state
   ``[vX, vY, r, dCx, dCy_f, dCy_r]``; the stiffness deviation is a Gaussian random walk
@@ -18,15 +18,15 @@ checks, activation and replay, returning the same
   out w.r.t. the paper's AUGPF: the three extra states of the inverse-Wishart random walk of
   the noise variances (the paper's AUGPF has 9 states, this one 6).
 * :class:`AugEkf` (:class:`EkfConfig`): extended Kalman filter on the same 6 states and
-  artificial dynamics, Jacobians of ``core.stiffness_model.linearize`` by central differences
+  artificial dynamics, Jacobians of ``core.stiffness.model.linearize`` by central differences
   in the vehicle states (the model is affine in ``w``: that block is exact).
 * :class:`KfRls` (:class:`RlsConfig`): Kalman filter on ``[vY, r]`` with ``vX`` the measured
   speed (see :class:`RlsConfig`), feeding a recursive least squares with forgetting that
   regresses the measured lateral acceleration and yaw acceleration on the slip angles to get
   ``[Cy_f, Cy_r]``; ``Cx`` is not estimated.
 
-:class:`BaselineEstimator` also runs the point-mass filter of ``core.stiffness_grid``
-(:class:`~tire_estimation.core.stiffness_grid.GridConfig`) on its own.
+:class:`BaselineEstimator` also runs the point-mass filter of ``core.stiffness.grid``
+(:class:`~tire_estimation.core.stiffness.grid.GridConfig`) on its own.
 
 With ``friction_coefficient`` mu > 0 all three use the friction-limited lateral tyre of
 Algorithm 1 (``saturation_peak`` = ``friction``): ``Fy = mu Fz tanh(C alpha / (mu Fz))`` per axle,
@@ -50,7 +50,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tire_estimation.core import resampling
-from tire_estimation.core.stiffness_filter import (
+from tire_estimation.core.stiffness.filter import (
     JACOBIAN_STEP,
     BaselineConfig,
     FilterEstimate,
@@ -62,9 +62,9 @@ from tire_estimation.core.stiffness_filter import (
     model,
     stiffness_bounds,
 )
-from tire_estimation.core.stiffness_frontend import StiffnessFrontEnd
-from tire_estimation.core.stiffness_grid import GridConfig, GridEkf
-from tire_estimation.core.stiffness_model import SingleTrackParams, linearize
+from tire_estimation.core.stiffness.frontend import StiffnessFrontEnd
+from tire_estimation.core.stiffness.grid import GridConfig, GridEkf
+from tire_estimation.core.stiffness.model import SingleTrackParams, linearize
 from tire_estimation.core.validation import (
     require_int_range,
     require_non_negative,
@@ -623,8 +623,8 @@ class BaselineEstimator(StiffnessFrontEnd[StiffnessFilter]):
     """A baseline filter behind Algorithm 1's front-end; the filter follows the type of
     ``config``: :class:`AugPf` (:class:`AugPfConfig`), :class:`AugEkf` (:class:`EkfConfig`),
     :class:`KfRls` (:class:`RlsConfig`) or the point-mass filter
-    :class:`~tire_estimation.core.stiffness_grid.GridEkf`
-    (:class:`~tire_estimation.core.stiffness_grid.GridConfig`).
+    :class:`~tire_estimation.core.stiffness.grid.GridEkf`
+    (:class:`~tire_estimation.core.stiffness.grid.GridConfig`).
 
     Args:
         config: the filter's configuration.

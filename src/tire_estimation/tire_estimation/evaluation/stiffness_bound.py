@@ -5,7 +5,7 @@ Kalman filter's covariance) on the stiffness MPF's own single-track model, linea
 simulator's true trajectory. The unknowns are ``z = [vY, r, Cf, Cr]`` (vY at the CG, m/s; yaw
 rate, rad/s; front and rear cornering stiffness, N/rad); vX, the steering and the wheel speeds
 are inputs (the truth), the outputs the lateral accelerometer and the gyro. The model is
-:func:`~tire_estimation.core.stiffness_model.linearize` at the stiffness itself (so with the
+:func:`~tire_estimation.core.stiffness.model.linearize` at the stiffness itself (so with the
 friction-limited tyre the force is exact), differentiated as the EKF baseline does
 (:func:`~tire_estimation.evaluation.stiffness_baselines.model_jacobian`).
 
@@ -30,9 +30,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from tire_estimation.core.stiffness_config import StiffnessEstimatorConfig
-from tire_estimation.core.stiffness_filter import model
-from tire_estimation.core.stiffness_model import SingleTrackParams
+from tire_estimation.core.stiffness.config import StiffnessEstimatorConfig
+from tire_estimation.core.stiffness.filter import model
+from tire_estimation.core.stiffness.model import SingleTrackParams
 from tire_estimation.evaluation.stiffness_baselines import model_jacobian
 from tire_estimation.sim.simulator import SimResult
 

@@ -4,9 +4,9 @@ Berntorp & Di Cairano, IEEE TCST 2018, Sec. VI: the same bias-free ``stiffness_s
 (simulator seeds) go through Algorithm 1 (:class:`StiffnessEstimator` with
 :func:`~tire_estimation.evaluation.stiffness.eval_config`, initial stiffness 0.7 of nominal)
 and the baselines of :mod:`tire_estimation.evaluation.stiffness_baselines`, and the point-mass
-filter of :mod:`tire_estimation.core.stiffness_grid` (not in the paper), which share every setting
+filter of :mod:`tire_estimation.core.stiffness.grid` (not in the paper), which share every setting
 of the same name with that configuration (``BaselineConfig.sharing``) and run behind Algorithm 1's
-front-end (:class:`~tire_estimation.core.stiffness_frontend.StiffnessFrontEnd`)::
+front-end (:class:`~tire_estimation.core.stiffness.frontend.StiffnessFrontEnd`)::
 
     python -m tire_estimation.evaluation.stiffness_compare --out DIR --runs R \\
         --particles 50 100 200 500 [--seeds S ...] [--jobs J]
@@ -51,9 +51,9 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.ticker import NullFormatter
 
-from tire_estimation.core.stiffness_estimator import StiffnessEstimator
-from tire_estimation.core.stiffness_frontend import StiffnessFrontEnd
-from tire_estimation.core.stiffness_grid import GridConfig
+from tire_estimation.core.stiffness.estimator import StiffnessEstimator
+from tire_estimation.core.stiffness.frontend import StiffnessFrontEnd
+from tire_estimation.core.stiffness.grid import GridConfig
 from tire_estimation.evaluation.stiffness import (
     NO_BIAS,
     eval_config,

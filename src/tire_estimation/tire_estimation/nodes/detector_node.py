@@ -25,11 +25,11 @@ from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from std_srvs.srv import Trigger
 
-from tire_estimation.core.deflation import (
+from tire_estimation.core.deflation.detector import (
     DeflationDetectorConfig,
     DeflationStatusData,
 )
-from tire_estimation.core.deflation_monitor import DeflationMonitor, MonitorConfig
+from tire_estimation.core.deflation.monitor import DeflationMonitor, MonitorConfig
 from tire_estimation.core.vehicle import load_vehicle_yaml
 from tire_estimation.errors import InputError, TireEstimationError
 from tire_estimation.node_config import DetectorNodeOptions

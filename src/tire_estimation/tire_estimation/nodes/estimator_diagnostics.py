@@ -6,9 +6,9 @@ from collections.abc import Mapping
 
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 
+from tire_estimation.core.lateral.tyre_force_kf import TyreForceEstimator
 from tire_estimation.core.pipeline import EstimationPipeline
-from tire_estimation.core.stiffness_estimator import StiffnessEstimator
-from tire_estimation.core.tyre_force_kf import TyreForceEstimator
+from tire_estimation.core.stiffness.estimator import StiffnessEstimator
 
 #: input streams reported on /diagnostics (rate and count)
 INPUT_STREAMS = ("wheel_speeds", "steering", "imu", "gnss_fix", "gnss_velocity", "tire_forces")

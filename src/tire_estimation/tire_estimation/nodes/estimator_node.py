@@ -31,7 +31,7 @@ from rclpy.qos import QoSProfile, qos_profile_sensor_data
 from sensor_msgs.msg import Imu, JointState, NavSatFix
 from std_srvs.srv import Trigger
 
-from tire_estimation.core.config import RadiusEstimatorConfig
+from tire_estimation.core.lateral.tyre_force_kf import TyreForceKFConfig
 from tire_estimation.core.pipeline import (
     EstimationPipeline,
     LateralOutput,
@@ -41,9 +41,9 @@ from tire_estimation.core.pipeline import (
     RadiiOutput,
     StiffnessOutput,
 )
+from tire_estimation.core.radius.config import RadiusEstimatorConfig
 from tire_estimation.core.samples import Sample
-from tire_estimation.core.stiffness_config import StiffnessEstimatorConfig
-from tire_estimation.core.tyre_force_kf import TyreForceKFConfig
+from tire_estimation.core.stiffness.config import StiffnessEstimatorConfig
 from tire_estimation.core.vehicle import VehicleParams, load_vehicle_yaml
 from tire_estimation.errors import InputError, TireEstimationError
 from tire_estimation.node_config import EstimatorNodeOptions, periods_of

@@ -7,9 +7,9 @@ import math
 import numpy as np
 from nav_msgs.msg import Odometry
 
-from tire_estimation.core.radius_estimator import RadiusEstimate
-from tire_estimation.core.stiffness_estimator import StiffnessEstimate
-from tire_estimation.core.tyre_force_kf import LateralEstimate
+from tire_estimation.core.lateral.tyre_force_kf import LateralEstimate
+from tire_estimation.core.radius.estimator import RadiusEstimate
+from tire_estimation.core.stiffness.estimator import StiffnessEstimate
 from tire_estimation.nodes.conversions import ns_to_stamp
 from tire_estimation_msgs.msg import LateralState, TireRadii, TireStiffness
 

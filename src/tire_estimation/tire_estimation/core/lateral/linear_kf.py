@@ -1,0 +1,255 @@
+"""Linear single-track Kalman filter for the lateral state: the baseline of the lateral estimators.
+
+State ``x = [vy_cg m/s, r rad/s]`` (centre of gravity, body axes, x forward, y left), the linear
+single-track model of :mod:`.single_track` (Tuononen 2009 eq. 23-28, the
+same model as Berntorp & Di Cairano 2018 eq. 1 with linear tyres and constant vx) with fixed
+cornering stiffnesses::
+
+    dx/dt = A(vx) x + B delta + noise,                         (single_track eq. 23-28)
+    y = [ay_cg, r] = C(vx) x + D delta + v,   ay_cg = (Ff + Fr) / m
+
+``ay`` is the accelerometer's lateral specific force moved to the CG (lever arm ``imu_x - lr``
+along x: ``ay_cg = ay_imu - (imu_x - lr) dr/dt``, neglected here: the filter is meant as the
+simple baseline the issue names, "a linear single-track Kalman filter", and the Revs IMU is at
+the CG). Inputs: the road-wheel steer angle (first-order hold between samples, as the tyre-force
+KF) and the longitudinal speed (measured, or the rear-axle wheel speed). The IMU drives the
+steps; bad input is dropped and counted in :attr:`LinearLateralKF.stats`, never raised.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from tire_estimation.core.input_checks import finite_vector, stamp_after
+from tire_estimation.core.lateral.single_track import (
+    SingleTrackParams,
+    continuous_matrices,
+    expm_small,
+    steady_state,
+)
+from tire_estimation.core.validation import require_non_negative, require_positive
+from tire_estimation.core.vehicle import VehicleParams
+from tire_estimation.errors import InputError
+
+F64 = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class LinearLateralKFConfig:
+    """Tuning of the linear single-track Kalman filter; checked at construction.
+
+    Attributes:
+        cornering_stiffness_front_n_rad: front-axle cornering stiffness Cf, N/rad; 0 takes the
+            vehicle's nominal value (default 0).
+        cornering_stiffness_rear_n_rad: rear-axle cornering stiffness Cr, N/rad; 0 takes the
+            vehicle's nominal value (default 0).
+        vy_process_std_m_s_sqrt_s: process-noise density on dvy/dt, m/s/sqrt(s) (default 0.5).
+        yaw_rate_process_std_rad_s_sqrt_s: process-noise density on dr/dt, rad/s/sqrt(s)
+            (default 0.1).
+        accel_y_std_m_s2: measurement-noise std of the lateral acceleration, m/s^2 (default 0.5;
+            covers the model error of linear tyres as well as sensor noise).
+        yaw_rate_std_rad_s: measurement-noise std of the gyro yaw rate, rad/s (default 0.005).
+        min_speed_m_s: below this speed the filter holds its state and waits, m/s (default 3.0).
+        max_gap_s: a larger gap between IMU samples restarts the filter, s (default 0.5).
+        max_input_age_s: speed / steering older than this are stale, s (default 0.2).
+    """
+
+    cornering_stiffness_front_n_rad: float = 0.0
+    cornering_stiffness_rear_n_rad: float = 0.0
+    vy_process_std_m_s_sqrt_s: float = 0.5
+    yaw_rate_process_std_rad_s_sqrt_s: float = 0.1
+    accel_y_std_m_s2: float = 0.5
+    yaw_rate_std_rad_s: float = 0.005
+    min_speed_m_s: float = 3.0
+    max_gap_s: float = 0.5
+    max_input_age_s: float = 0.2
+
+    def __post_init__(self) -> None:
+        for name in ("cornering_stiffness_front_n_rad", "cornering_stiffness_rear_n_rad"):
+            require_non_negative(name, getattr(self, name))
+        for name in (
+            "vy_process_std_m_s_sqrt_s",
+            "yaw_rate_process_std_rad_s_sqrt_s",
+            "accel_y_std_m_s2",
+            "yaw_rate_std_rad_s",
+            "min_speed_m_s",
+            "max_gap_s",
+            "max_input_age_s",
+        ):
+            require_positive(name, getattr(self, name))
+
+
+@dataclass(frozen=True)
+class LinearLateralEstimate:
+    """Lateral state of the CG: ``vx_m_s``, ``vy_m_s``, ``yaw_rate_rad_s``, ``sideslip_rad``
+    (atan2(vy, vx)), ``covariance`` (3, 3) of [vx, vy, r] (vx: input, variance 0), ``t_ns``."""
+
+    t_ns: int
+    vx_m_s: float
+    vy_m_s: float
+    yaw_rate_rad_s: float
+    sideslip_rad: float
+    covariance: F64
+
+
+class LinearLateralKF:
+    """Kalman filter on [vy_cg, r] with the linear single-track model (see module docstring)."""
+
+    def __init__(self, config: LinearLateralKFConfig, vehicle: VehicleParams) -> None:
+        self.config = config
+        cf = config.cornering_stiffness_front_n_rad or vehicle.cornering_stiffness_front_n_rad
+        cr = config.cornering_stiffness_rear_n_rad or vehicle.cornering_stiffness_rear_n_rad
+        self.params = replace(
+            SingleTrackParams.from_vehicle(vehicle), cf_n_rad=float(cf), cr_n_rad=float(cr)
+        )
+        self.wheel_radius_m = vehicle.nominal_tire_radius_m
+        self.stats: dict[str, int] = {}
+        self._q_density = np.diag(
+            [config.vy_process_std_m_s_sqrt_s**2, config.yaw_rate_process_std_rad_s_sqrt_s**2]
+        )
+        self._r = np.diag([config.accel_y_std_m_s2**2, config.yaw_rate_std_rad_s**2])
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the state and all inputs."""
+        self.x: F64 = np.zeros(2)
+        self.p: F64 = np.diag([1.0, 0.01])
+        self.initialized = False
+        self._vx: float | None = None
+        self._t_vx: int | None = None
+        self._steer: float | None = None
+        self._t_steer: int | None = None
+        self._steer_prev: float | None = None
+        self._t_imu: int | None = None
+
+    def _drop(self, kind: str) -> None:
+        self.stats[kind] = self.stats.get(kind, 0) + 1
+
+    def on_wheel_speeds(self, t_ns: int, wheel_speed_rad_s: Any) -> None:
+        """Wheel speeds (fl, fr, rl, rr), rad/s; vx = mean rear wheel speed x nominal radius."""
+        try:
+            t = stamp_after("wheel speeds", t_ns, self._t_vx)
+            ws = finite_vector(wheel_speed_rad_s, 4, "wheel speeds")
+        except (InputError, TypeError, ValueError) as exc:
+            self._drop(exc.kind if isinstance(exc, InputError) else "bad_value")
+            return
+        self._t_vx, self._vx = t, float(0.5 * (ws[2] + ws[3]) * self.wheel_radius_m)
+
+    def on_velocity(self, t_ns: int, vx_m_s: float) -> None:
+        """Measured longitudinal speed, m/s."""
+        try:
+            t = stamp_after("velocity", t_ns, self._t_vx)
+            v = float(finite_vector(vx_m_s, 1, "velocity")[0])
+        except (InputError, TypeError, ValueError) as exc:
+            self._drop(exc.kind if isinstance(exc, InputError) else "bad_value")
+            return
+        self._t_vx, self._vx = t, v
+
+    def on_steering(self, t_ns: int, angle_rad: float) -> None:
+        """Mean road-wheel steer angle, rad (positive left)."""
+        try:
+            t = stamp_after("steering", t_ns, self._t_steer)
+            a = float(finite_vector(angle_rad, 1, "steering")[0])
+        except (InputError, TypeError, ValueError) as exc:
+            self._drop(exc.kind if isinstance(exc, InputError) else "bad_value")
+            return
+        self._t_steer, self._steer = t, a
+
+    def _fresh(self, last: int | None, t_ns: int) -> bool:
+        return last is not None and (t_ns - last) * 1e-9 <= self.config.max_input_age_s
+
+    def on_imu(self, t_ns: int, gyro_rad_s: Any, accel_m_s2: Any) -> None:
+        """IMU sample in base_link axes: one predict + update step."""
+        try:
+            t = stamp_after("imu", t_ns, self._t_imu)
+            gyro = finite_vector(gyro_rad_s, 3, "gyro")
+            acc = finite_vector(accel_m_s2, 3, "accel")
+        except (InputError, TypeError, ValueError) as exc:
+            self._drop(exc.kind if isinstance(exc, InputError) else "bad_value")
+            return
+        last, self._t_imu = self._t_imu, t
+        if not (self._fresh(self._t_vx, t) and self._vx is not None):
+            self._drop("no_speed")
+            return
+        vx = self._vx
+        delta = self._steer if (self._steer is not None and self._fresh(self._t_steer, t)) else 0.0
+        delta0 = self._steer_prev if self._steer_prev is not None else delta
+        self._steer_prev = delta
+        if vx < self.config.min_speed_m_s:
+            self.initialized = False
+            return
+        dt = None if last is None else (t - last) * 1e-9
+        if dt is not None and dt > self.config.max_gap_s:
+            self._drop("gap")
+            self.initialized = False
+        if not self.initialized:
+            self.x = steady_state(self.params, vx, delta)
+            self.x[1] = float(gyro[2])
+            self.p = np.diag([1.0, self._r[1, 1]])
+            self.initialized = True
+            self._last_vx = vx
+            return
+        assert dt is not None
+        self._predict(dt, vx, delta0, delta)
+        self._update(vx, delta, float(acc[1]), float(gyro[2]))
+        self._last_vx = vx
+
+    def _predict(self, dt: float, vx: float, delta0: float, delta1: float) -> None:
+        a, b = continuous_matrices(self.params, vx)
+        # single-track eq. (23)-(28) discretized with a first-order hold on delta:
+        # E = expm([[A, B, 0], [0, 0, 1], [0, 0, 0]] T), x' = E11 x + E12 delta0 + E13 slope
+        aug = np.zeros((4, 4))
+        aug[:2, :2] = a * dt
+        aug[:2, 2] = b * dt
+        aug[2, 3] = dt
+        e = expm_small(aug)
+        slope = (delta1 - delta0) / dt
+        self.x = e[:2, :2] @ self.x + e[:2, 2] * delta0 + e[:2, 3] * slope
+        f = e[:2, :2]
+        # P' = F P F^T + Q T (white process-noise density, first order in T)
+        self.p = f @ self.p @ f.T + self._q_density * dt
+
+    def _update(self, vx: float, delta: float, ay_m_s2: float, r_meas: float) -> None:
+        p = self.params
+        # ay = (Ff + Fr) / m with eq. (25)-(28): Ff = Cf (delta - (vy + lf r) / vx),
+        # Fr = Cr (lr r - vy) / vx
+        c = np.array(
+            [
+                [
+                    -(p.cf_n_rad + p.cr_n_rad) / (p.mass_kg * vx),
+                    (p.cr_n_rad * p.lr_m - p.cf_n_rad * p.lf_m) / (p.mass_kg * vx),
+                ],
+                [0.0, 1.0],
+            ]
+        )
+        d = np.array([p.cf_n_rad / p.mass_kg, 0.0])
+        innov = np.array([ay_m_s2, r_meas]) - (c @ self.x + d * delta)
+        s = c @ self.p @ c.T + self._r
+        k = np.linalg.solve(s, c @ self.p).T
+        self.x = self.x + k @ innov
+        # Joseph form keeps P symmetric positive definite
+        i_kc = np.eye(2) - k @ c
+        self.p = i_kc @ self.p @ i_kc.T + k @ self._r @ k.T
+
+    def estimate(self) -> LinearLateralEstimate:
+        """Current estimate (zeros before the first step)."""
+        vx = float(self._vx) if self._vx is not None else 0.0
+        cov = np.zeros((3, 3))
+        cov[1:, 1:] = self.p
+        vy, r = float(self.x[0]), float(self.x[1])
+        return LinearLateralEstimate(
+            t_ns=int(self._t_imu or 0),
+            vx_m_s=vx,
+            vy_m_s=vy,
+            yaw_rate_rad_s=r,
+            sideslip_rad=math.atan2(vy, max(vx, 1e-3)),
+            covariance=cov,
+        )
+
+
+__all__ = ["LinearLateralEstimate", "LinearLateralKF", "LinearLateralKFConfig"]

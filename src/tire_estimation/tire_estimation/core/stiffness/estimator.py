@@ -1,0 +1,317 @@
+"""Tyre-stiffness estimator: Algorithm 1 (Berntorp & Di Cairano, IEEE TCST 2018) behind the
+front-end.
+
+:class:`StiffnessEstimator` drives :class:`~tire_estimation.core.stiffness.mpf.StiffnessMpf`
+(through :class:`MpfFilter`) from the asynchronous sensor callbacks of
+:class:`~tire_estimation.core.stiffness.frontend.StiffnessFrontEnd`: the input checks, the
+speed, the activation and the replay at its onset are the front-end's. Added here, for
+Algorithm 1 only: the restart from the start of learning with a recentred prior
+(``activation_restart_s``), the point-mass filter of :mod:`~.stiffness_grid` learning first and
+handing its posterior over (``first_learning`` = ``grid``), the predictive density of the
+measurements, and the learned statistics as a state to save and restore.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import math
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from tire_estimation.core import niw
+from tire_estimation.core.stiffness.config import StiffnessEstimatorConfig
+from tire_estimation.core.stiffness.filter import FilterEstimate, Measurement, StiffnessFilter
+from tire_estimation.core.stiffness.frontend import Step, StiffnessEstimate, StiffnessFrontEnd
+from tire_estimation.core.stiffness.grid import GridConfig, GridEkf, posterior
+from tire_estimation.core.stiffness.model import NAMES
+from tire_estimation.core.stiffness.mpf import StiffnessMpf
+from tire_estimation.core.vehicle import VehicleParams
+from tire_estimation.errors import InputError
+
+F64 = NDArray[np.float64]
+STATE_DICT_VERSION = 1
+
+
+class MpfFilter(StiffnessFilter):
+    """Algorithm 1 (:class:`StiffnessMpf`) as the filter of the front-end.
+
+    Args:
+        mpf: the marginalized particle filter.
+    """
+
+    def __init__(self, mpf: StiffnessMpf) -> None:
+        self.mpf = mpf
+
+    @property  # type: ignore[override]
+    def initialized(self) -> bool:
+        """The MPF has been initialized (cleared by the front-end after a gap)."""
+        return self.mpf.initialized
+
+    @initialized.setter
+    def initialized(self, value: bool) -> None:
+        self.mpf.initialized = value
+
+    def initialize(self, x0: F64, x0_std: F64) -> None:
+        """Particles around ``x0`` with std ``x0_std``, the prior statistics."""
+        self.mpf.initialize(x0, x0_std)
+
+    def predict(self, dt_s: float, learn: bool, learn_cx: bool) -> None:
+        """Time part of Algorithm 1 (eq. 9, 20)."""
+        self.mpf.predict(dt_s, learn, learn_cx)
+
+    def update(self, meas: Measurement, learn: bool, learn_cx: bool) -> None:
+        """Measurement part of Algorithm 1; a measured vX goes in as the MPF's speed input."""
+        vx_m_s = meas.speed_m_s if meas.vx_measured else None
+        self.mpf.update(meas.y, meas.delta_rad, meas.wheel_speed_m_s, learn, vx_m_s, learn_cx)
+
+    def estimate(self) -> FilterEstimate:
+        """Estimates (27) of the stiffness and (42) of the state, the mean IMU bias."""
+        e = self.mpf.estimate()
+        return FilterEstimate(
+            stiffness=e.stiffness,
+            stiffness_std=e.stiffness_std,
+            state=e.state,
+            state_cov=e.state_cov,
+            n_eff=e.n_eff,
+            bias=e.bias,
+        )
+
+
+class StiffnessEstimator(StiffnessFrontEnd[MpfFilter]):
+    """Algorithm 1 behind the front-end.
+
+    Args:
+        config: :class:`StiffnessEstimatorConfig`.
+        vehicle: :class:`VehicleParams` (geometry, nominal stiffness, drive).
+        rng: random generator of every draw.
+    """
+
+    config: StiffnessEstimatorConfig
+
+    def __init__(
+        self,
+        config: StiffnessEstimatorConfig,
+        vehicle: VehicleParams,
+        rng: np.random.Generator,
+    ) -> None:
+        #: times the filter restarted from the start of learning with a recentred prior
+        #: (``activation_restart_s``)
+        self.restart_count = 0
+        #: times the grid handed its posterior to Algorithm 1 (``first_learning`` = ``grid``)
+        self.handover_count = 0
+        #: times the grid was dropped by its NIS gate (mean NIS above ``grid_handover_max_nis``:
+        #: its model does not fit the data, or no longer), before or after the hand-over
+        self.grid_rejection_count = 0
+        super().__init__(config, vehicle, rng)
+
+    def make_filter(self) -> MpfFilter:
+        """A fresh :class:`StiffnessMpf`."""
+        return MpfFilter(StiffnessMpf(self.config, self.params, self.rng))
+
+    @property
+    def mpf(self) -> StiffnessMpf:
+        """Algorithm 1's filter."""
+        return self.filter.mpf
+
+    @mpf.setter
+    def mpf(self, mpf: StiffnessMpf) -> None:
+        self.filter.mpf = mpf
+
+    def reset(self) -> None:
+        """Forget everything learned and all inputs."""
+        super().reset()
+        # activation_restart_s: armed while the statistics are the prior's; the copy of the
+        # filter taken when learning started, its stamp, and the learning steps since
+        self._restart_armed = (
+            self.config.activation_restart_s > 0.0 and self.config.first_learning == "mpf"
+        )
+        self._restart_copy: MpfFilter | None = None
+        self._restart_t0_ns = 0
+        self._restart_steps: list[Step] = []
+        # first_learning = grid: the point-mass filter that learns first (None once dropped)
+        self._grid: GridEkf | None = None
+        self._handed_over = False
+        if self.config.first_learning == "grid":
+            self._grid = GridEkf(GridConfig.sharing(self.config), self.params)
+
+    # ------------------------------------------------------------------ front-end hooks
+    def _on_initialize(self, x0: F64, x0_std: F64) -> None:
+        if self._grid is not None and self._handed_over:
+            # Algorithm 1 keeps its learned statistics: a grid from the prior must not be
+            # published over them
+            self._grid = None
+        elif self._grid is not None:
+            self._grid.initialize(x0, x0_std)
+        # a restart must not bring back the state from before the re-initialization
+        self._abandon_restart()
+
+    def _start_learning(self, t_ns: int) -> None:
+        """Learning starts at ``t_ns``: rewind (``activation_replay_s``), keep the copy for a
+        restart (``activation_restart_s``), run the rewound steps with learning on."""
+        steps = self._rewind()
+        if self._restart_armed:
+            memo = {id(obj): obj for obj in self.shared}
+            self._restart_copy = copy.deepcopy(self.filter, memo)
+            self._restart_t0_ns = t_ns
+            self._restart_steps = list(steps)
+        self._learn_steps(steps)
+
+    def _on_learning_stopped(self) -> None:
+        # learning stopped before the restart: the statistics are no longer the prior's
+        self._abandon_restart()
+
+    def _after_step(self, t_ns: int, dt_s: float | None, meas: Measurement) -> None:
+        if self._grid is not None:
+            self._grid_step(dt_s, meas)
+        if self._restart_copy is not None:
+            self._restart_steps.append((dt_s, meas, self._cx_active))
+            if (t_ns - self._restart_t0_ns) * 1e-9 >= self.config.activation_restart_s:
+                self._restart()
+
+    # ------------------------------------------------------------------ first_learning = grid
+    def _grid_step(self, dt: float | None, meas: Measurement) -> None:
+        """``first_learning`` = ``grid``: one step of the grid with the MPF's inputs and learning
+        flags. Once it has learned ``grid_handover_s``: dropped whenever its mean NIS is above
+        ``grid_handover_max_nis``; else the hand-over, and the grid goes on (published) until it
+        has learned ``grid_publish_s``."""
+        grid = self._grid
+        assert grid is not None
+        if dt is not None:
+            grid.predict(dt, self._active, self._cx_active)
+        grid.update(meas, self._active, self._cx_active)
+        c = self.config
+        if grid.learned_s < c.grid_handover_s:
+            return
+        if grid.nis_mean > c.grid_handover_max_nis:
+            # the grid's model does not fit these data (or no longer: the stiffness changed):
+            # no hand-over, or no more publishing; Algorithm 1 goes on
+            self._grid = None
+            self.grid_rejection_count += 1
+        elif not self._handed_over:
+            self._hand_over()
+        elif grid.learned_s >= c.grid_publish_s:
+            self._grid = None
+
+    def _hand_over(self) -> None:
+        """The grid's posterior of ``(Cy_f, Cy_r)`` becomes Algorithm 1's NiW statistics
+        (:func:`niw.stats_from_moments`, as a restored state): the grid's mean, and ``gamma`` such
+        that ``gamma E[Sigma]`` has the trace of the grid's covariance over the two cornering
+        stiffnesses (the NiW shares one ``gamma``: Cx's prior uncertainty must not set it); Cx,
+        the expected noise covariance and the dof as the MPF has them."""
+        assert self._grid is not None
+        m, cov = posterior(self._grid)
+        est = niw.mmse(self.mpf.stats, self.mpf.weights)
+        mean = est.mean.copy()
+        mean[1:] = m
+        gamma = np.trace(cov) / max(float(np.trace(est.noise_cov[1:, 1:])), 1e-300)
+        self.mpf.stats = niw.stats_from_moments(
+            self.mpf.n, mean, gamma * est.noise_cov, est.noise_cov, est.dof
+        )
+        self._handed_over = True
+        if self._grid.learned_s >= self.config.grid_publish_s:
+            self._grid = None
+        self.handover_count += 1
+
+    # ------------------------------------------------------------------ activation_restart_s
+    def _abandon_restart(self) -> None:
+        """No restart of this learning phase (learning stopped, or the filter re-initialized
+        before ``activation_restart_s``); none later either, once anything was learned."""
+        if self._restart_copy is not None:
+            self._restart_armed = False
+        self._restart_copy = None
+        self._restart_steps = []
+
+    def _restart(self) -> None:
+        """``activation_restart_s`` after learning started: go back to the copy taken then,
+        move its prior mean to the current estimate and learn the steps since again.
+
+        Empirical Bayes (not in the paper): the prior keeps its width (``gamma_0 E[Sigma]``,
+        ``initial_stiffness_std_fraction`` of nominal), only its centre moves from the initial
+        guess to what the first seconds of excitation say, so the estimate no longer carries
+        the initial guess once the filter's statistics have narrowed.
+        """
+        restart, steps = self._restart_copy, self._restart_steps
+        assert restart is not None
+        # eq. (27a) mu_hat = sum q_i mu_i: the new centre of every particle's prior mean
+        restart.mpf.stats.mean[...] = self.mpf.weights @ self.mpf.stats.mean
+        self.filter = restart
+        self._restart_copy, self._restart_steps = None, []
+        self._restart_armed = False
+        self._learn_steps(steps)
+        self.restart_count += 1
+
+    # ------------------------------------------------------------------ outputs
+    def estimate(self) -> StiffnessEstimate:
+        """Current estimate (see :class:`StiffnessEstimate`)."""
+        e = self.filter.estimate()
+        if self._grid is not None and self._grid.learned_s > 0.0:
+            # first_learning = grid: the grid's cornering stiffness until the hand-over, or until
+            # grid_publish_s
+            g = self._grid.estimate()
+            e = dataclasses.replace(
+                e,
+                stiffness=np.concatenate([e.stiffness[:1], g.stiffness[1:]]),
+                stiffness_std=np.concatenate([e.stiffness_std[:1], g.stiffness_std[1:]]),
+            )
+        return self._published(
+            e, mean_log_predictive=self.mpf.log_evidence / max(self.mpf.evidence_steps, 1)
+        )
+
+    def state_dict(self) -> dict[str, Any]:
+        """Learned stiffness statistics (JSON-serializable)."""
+        est = niw.mmse(self.mpf.stats, self.mpf.weights)
+        return {
+            "version": STATE_DICT_VERSION,
+            "vehicle": self.vehicle.name,
+            "names": list(NAMES),
+            "nominal": self.mpf.nominal.tolist(),
+            "mean": est.mean.tolist(),
+            "mean_cov": est.mean_cov.tolist(),
+            "noise_cov": est.noise_cov.tolist(),
+            "dof": float(est.dof),
+        }
+
+    def load_state_dict(self, d: Mapping[str, Any]) -> None:
+        """Restore :meth:`state_dict` output; raises InputError (kind ``state``) if invalid."""
+        try:
+            if d.get("vehicle") != self.vehicle.name:
+                raise InputError("state", f"state of vehicle {d.get('vehicle')!r}")
+            # the learned part is relative to the nominal stiffness (eq. 7): a state learned
+            # with other nominal values would be restored as the wrong stiffness
+            nominal = np.asarray(d["nominal"], dtype=float).reshape(3)
+            if not np.allclose(nominal, self.mpf.nominal, rtol=1e-6, atol=0.0):
+                raise InputError(
+                    "state",
+                    f"state learned with nominal stiffness {nominal.tolist()}, now "
+                    f"{self.mpf.nominal.tolist()}",
+                )
+            dof = float(d["dof"])
+            if not math.isfinite(dof) or dof <= 4.0:
+                raise InputError("state", f"invalid dof {dof}")
+            stats = niw.stats_from_moments(
+                self.mpf.n,
+                np.asarray(d["mean"], dtype=float).reshape(3),
+                np.asarray(d["mean_cov"], dtype=float).reshape(3, 3),
+                np.asarray(d["noise_cov"], dtype=float).reshape(3, 3),
+                dof,
+            )
+            if not all(np.all(np.isfinite(a)) for a in (stats.mean, stats.scale, stats.gamma)):
+                raise InputError("state", "non-finite statistics")
+        except InputError:
+            raise
+        except (KeyError, TypeError, ValueError, AttributeError) as exc:
+            raise InputError("state", f"malformed stiffness state: {exc}") from exc
+        self.mpf.stats = stats
+        # a copy taken before would bring the old statistics back on the next activation
+        self._replay.clear()
+        # restored statistics are learned, not a prior to recentre or to learn on a grid
+        self._restart_copy, self._restart_steps = None, []
+        self._restart_armed = False
+        self._grid = None
+
+
+__all__ = ["MpfFilter", "StiffnessEstimate", "StiffnessEstimator"]
