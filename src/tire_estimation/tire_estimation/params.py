@@ -15,6 +15,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, TypeVar
 
+from tire_estimation.core.validation import Rule
 from tire_estimation.errors import ConfigError
 
 T = TypeVar("T")
@@ -32,6 +33,52 @@ class ParameterSpec:
     unit: str
     range: tuple[float, float] | None
     choices: tuple[str, ...] | None = None
+    rule: Rule | None = None
+
+    def summary(self) -> str:
+        """Unit and allowed values in one phrase: ``m; in [0, 0.05]``."""
+        parts = [self.unit] if self.unit else []
+        if self.rule is not None:
+            parts.append(self.rule.text())
+        elif self.choices:
+            parts.append("one of (" + ", ".join(self.choices) + ")")
+        return "; ".join(parts)
+
+
+# unit of a field from the suffix of its name (the longest suffix that matches)
+_UNIT_SUFFIXES: dict[str, str] = {
+    "_m": "m",
+    "_s": "s",
+    "_rad": "rad",
+    "_n": "N",
+    "_kg": "kg",
+    "_m_s": "m/s",
+    "_m_s2": "m/s^2",
+    "_rad_s": "rad/s",
+    "_n_rad": "N/rad",
+    "_n_s2_m2": "N s^2/m^2",
+    "_kg_m2": "kg m^2",
+    "_m_sqrt_s": "m/sqrt(s)",
+    "_rad_sqrt_s": "rad/sqrt(s)",
+    "_m_s_sqrt_s": "m/s/sqrt(s)",
+    "_m_s2_sqrt_s": "m/s^2/sqrt(s)",
+    "_rad_s_sqrt_s": "rad/s/sqrt(s)",
+    "_m2_s2": "m^2/s^2",
+    "_rad2_s2": "rad^2/s^2",
+    "_n2": "N^2",
+    "_s2_per_m": "s^2/m",
+    "_m_per_n": "m/N",
+    "_m_per_m2_s2": "m/(m/s)^2",
+}
+
+
+def unit_of(name: str) -> str:
+    """The unit a field's name carries (``dt_s`` -> ``s``), or ``""``."""
+    best = ""
+    for suffix in _UNIT_SUFFIXES:
+        if name.endswith(suffix) and len(suffix) > len(best):
+            best = suffix
+    return _UNIT_SUFFIXES.get(best, "")
 
 
 def attribute_docs(cls: type) -> dict[str, str]:
@@ -79,6 +126,7 @@ def parameter_specs(cls: type, prefix: str) -> list[ParameterSpec]:
     """Specs of every scalar field of dataclass ``cls`` (nested dataclasses are not expanded)."""
     hints = typing.get_type_hints(cls)
     docs = attribute_docs(cls)
+    rules: Mapping[str, Rule] = getattr(cls, "RULES", {})
     specs = []
     for f in dataclasses.fields(cls):
         if f.default is dataclasses.MISSING:
@@ -97,8 +145,13 @@ def parameter_specs(cls: type, prefix: str) -> list[ParameterSpec]:
                 continue
             default = [float(v) for v in default]
         meta = f.metadata
+        rule = rules.get(f.name)
         rng = meta.get("range")
         choices = meta.get("choices")
+        if rule is not None and rng is None and rule.kind in ("range", "int_range"):
+            rng = (rule.low, rule.high)
+        if rule is not None and choices is None and rule.kind == "choice":
+            choices = rule.choices
         specs.append(
             ParameterSpec(
                 name=f"{prefix}.{f.name}" if prefix else f.name,
@@ -106,9 +159,10 @@ def parameter_specs(cls: type, prefix: str) -> list[ParameterSpec]:
                 default=default,
                 kind=kind,
                 doc=str(meta.get("doc", docs.get(f.name, ""))),
-                unit=str(meta.get("unit", "")),
+                unit=str(meta.get("unit", unit_of(f.name))),
                 range=(float(rng[0]), float(rng[1])) if rng else None,
                 choices=tuple(choices) if choices else None,
+                rule=rule,
             )
         )
     return specs
@@ -148,6 +202,18 @@ def build_config(cls: type[T], prefix: str, values: Mapping[str, Any]) -> T:
         raise type(exc)(f"{prefix}.{exc.field}", exc.value, exc.reason) from exc
 
 
+def first_sentence(doc: str) -> str:
+    """The first sentence of a field's description: the one-line text of the parameter file."""
+    text = " ".join(doc.split())
+    depth = 0
+    for i, ch in enumerate(text):
+        depth += ch in "([{"
+        depth -= ch in ")]}"
+        if ch == "." and depth == 0 and (i + 1 == len(text) or text[i + 1] == " "):
+            return text[: i + 1]
+    return text
+
+
 def _yaml_value(value: Any) -> str:
     import yaml
 
@@ -167,7 +233,8 @@ def render_params_yaml(node_name: str, sections: list[tuple[str, type, str]]) ->
     """
     lines = [
         f"# Parameters of {node_name}: every parameter with its default.",
-        "# Units are in the names (_m, _s, _m_s, _rad, ...) and in the comments.",
+        "# Each parameter: [unit; allowed values] and what it sets; the full description is in",
+        "# the configuration dataclass's docstring and in `ros2 param describe`.",
         "# Generated from the configuration dataclasses by",
         f"#   python -m tire_estimation.params {node_name} > "
         f"src/tire_estimation/config/{node_name.removesuffix('_node')}.yaml",
@@ -178,8 +245,9 @@ def render_params_yaml(node_name: str, sections: list[tuple[str, type, str]]) ->
     for prefix, cls, title in sections:
         lines.append(f"    # --- {title}")
         for spec in parameter_specs(cls, prefix):
-            doc = " ".join(spec.doc.split())
-            words = doc.split(" ")
+            doc = first_sentence(spec.doc)
+            summary = spec.summary()
+            words = (f"[{summary}] {doc}" if summary else doc).split(" ")
             line = "    #"
             for word in words:
                 if len(line) + 1 + len(word) > 99:

@@ -7,7 +7,9 @@ naming the field and its value.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+from typing import Any
 
 from tire_estimation.errors import ConfigError
 
@@ -64,3 +66,76 @@ def require_choice(
     allowed = tuple(choices)
     if value not in allowed:
         raise error(field, value, f"must be one of {allowed}")
+
+
+@dataclass(frozen=True)
+class Rule:
+    """What a configuration field must hold; a config class lists one per field in ``RULES``.
+
+    ``kind`` is ``finite``, ``positive`` (> 0), ``non_negative`` (>= 0), ``range`` (a number in
+    ``[low, high]``), ``int_range`` (an integer in ``[low, high]``) or ``choice`` (one of
+    ``choices``). The node's parameter descriptors and the generated parameter file read the
+    same rules, so the range a user sees is the one that is checked.
+    """
+
+    kind: str
+    low: float | None = None
+    high: float | None = None
+    choices: tuple[str, ...] | None = None
+
+    def check(self, field: str, value: Any, error: type[ConfigError] = ConfigError) -> None:
+        """Raise ``error`` naming ``field`` and ``value`` unless ``value`` obeys the rule."""
+        if self.kind == "finite":
+            require_finite(field, value, error)
+        elif self.kind == "positive":
+            require_positive(field, value, error)
+        elif self.kind == "non_negative":
+            require_non_negative(field, value, error)
+        elif self.kind == "range":
+            require_range(field, value, float(self.low), float(self.high), error)  # type: ignore[arg-type]
+        elif self.kind == "int_range":
+            require_int_range(field, value, int(self.low), int(self.high), error)  # type: ignore[arg-type]
+        elif self.kind == "choice":
+            require_choice(field, value, self.choices or (), error)
+        else:  # pragma: no cover - a rule built outside the constructors below
+            raise ValueError(f"unknown rule kind {self.kind!r}")
+
+    def text(self) -> str:
+        """The rule as a user reads it: ``in [0, 1]``, ``> 0``, ``one of (a, b)``."""
+        if self.kind == "finite":
+            return "finite"
+        if self.kind == "positive":
+            return "> 0"
+        if self.kind == "non_negative":
+            return ">= 0"
+        if self.kind in ("range", "int_range"):
+            return f"in [{self.low:g}, {self.high:g}]"
+        return "one of (" + ", ".join(self.choices or ()) + ")"
+
+
+FINITE = Rule("finite")
+POSITIVE = Rule("positive")
+NON_NEGATIVE = Rule("non_negative")
+
+
+def in_range(low: float, high: float) -> Rule:
+    """A number within ``[low, high]``."""
+    return Rule("range", float(low), float(high))
+
+
+def int_in_range(low: int, high: int) -> Rule:
+    """An integer within ``[low, high]``."""
+    return Rule("int_range", int(low), int(high))
+
+
+def one_of(choices: Iterable[str]) -> Rule:
+    """One of ``choices``."""
+    return Rule("choice", choices=tuple(choices))
+
+
+def check_rules(
+    config: object, rules: Mapping[str, Rule], error: type[ConfigError] = ConfigError
+) -> None:
+    """Check every field of ``config`` named in ``rules`` (in the order of ``rules``)."""
+    for name, rule in rules.items():
+        rule.check(name, getattr(config, name), error)
