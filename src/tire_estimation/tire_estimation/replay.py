@@ -26,7 +26,7 @@ import yaml
 from tire_estimation.bag import topics
 from tire_estimation.bag.reader import BagData, TopicInfo, read_bag
 from tire_estimation.core import yamlio
-from tire_estimation.core.deflation.detector import DeflationDetectorConfig
+from tire_estimation.core.deflation.config import DeflationDetectorConfig
 from tire_estimation.core.geodesy import LocalTangentPlane
 from tire_estimation.core.lateral.linear_kf import LinearLateralKF, LinearLateralKFConfig
 from tire_estimation.core.lateral.tyre_force_kf import TyreForceKFConfig
