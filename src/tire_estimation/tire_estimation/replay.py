@@ -437,7 +437,7 @@ def run_replay(
     stale.unlink(missing_ok=True)
     sections = load_config_sections(config_path)
     cfg = config if config is not None else load_radius_config(config_path)
-    tyre_cfg = TyreForceKFConfig.from_dict(sections.get("tyre_force", {}))
+    tyre_cfg = section_config(TyreForceKFConfig, "tyre_force", sections.get("tyre_force", {}))
     stiff_cfg = section_config(
         StiffnessEstimatorConfig, "stiffness", sections.get("stiffness", {})
     )

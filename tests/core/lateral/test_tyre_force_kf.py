@@ -39,6 +39,7 @@ from tire_estimation.core.lateral.virtual_tyre import (
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.errors import ConfigError
 from tire_estimation.evaluation import lateral_tyre
+from tire_estimation.replay import section_config
 from tire_estimation.sim import SensorConfig, simulate
 
 ALL_WHEELS = ("wheel_fl", "wheel_fr", "wheel_rl", "wheel_rr")
@@ -239,8 +240,8 @@ def test_config_errors_name_the_field() -> None:
     with pytest.raises(ConfigError, match=r"min_speed_m_s=0\.1"):
         TyreForceKFConfig(min_speed_m_s=0.1)
     with pytest.raises(ConfigError, match="nope"):
-        TyreForceKFConfig.from_dict({"nope": 1})
-    assert TyreForceKFConfig.from_dict({"max_gap_s": 2}).max_gap_s == 2.0
+        section_config(TyreForceKFConfig, "tyre_force", {"nope": 1})
+    assert section_config(TyreForceKFConfig, "tyre_force", {"max_gap_s": 2}).max_gap_s == 2.0
 
 
 def test_every_config_field_is_documented_with_a_default() -> None:

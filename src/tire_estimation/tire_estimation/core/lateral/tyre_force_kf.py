@@ -34,7 +34,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -149,22 +148,6 @@ class TyreForceKFConfig:
             if value > 1e12:
                 raise ConfigError(f.name, value, "must be <= 1e12")
         require_range("min_speed_m_s", self.min_speed_m_s, 0.5, 100.0)
-
-    @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> TyreForceKFConfig:
-        """Build from a mapping (e.g. ROS parameters); unknown keys raise ConfigError."""
-        if not isinstance(data, Mapping):
-            raise ConfigError("tyre_force_kf", data, "must be a mapping")
-        names = {f.name for f in dataclasses.fields(cls)}
-        unknown = sorted(set(data) - names)
-        if unknown:
-            raise ConfigError(unknown[0], data[unknown[0]], "unknown key")
-        kwargs: dict[str, Any] = {}
-        for key, value in data.items():
-            if isinstance(value, int) and not isinstance(value, bool):
-                value = float(value)
-            kwargs[key] = value
-        return cls(**kwargs)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain mapping of every field."""
