@@ -94,7 +94,7 @@ def periods_of(options: EstimatorNodeOptions) -> PublishPeriods:
 @dataclass(frozen=True)
 class DetectorNodeOptions:
     """ROS-side options of ``detector_node`` (the CUSUM itself:
-    :class:`~tire_estimation.core.deflation.detector.DeflationDetectorConfig`).
+    :class:`~tire_estimation.core.deflation.config.DeflationDetectorConfig`).
 
     Attributes:
         vehicle_file: path of a vehicle.yaml giving the vehicle name; empty = use

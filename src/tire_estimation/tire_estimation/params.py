@@ -288,7 +288,7 @@ def estimator_sections() -> list[tuple[str, type, str]]:
 
 def detector_sections() -> list[tuple[str, type, str]]:
     """The parameter sections of ``detector_node`` (node options, vehicle identity, CUSUM)."""
-    from tire_estimation.core.deflation.detector import DeflationDetectorConfig
+    from tire_estimation.core.deflation.config import DeflationDetectorConfig
     from tire_estimation.node_config import DetectorNodeOptions, VehicleIdentity
 
     return [

@@ -26,7 +26,7 @@ import yaml
 from tire_estimation.bag import topics
 from tire_estimation.bag.reader import BagData, TopicInfo, read_bag
 from tire_estimation.core import yamlio
-from tire_estimation.core.deflation.detector import DeflationDetectorConfig
+from tire_estimation.core.deflation.config import DeflationDetectorConfig
 from tire_estimation.core.geodesy import LocalTangentPlane
 from tire_estimation.core.lateral.linear_kf import LinearLateralKF, LinearLateralKFConfig
 from tire_estimation.core.lateral.tyre_force_kf import TyreForceKFConfig
@@ -437,7 +437,7 @@ def run_replay(
     stale.unlink(missing_ok=True)
     sections = load_config_sections(config_path)
     cfg = config if config is not None else load_radius_config(config_path)
-    tyre_cfg = TyreForceKFConfig.from_dict(sections.get("tyre_force", {}))
+    tyre_cfg = section_config(TyreForceKFConfig, "tyre_force", sections.get("tyre_force", {}))
     stiff_cfg = section_config(
         StiffnessEstimatorConfig, "stiffness", sections.get("stiffness", {})
     )

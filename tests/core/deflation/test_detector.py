@@ -8,14 +8,15 @@ import math
 import numpy as np
 import pytest
 
-from tire_estimation.core.deflation.detector import (
+from tire_estimation.core.deflation.config import DeflationDetectorConfig
+from tire_estimation.core.deflation.detector import DeflationDetector
+from tire_estimation.core.deflation.status import (
     ALL_WHEELS,
     CalibrationState,
-    DeflationDetector,
-    DeflationDetectorConfig,
     Level,
-    run_detector_over_trace,
+    RadiusErrors,
 )
+from tire_estimation.core.deflation.trace import run_detector_over_trace
 from tire_estimation.errors import ConfigError, InputError
 from tire_estimation.params import build_config, parameter_specs
 from tire_estimation.persistence import Identity, load_state, save_state
@@ -44,6 +45,12 @@ def plain_config(**kw: object) -> DeflationDetectorConfig:
     return DeflationDetectorConfig(**base)  # type: ignore[arg-type]
 
 
+def step(det: DeflationDetector, **args: object):
+    """``det.step`` with the fields of :class:`RadiusErrors`, ``speed_m_s`` and ``braking``."""
+    speed, braking = args.pop("speed_m_s"), args.pop("braking")
+    return det.step(RadiusErrors(**args), speed, braking)  # type: ignore[arg-type]
+
+
 def feed(det: DeflationDetector, t_s: float, mu: tuple[float, ...], **kw: object):
     args: dict[str, object] = {
         "wheel_names": REAR,
@@ -53,7 +60,7 @@ def feed(det: DeflationDetector, t_s: float, mu: tuple[float, ...], **kw: object
         "braking": False,
     }
     args.update(kw)
-    return det.step(T0 + round(t_s * S), radius_error_m=mu, **args)  # type: ignore[arg-type]
+    return step(det, t_ns=T0 + round(t_s * S), radius_error_m=mu, **args)
 
 
 def estimator_like_trace(
@@ -358,7 +365,7 @@ def test_bad_samples_are_dropped_and_counted(kwargs: dict, kind: str) -> None:
         "braking": False,
     }
     args.update(kwargs)
-    st = det.step(**args)
+    st = step(det, **args)
     assert not st.accepted
     assert det.stats[kind] == 1
     assert det.stats["accepted"] == 1
@@ -380,9 +387,10 @@ def test_state_dict_round_trip_through_the_persistence_file(tmp_path) -> None:
     a = DeflationDetector(cfg)
     split = 260 * 2
     for i in range(split):
-        a.step(
-            int(trace["t_ns"][i]), REAR, trace["mu"][i], trace["std"][i], (True, True), V_OK, False
+        radii = RadiusErrors(
+            int(trace["t_ns"][i]), REAR, trace["mu"][i], trace["std"][i], (True,) * 2
         )
+        a.step(radii, V_OK, False)
     assert a.calibration_state == CalibrationState.DONE
     identity = Identity("car", "summer")
     path = tmp_path / "deflation.json"
@@ -393,9 +401,11 @@ def test_state_dict_round_trip_through_the_persistence_file(tmp_path) -> None:
     b.load_state_dict(state)
     assert b.state_dict() == a.state_dict()
     for i in range(split, len(trace["t_ns"])):
-        args = (int(trace["t_ns"][i]), REAR, trace["mu"][i], trace["std"][i], (True, True))
-        sa = a.step(*args, V_OK, False)
-        sb = b.step(*args, V_OK, False)
+        radii = RadiusErrors(
+            int(trace["t_ns"][i]), REAR, trace["mu"][i], trace["std"][i], (True,) * 2
+        )
+        sa = a.step(radii, V_OK, False)
+        sb = b.step(radii, V_OK, False)
         assert sa == sb
     assert sa.wheel("wheel_rl").alarm
 
@@ -443,15 +453,14 @@ def test_run_detector_over_trace_matches_stepping_and_reports_history() -> None:
     for i in range(len(trace["t_ns"])):
         cols = [j for j in range(2) if np.isfinite(trace["mu"][i, j])]
         sp = trace["speed"][i]
-        st = det.step(
+        radii = RadiusErrors(
             int(trace["t_ns"][i]),
             [REAR[j] for j in cols],
             trace["mu"][i, cols],
             trace["std"][i, cols],
             [True] * len(cols),
-            None if np.isnan(sp) else float(sp),
-            False,
         )
+        st = det.step(radii, None if np.isnan(sp) else float(sp), False)
         alarms += [(w.wheel_name, w.alarm_t_ns) for w in st.wheels if w.alarm_t_ns == st.t_ns]
         if st.common is not None and st.common.alarm_t_ns == st.t_ns:
             alarms.append((ALL_WHEELS, st.common.alarm_t_ns))

@@ -33,13 +33,11 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from tire_estimation.core.deflation.detector import DeflationDetectorConfig
+from tire_estimation.core.deflation.config import DeflationDetectorConfig
 from tire_estimation.core.deflation.monitor import DeflationMonitor, MonitorConfig, MonitorStep
-from tire_estimation.core.lateral.tyre_force_kf import (
-    LateralEstimate,
-    TyreForceEstimator,
-    TyreForceKFConfig,
-)
+from tire_estimation.core.deflation.status import RadiusErrors
+from tire_estimation.core.lateral.estimate import LateralEstimate
+from tire_estimation.core.lateral.tyre_force_kf import TyreForceEstimator, TyreForceKFConfig
 from tire_estimation.core.ordering import ReorderBuffer
 from tire_estimation.core.radius.axle_check import AxleCheck
 from tire_estimation.core.radius.config import RadiusEstimatorConfig
@@ -341,8 +339,6 @@ class EstimationPipeline:
             gyro, acc = sample.angular_velocity_rad_s, sample.linear_acceleration_m_s2
             if self.radius is not None:
                 self.radius.on_imu(t, gyro, acc)
-            if self.tyre_force is not None:
-                self.tyre_force.on_imu(t, gyro, acc)
             for est in self._lateral_imu:
                 est.on_imu(t, gyro, acc)
             if self.stiffness is not None:
@@ -417,13 +413,14 @@ class EstimationPipeline:
             if self.outputs:
                 self._emit(RadiiOutput(t_ns, est), out)
             if monitor is not None:
-                step = monitor.on_radii(
+                radii = RadiusErrors(
                     t_ns,
                     est.wheels,
                     [float(v) for v in est.radius_error_m],
                     [float(v) for v in est.radius_error_std_m],
                     [bool(v) for v in est.active],
                 )
+                step = monitor.on_radii(radii)
                 if step is not None:
                     self._emit(DeflationOutput(t_ns, step), out)
 

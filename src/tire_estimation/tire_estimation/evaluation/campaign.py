@@ -273,7 +273,7 @@ def braking_signal(
 
 
 def _detector_config(spec: CaseSpec) -> Any:
-    from tire_estimation.core.deflation.detector import DeflationDetectorConfig
+    from tire_estimation.core.deflation.config import DeflationDetectorConfig
 
     cal = float(spec.detector_calibration_s)
     kwargs: dict[str, Any] = {
@@ -308,7 +308,8 @@ def _f(x: Any) -> float | None:
 
 def _evaluate_detection(spec: CaseSpec, run: _Run, method: str) -> dict[str, Any]:
     """Run a fresh CUSUM over one method's trace; flat result fields prefixed by ``method``."""
-    from tire_estimation.core.deflation.detector import ALL_WHEELS, run_detector_over_trace
+    from tire_estimation.core.deflation.status import ALL_WHEELS
+    from tire_estimation.core.deflation.trace import run_detector_over_trace
 
     if method == "mpf":
         wheels, mu, std, act = run.wheel_names, run.mpf_m, run.mpf_std_m, run.active
@@ -917,7 +918,7 @@ def split_alarms(row: dict[str, Any], method: str) -> tuple[int, int]:
     counted in ``false_alarms`` (wheel level). A common-channel alarm (wheel ``all_wheels``)
     names no tyre: a false warning before the event or without one, neither after it.
     """
-    from tire_estimation.core.deflation.detector import ALL_WHEELS
+    from tire_estimation.core.deflation.status import ALL_WHEELS
 
     text = row.get(method + "_alarms") or ""
     event = row.get("event_s")
@@ -1546,7 +1547,7 @@ def _cmd_redetect(args: argparse.Namespace) -> int:
 
 
 def _detector_options(items: Sequence[tuple[str, Any]] | None) -> dict[str, Any]:
-    from tire_estimation.core.deflation.detector import DeflationDetectorConfig
+    from tire_estimation.core.deflation.config import DeflationDetectorConfig
 
     names = {f.name for f in dataclasses.fields(DeflationDetectorConfig)}
     out = dict(items or [])

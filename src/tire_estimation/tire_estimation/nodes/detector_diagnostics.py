@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 
-from tire_estimation.core.deflation.detector import Level, WheelDeflationData
+from tire_estimation.core.deflation.status import Level, WheelDeflationData
 
 _DIAG_LEVEL = {
     Level.OK: DiagnosticStatus.OK,

@@ -25,11 +25,9 @@ from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from std_srvs.srv import Trigger
 
-from tire_estimation.core.deflation.detector import (
-    DeflationDetectorConfig,
-    DeflationStatusData,
-)
+from tire_estimation.core.deflation.config import DeflationDetectorConfig
 from tire_estimation.core.deflation.monitor import DeflationMonitor, MonitorConfig
+from tire_estimation.core.deflation.status import DeflationStatusData, RadiusErrors
 from tire_estimation.core.vehicle import load_vehicle_yaml
 from tire_estimation.errors import InputError, TireEstimationError
 from tire_estimation.node_config import DetectorNodeOptions
@@ -170,13 +168,14 @@ class DetectorNode(Node):
 
     def _on_radii(self, msg: TireRadii) -> None:
         t_ns = conv.stamp_ns(msg.header)
-        step = self.monitor.on_radii(
+        radii = RadiusErrors(
             t_ns,
             list(msg.wheel_names),
             list(msg.radius_error_m),
             list(msg.radius_error_std_m),
             list(msg.active),
         )
+        step = self.monitor.on_radii(radii)
         if step is None:
             return
         status = step.status

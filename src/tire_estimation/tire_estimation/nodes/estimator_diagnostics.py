@@ -128,7 +128,6 @@ def _tyre_force_status(
         "received.tire_forces": str(n),
         "lateral_velocity_m_s": f"{float(est.vy_m_s):.3f}",
         "yaw_rate_rad_s": f"{float(est.yaw_rate_rad_s):.4f}",
-        "virtual_sensor_method": lateral.config.virtual_sensor_method,
     }
     for key, count in sorted(lateral.stats.items()):
         values[f"dropped.core.{key}"] = str(count)

@@ -7,7 +7,7 @@ import math
 import numpy as np
 from nav_msgs.msg import Odometry
 
-from tire_estimation.core.lateral.tyre_force_kf import LateralEstimate
+from tire_estimation.core.lateral.estimate import LateralEstimate
 from tire_estimation.core.radius.estimator import RadiusEstimate
 from tire_estimation.core.stiffness.estimator import StiffnessEstimate
 from tire_estimation.nodes.conversions import ns_to_stamp

@@ -11,14 +11,14 @@ from __future__ import annotations
 
 import math
 from collections import Counter
-from collections.abc import Sequence
 from dataclasses import dataclass
 
-from tire_estimation.core.deflation.detector import (
+from tire_estimation.core.deflation.config import DeflationDetectorConfig
+from tire_estimation.core.deflation.detector import DeflationDetector
+from tire_estimation.core.deflation.status import (
     CalibrationState,
-    DeflationDetector,
-    DeflationDetectorConfig,
     DeflationStatusData,
+    RadiusErrors,
 )
 from tire_estimation.core.validation import require_positive
 from tire_estimation.errors import InputError
@@ -107,16 +107,10 @@ class DeflationMonitor:
         self.odometry_t_ns = t_ns
         self.speed_m_s = speed
 
-    def on_radii(
-        self,
-        t_ns: int,
-        wheel_names: Sequence[str],
-        radius_error_m: Sequence[float],
-        radius_error_std_m: Sequence[float],
-        active: Sequence[bool],
-    ) -> MonitorStep | None:
+    def on_radii(self, radii: RadiusErrors) -> MonitorStep | None:
         """One radius estimate; None when the detector did not accept it (counted there)."""
         speed = self.speed_m_s
+        t_ns = radii.t_ns
         if self.odometry_t_ns is None or abs(t_ns - self.odometry_t_ns) > self._timeout_ns:
             speed = None
             self.events["radii_without_odometry"] += 1
@@ -125,15 +119,7 @@ class DeflationMonitor:
         previous = det.status()
         alarms_before = {w.wheel_name for w in previous.wheels if w.alarm}
         common_before = previous.common is not None and previous.common.alarm
-        status = det.step(
-            t_ns,
-            list(wheel_names),
-            list(radius_error_m),
-            list(radius_error_std_m),
-            list(active),
-            speed,
-            self.braking,
-        )
+        status = det.step(radii, speed, self.braking)
         if not status.accepted:
             return None
         new_alarms = tuple(

@@ -26,10 +26,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tire_estimation.core.input_checks import finite_vector, stamp_after
+from tire_estimation.core.lateral.estimate import LateralState
 from tire_estimation.core.lateral.single_track import (
     SingleTrackParams,
     continuous_matrices,
-    expm_small,
+    first_order_hold,
     steady_state,
 )
 from tire_estimation.core.validation import require_non_negative, require_positive
@@ -84,19 +85,6 @@ class LinearLateralKFConfig:
             require_positive(name, getattr(self, name))
 
 
-@dataclass(frozen=True)
-class LinearLateralEstimate:
-    """Lateral state of the CG: ``vx_m_s``, ``vy_m_s``, ``yaw_rate_rad_s``, ``sideslip_rad``
-    (atan2(vy, vx)), ``covariance`` (3, 3) of [vx, vy, r] (vx: input, variance 0), ``t_ns``."""
-
-    t_ns: int
-    vx_m_s: float
-    vy_m_s: float
-    yaw_rate_rad_s: float
-    sideslip_rad: float
-    covariance: F64
-
-
 class LinearLateralKF:
     """Kalman filter on [vy_cg, r] with the linear single-track model (see module docstring)."""
 
@@ -140,25 +128,26 @@ class LinearLateralKF:
             return
         self._t_vx, self._vx = t, float(0.5 * (ws[2] + ws[3]) * self.wheel_radius_m)
 
-    def on_velocity(self, t_ns: int, vx_m_s: float) -> None:
-        """Measured longitudinal speed, m/s."""
+    def _scalar(self, stream: str, t_ns: int, last_ns: int | None, value: Any) -> float | None:
+        """A checked scalar sample (its stamp after ``last_ns``), or None when dropped."""
         try:
-            t = stamp_after("velocity", t_ns, self._t_vx)
-            v = float(finite_vector(vx_m_s, 1, "velocity")[0])
+            stamp_after(stream, t_ns, last_ns)
+            return float(finite_vector(value, 1, stream)[0])
         except (InputError, TypeError, ValueError) as exc:
             self._drop(exc.kind if isinstance(exc, InputError) else "bad_value")
-            return
-        self._t_vx, self._vx = t, v
+            return None
+
+    def on_velocity(self, t_ns: int, vx_m_s: float) -> None:
+        """Measured longitudinal speed, m/s."""
+        v = self._scalar("velocity", t_ns, self._t_vx, vx_m_s)
+        if v is not None:
+            self._t_vx, self._vx = int(t_ns), v
 
     def on_steering(self, t_ns: int, angle_rad: float) -> None:
         """Mean road-wheel steer angle, rad (positive left)."""
-        try:
-            t = stamp_after("steering", t_ns, self._t_steer)
-            a = float(finite_vector(angle_rad, 1, "steering")[0])
-        except (InputError, TypeError, ValueError) as exc:
-            self._drop(exc.kind if isinstance(exc, InputError) else "bad_value")
-            return
-        self._t_steer, self._steer = t, a
+        a = self._scalar("steering", t_ns, self._t_steer, angle_rad)
+        if a is not None:
+            self._t_steer, self._steer = int(t_ns), a
 
     def _fresh(self, last: int | None, t_ns: int) -> bool:
         return last is not None and (t_ns - last) * 1e-9 <= self.config.max_input_age_s
@@ -201,16 +190,10 @@ class LinearLateralKF:
 
     def _predict(self, dt: float, vx: float, delta0: float, delta1: float) -> None:
         a, b = continuous_matrices(self.params, vx)
-        # single-track eq. (23)-(28) discretized with a first-order hold on delta:
-        # E = expm([[A, B, 0], [0, 0, 1], [0, 0, 0]] T), x' = E11 x + E12 delta0 + E13 slope
-        aug = np.zeros((4, 4))
-        aug[:2, :2] = a * dt
-        aug[:2, 2] = b * dt
-        aug[2, 3] = dt
-        e = expm_small(aug)
+        # single-track eq. (23)-(28) discretized with a first-order hold on delta
+        f, b0, b1 = first_order_hold(a, b, dt)
         slope = (delta1 - delta0) / dt
-        self.x = e[:2, :2] @ self.x + e[:2, 2] * delta0 + e[:2, 3] * slope
-        f = e[:2, :2]
+        self.x = f @ self.x + b0 * delta0 + b1 * slope
         # P' = F P F^T + Q T (white process-noise density, first order in T)
         self.p = f @ self.p @ f.T + self._q_density * dt
 
@@ -236,13 +219,14 @@ class LinearLateralKF:
         i_kc = np.eye(2) - k @ c
         self.p = i_kc @ self.p @ i_kc.T + k @ self._r @ k.T
 
-    def estimate(self) -> LinearLateralEstimate:
-        """Current estimate (zeros before the first step)."""
+    def estimate(self) -> LateralState:
+        """Current estimate of the CG (zeros before the first step); the covariance of vx is 0
+        (an input)."""
         vx = float(self._vx) if self._vx is not None else 0.0
         cov = np.zeros((3, 3))
         cov[1:, 1:] = self.p
         vy, r = float(self.x[0]), float(self.x[1])
-        return LinearLateralEstimate(
+        return LateralState(
             t_ns=int(self._t_imu or 0),
             vx_m_s=vx,
             vy_m_s=vy,
@@ -252,4 +236,4 @@ class LinearLateralKF:
         )
 
 
-__all__ = ["LinearLateralEstimate", "LinearLateralKF", "LinearLateralKFConfig"]
+__all__ = ["LinearLateralKF", "LinearLateralKFConfig"]

@@ -116,6 +116,23 @@ def kinematic_state(p: SingleTrackParams, vx_m_s: float, delta_rad: float) -> F6
     return np.array([p.lr_m * r, r])
 
 
+def first_order_hold(a: F64, b: F64, dt_s: float) -> tuple[F64, F64, F64]:
+    """Exact discretization of dx/dt = A x + B delta over ``dt_s`` for a steer angle linear
+    between its samples: x(T) = Ad x(0) + B0 delta0 + B1 w with w = (delta1 - delta0) / T.
+
+    Returns (Ad (2, 2), B0 (2,), B1 (2,)).
+    """
+    # eq. (23)-(28) with a first-order hold: delta(s) = delta0 + w s on [0, T];
+    # d/dt [x, delta, w] = [[A, B, 0], [0, 0, 1], [0, 0, 0]] [x, delta, w], so
+    # x(T) = E11 x(0) + E12 delta0 + E13 w, E = expm(that matrix T)
+    aug = np.zeros((4, 4))
+    aug[:2, :2] = a * dt_s
+    aug[:2, 2] = b * dt_s
+    aug[2, 3] = dt_s
+    e = expm_small(aug)
+    return e[:2, :2], e[:2, 2], e[:2, 3]
+
+
 def expm_small(m: F64, order: int = 10) -> F64:
     """Matrix exponential of a small square matrix by scaling and squaring of a Taylor series.
 
@@ -187,16 +204,9 @@ class SingleTrackModel:
             e = expm_small(aug)
             self.x = e[:2, :2] @ self.x + e[:2, 2] * delta_rad
             return self.x.copy()
-        # eq. (23)-(28) with a first-order hold: delta(s) = delta0 + w s on [0, T],
-        # w = (delta1 - delta0) / T; d/dt [x, delta, w] = [[A, B, 0], [0, 0, 1], [0, 0, 0]]
-        # [x, delta, w], so x(T) = E11 x(0) + E12 delta0 + E13 w, E = expm(that matrix T)
-        aug = np.zeros((4, 4))
-        aug[:2, :2] = a * dt_s
-        aug[:2, 2] = b * dt_s
-        aug[2, 3] = dt_s
-        e = expm_small(aug)
+        ad, b0, b1 = first_order_hold(a, b, dt_s)
         slope = (delta_rad - delta_start_rad) / dt_s
-        self.x = e[:2, :2] @ self.x + e[:2, 2] * delta_start_rad + e[:2, 3] * slope
+        self.x = ad @ self.x + b0 * delta_start_rad + b1 * slope
         return self.x.copy()
 
     def axle_forces(self, vx_m_s: float, delta_rad: float) -> F64:

@@ -7,12 +7,17 @@ A linear Kalman filter on ``x = [vy_cg m/s, r rad/s, Fy_front N, Fy_rear N]``:
   forward speed vx is the only time-varying parameter;
 * measurement (eq. 22): identity -- vy and r are pseudo-measurements of the linear single-track
   model (eq. 23-28, :mod:`.single_track`), the axle forces come from the
-  tyre sensors plus virtual tyre sensors for the wheels without one (eq. 11-15,
-  :mod:`~tire_estimation.core.lateral.virtual_tyre`);
+  tyre sensors plus virtual tyre sensors for the wheels without one (inverse Magic Formula,
+  eq. 11-13, :mod:`~tire_estimation.core.lateral.virtual_tyre`);
 * adaptive measurement noise (section 3.5): the axle-force deviation between the single-track
   model and the measurement (eq. 29) drives a relay with hysteresis (Fig. 7) that switches the
   variance of the single-track pseudo-measurements between a low (linear) and a high
-  (nonlinear) value.
+  (nonlinear) value (:mod:`.tyre_force_filter`).
+
+Beyond the paper, the front lateral forces are rotated into body axes by the steer angle, and
+the yaw moment of the left/right difference of the body-x wheel forces (front lateral forces
+rotated by the steer angle, drive and brake forces) is a known input of the yaw equation when
+both axles are measured (the paper's eq. 20 has the axle lateral forces only).
 
 The filter runs at every tyre-force sample; steering and forward speed (from the wheel speeds
 of the undriven axle, "vehicle velocity from the CAN bus" in the paper) are held from their
@@ -29,7 +34,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -37,27 +41,35 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tire_estimation.core.input_checks import stamp_after
+from tire_estimation.core.lateral.estimate import TYRE_FORCE_SOURCE as SOURCE
+from tire_estimation.core.lateral.estimate import LateralEstimate
 from tire_estimation.core.lateral.single_track import SingleTrackModel, SingleTrackParams
-from tire_estimation.core.lateral.virtual_tyre import (
-    MagicFormulaTyre,
-    virtual_force_normalized,
-    virtual_load,
+from tire_estimation.core.lateral.tyre_force_filter import (
+    DEVIATION_FILTER_TIME_CONSTANT_S,
+    INITIAL_FORCE_VARIANCE_N2,
+    INITIAL_VY_VARIANCE_M2_S2,
+    INITIAL_YAW_RATE_VARIANCE_RAD2_S2,
+    MEASUREMENT_MATRIX,
+    RELAY_OFF_THRESHOLD_N,
+    RELAY_ON_THRESHOLD_N,
+    HysteresisRelay,
+    TyreForceKF,
+    axle_force_deviation,
 )
-from tire_estimation.core.validation import (
-    require_choice,
-    require_non_negative,
-    require_positive,
-    require_range,
-)
+from tire_estimation.core.lateral.virtual_tyre import MagicFormulaTyre, virtual_load
+from tire_estimation.core.validation import require_positive, require_range
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.errors import ConfigError, InputError
 
 F64 = NDArray[np.float64]
 
 GRAVITY_M_S2 = 9.81
-VIRTUAL_SENSOR_METHODS = ("inverse_mf", "normalized")
-LINEARITY_STATES = ("linear", "nonlinear", "unknown")
-SOURCE = "tyre_force_kf"
+
+# Eq. (12) static load of a sensor wheel, learned while it carries little lateral force:
+#: |Fy| below which the measured Fz updates the static load, N (twice the 150 N Fy noise).
+STATIC_LOAD_FY_THRESHOLD_N = 300.0
+#: time constant of that static-load average, s (slow against a lane change's load transfer).
+STATIC_LOAD_TIME_CONSTANT_S = 5.0
 
 #: The vehicle of Tuononen 2009, Table 1 (track and CG height are not given: defaults).
 TUONONEN_2009_VEHICLE = VehicleParams(
@@ -78,67 +90,40 @@ class TyreForceKFConfig:
 
     m, Iz, lf, lr and the single-track cornering stiffnesses Cf, Cr come from
     :class:`~tire_estimation.core.vehicle.VehicleParams` (Table 1 values for the paper's car:
-    :data:`TUONONEN_2009_VEHICLE`). The paper gives Q (Table 1) but no numbers for R and the
-    relay (Fig. 7 and 9 are plots only); those defaults are our tuning for the simulator's
-    tyre sensors (150 N noise per wheel) on the ``lane_change`` scenario (seeds 0 and 1).
+    :data:`TUONONEN_2009_VEHICLE`). The paper gives Q (Table 1) but no numbers for R; the R
+    defaults fit the simulator's tyre sensors (150 N noise per wheel) on the ``lane_change``
+    scenario (seeds 0 and 1). The relay thresholds, the initial covariance and the Magic Formula
+    shape are module constants (:mod:`.tyre_force_filter`, :mod:`.virtual_tyre`).
 
     Attributes:
-        process_noise_vy_m2_s2: Q of vy per filter step, (m/s)^2. Default 0.01 (Table 1).
-        process_noise_yaw_rate_rad2_s2: Q of the yaw rate per filter step, (rad/s)^2.
-            Default 0.01 (Table 1).
-        process_noise_force_n2: Q of each axle lateral force per filter step, N^2.
-            Default 1e4 (Table 1).
+        process_noise_vy_m2_s2: Q of vy per filter step, (m/s)^2, in (0, 1e12]. Default 0.01
+            (Table 1).
+        process_noise_yaw_rate_rad2_s2: Q of the yaw rate per filter step, (rad/s)^2, in
+            (0, 1e12]. Default 0.01 (Table 1).
+        process_noise_force_n2: Q of each axle lateral force per filter step, N^2, in
+            (0, 1e12]. Default 1e4 (Table 1).
         force_variance_n2: R of each measured axle lateral force (sensor wheel plus virtual
-            wheel), N^2; constant (sensor accuracy does not depend on the driving state).
-            Default 9e4 (twice the 150 N sensor noise).
+            wheel), N^2, in (0, 1e12]; constant (sensor accuracy does not depend on the
+            driving state). Default 9e4 (twice the 150 N sensor noise).
         linear_vy_variance_m2_s2: R of the single-track vy pseudo-measurement while the relay
-            says linear, (m/s)^2. Default 1e-3.
+            says linear, (m/s)^2, in (0, 1e12]. Default 1e-3.
         linear_yaw_rate_variance_rad2_s2: R of the single-track yaw rate while linear,
-            (rad/s)^2. Default 1e-4.
-        nonlinear_vy_variance_m2_s2: R of the single-track vy while nonlinear, (m/s)^2.
-            Default 3.
+            (rad/s)^2, in (0, 1e12]. Default 1e-4.
+        nonlinear_vy_variance_m2_s2: R of the single-track vy while nonlinear, (m/s)^2, in
+            (0, 1e12]. Default 3.
         nonlinear_yaw_rate_variance_rad2_s2: R of the single-track yaw rate while nonlinear,
-            (rad/s)^2. Default 0.3 (a yaw rate integrated from noisy forces drifts by
-            ~1.3 deg/s per sqrt(s) with 150 N sensors, so the model's yaw rate keeps some
-            weight; far larger values make the nonlinear-phase yaw rate worse).
-        relay_on_threshold_n: the relay switches to nonlinear when the axle-force deviation
-            of eq. (29) exceeds this, N. Default 500.
-        relay_off_threshold_n: the relay switches back to linear when the deviation falls
-            below this, N (<= on threshold: the hysteresis of Fig. 7). Default 250.
-        deviation_filter_time_constant_s: first-order low-pass of the signed per-axle
-            differences before eq. (29), s; 0 feeds eq. (29) unfiltered (beyond the paper:
-            with 150 N sensors the noise alone gives eq. 29 a ~500 N floor). Default 0.2.
-        virtual_sensor_method: ``inverse_mf`` (eq. 11-13) or ``normalized`` (eq. 13-15).
-            Default ``inverse_mf``.
-        mf_shape_c: Magic Formula shape factor C of the inverse MF, 1 (in (1, 2)). Default 1.3.
-        mf_curvature_e: Magic Formula curvature factor E, 1 (< 1). Default -0.5.
-        mf_friction_mu: peak friction, D = mu Fz, 1. Default 1.0.
-        mf_b_front_1_rad: constant Magic Formula B of the front tyres, 1/rad (the paper's
-            similarity assumption). Default None: B is set per load so that B C D equals half
-            the vehicle's front cornering stiffness (load-independent tyre stiffness, as the
-            simulator's tyres).
-        mf_b_rear_1_rad: as ``mf_b_front_1_rad`` for the rear tyres, 1/rad. Default None.
-        static_load_fy_threshold_n: the measured Fz of a sensor wheel updates its static load
-            (eq. 12) while |Fy| of that wheel is below this, N. Default 300.
-        static_load_time_constant_s: time constant of that static-load average, s. Default 5.
+            (rad/s)^2, in (0, 1e12]. Default 0.3 (a yaw rate integrated from noisy forces
+            drifts by ~1.3 deg/s per sqrt(s) with 150 N sensors, so the model's yaw rate keeps
+            some weight; far larger values make the nonlinear-phase yaw rate worse).
         min_speed_m_s: below this forward speed the filter is held at the kinematic state
-            and the linearity is ``unknown``, m/s. Default 5.
+            and the linearity is ``unknown``, m/s, in [0.5, 100]. Default 5.
         max_gap_s: a gap between tyre-force samples longer than this re-initializes the
-            filter, s. Default 0.5.
-        input_timeout_s: steering / wheel-speed / gyro samples older than this are stale; a
-            tyre-force sample without fresh steering and speed is dropped, s. Default 0.5.
+            filter, s, in (0, 1e12]. Default 0.5.
+        input_timeout_s: steering / wheel-speed samples older than this are stale; a
+            tyre-force sample without fresh steering and speed is dropped, s, in (0, 1e12].
+            Default 0.5.
         speed_variance_m2_s2: variance reported for vx (wheel speeds, nominal radius),
-            (m/s)^2. Default 0.01.
-        initial_vy_variance_m2_s2: initial P of vy, (m/s)^2. Default 0.01.
-        initial_yaw_rate_variance_rad2_s2: initial P of the yaw rate, (rad/s)^2. Default 1e-3.
-        initial_force_variance_n2: initial P of each axle force, N^2. Default 1e6.
-        track_yaw_moment: add the yaw moment of the left/right difference of the wheel forces
-            along the body x axis (front lateral forces rotated by the steer angle, drive and
-            brake forces) as a known input of the yaw equation (beyond the paper, whose eq. 20
-            has the axle lateral forces only). Default True.
-        use_gyro_yaw_rate: also update with the IMU yaw rate (beyond the paper, where the
-            gyro is for validation only). Default False.
-        gyro_variance_rad2_s2: R of the gyro yaw rate, (rad/s)^2. Default 1e-4.
+            (m/s)^2, in (0, 1e12]. Default 0.01.
     """
 
     process_noise_vy_m2_s2: float = 0.01
@@ -149,236 +134,24 @@ class TyreForceKFConfig:
     linear_yaw_rate_variance_rad2_s2: float = 1e-4
     nonlinear_vy_variance_m2_s2: float = 3.0
     nonlinear_yaw_rate_variance_rad2_s2: float = 0.3
-    relay_on_threshold_n: float = 500.0
-    relay_off_threshold_n: float = 250.0
-    deviation_filter_time_constant_s: float = 0.2
-    virtual_sensor_method: str = "inverse_mf"
-    mf_shape_c: float = 1.3
-    mf_curvature_e: float = -0.5
-    mf_friction_mu: float = 1.0
-    mf_b_front_1_rad: float | None = None
-    mf_b_rear_1_rad: float | None = None
-    static_load_fy_threshold_n: float = 300.0
-    static_load_time_constant_s: float = 5.0
     min_speed_m_s: float = 5.0
     max_gap_s: float = 0.5
     input_timeout_s: float = 0.5
     speed_variance_m2_s2: float = 0.01
-    initial_vy_variance_m2_s2: float = 0.01
-    initial_yaw_rate_variance_rad2_s2: float = 1e-3
-    initial_force_variance_n2: float = 1e6
-    track_yaw_moment: bool = True
-    use_gyro_yaw_rate: bool = False
-    gyro_variance_rad2_s2: float = 1e-4
 
     def __post_init__(self) -> None:
-        for name in (
-            "process_noise_vy_m2_s2",
-            "process_noise_yaw_rate_rad2_s2",
-            "process_noise_force_n2",
-            "force_variance_n2",
-            "linear_vy_variance_m2_s2",
-            "linear_yaw_rate_variance_rad2_s2",
-            "nonlinear_vy_variance_m2_s2",
-            "nonlinear_yaw_rate_variance_rad2_s2",
-            "speed_variance_m2_s2",
-            "initial_vy_variance_m2_s2",
-            "initial_yaw_rate_variance_rad2_s2",
-            "initial_force_variance_n2",
-            "gyro_variance_rad2_s2",
-            "static_load_time_constant_s",
-            "max_gap_s",
-            "input_timeout_s",
-        ):
-            require_positive(name, getattr(self, name))
-            if getattr(self, name) > 1e12:
-                raise ConfigError(name, getattr(self, name), "must be <= 1e12")
-        require_non_negative("relay_on_threshold_n", self.relay_on_threshold_n)
-        require_non_negative("relay_off_threshold_n", self.relay_off_threshold_n)
-        if self.relay_off_threshold_n > self.relay_on_threshold_n:
-            raise ConfigError(
-                "relay_off_threshold_n",
-                self.relay_off_threshold_n,
-                f"must be <= relay_on_threshold_n = {self.relay_on_threshold_n}",
-            )
-        require_range(
-            "deviation_filter_time_constant_s", self.deviation_filter_time_constant_s, 0.0, 60.0
-        )
-        require_choice("virtual_sensor_method", self.virtual_sensor_method, VIRTUAL_SENSOR_METHODS)
-        require_range("mf_shape_c", self.mf_shape_c, 1.01, 1.99)
-        require_range("mf_curvature_e", self.mf_curvature_e, -10.0, 0.99)
-        require_range("mf_friction_mu", self.mf_friction_mu, 0.05, 3.0)
-        for name in ("mf_b_front_1_rad", "mf_b_rear_1_rad"):
-            value = getattr(self, name)
-            if value is not None:
-                require_range(name, value, 0.1, 1000.0)
-        require_non_negative("static_load_fy_threshold_n", self.static_load_fy_threshold_n)
+        for f in dataclasses.fields(self):
+            if f.name == "min_speed_m_s":
+                continue
+            value = getattr(self, f.name)
+            require_positive(f.name, value)
+            if value > 1e12:
+                raise ConfigError(f.name, value, "must be <= 1e12")
         require_range("min_speed_m_s", self.min_speed_m_s, 0.5, 100.0)
-        if not isinstance(self.track_yaw_moment, bool):
-            raise ConfigError("track_yaw_moment", self.track_yaw_moment, "must be a bool")
-        if not isinstance(self.use_gyro_yaw_rate, bool):
-            raise ConfigError("use_gyro_yaw_rate", self.use_gyro_yaw_rate, "must be a bool")
-
-    @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> TyreForceKFConfig:
-        """Build from a mapping (e.g. ROS parameters); unknown keys raise ConfigError."""
-        if not isinstance(data, Mapping):
-            raise ConfigError("tyre_force_kf", data, "must be a mapping")
-        names = {f.name for f in dataclasses.fields(cls)}
-        unknown = sorted(set(data) - names)
-        if unknown:
-            raise ConfigError(unknown[0], data[unknown[0]], "unknown key")
-        kwargs: dict[str, Any] = {}
-        for key, value in data.items():
-            if isinstance(value, int) and not isinstance(value, bool):
-                value = float(value)
-            kwargs[key] = value
-        return cls(**kwargs)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain mapping of every field."""
         return dataclasses.asdict(self)
-
-
-@dataclass(frozen=True)
-class LateralEstimate:
-    """Lateral state of ``base_link`` (centre of the rear axle) in base_link axes.
-
-    Attributes:
-        t_ns: time of the estimate (stamp of the last tyre-force sample), ns; 0 before the
-            first estimate.
-        vx_m_s: forward speed, m/s.
-        vy_m_s: lateral velocity of base_link, m/s (vy_cg - lr r).
-        yaw_rate_rad_s: yaw rate r, rad/s (counter-clockwise positive).
-        sideslip_rad: atan2(vy, vx) of base_link, rad.
-        covariance: (3, 3) covariance of [vx m/s, vy m/s, r rad/s], SI units squared.
-        axle_lateral_force_n: (2,) [front, rear] axle lateral force of the filter, N.
-        linearity: relay state: ``linear``, ``nonlinear`` or ``unknown``.
-        source: name of the estimator.
-    """
-
-    t_ns: int
-    vx_m_s: float
-    vy_m_s: float
-    yaw_rate_rad_s: float
-    sideslip_rad: float
-    covariance: F64
-    axle_lateral_force_n: F64
-    linearity: str
-    source: str = SOURCE
-
-
-class HysteresisRelay:
-    """Relay with hysteresis (Tuononen 2009, Fig. 7): on above ``on``, off below ``off``.
-
-    Between the thresholds it keeps its state, so a deviation that briefly drops during a lane
-    change does not switch the pseudo-measurement variance back to the low value.
-    """
-
-    def __init__(self, on_threshold: float, off_threshold: float, state: bool = False) -> None:
-        if off_threshold > on_threshold:
-            raise ConfigError("relay_off_threshold_n", off_threshold, "must be <= on threshold")
-        self.on_threshold = float(on_threshold)
-        self.off_threshold = float(off_threshold)
-        self.state = bool(state)
-
-    def update(self, value: float) -> bool:
-        """Feed one input value; return the new state (True = on = nonlinear)."""
-        # Fig. 7: switch on when value > on threshold, off when value < off threshold
-        if not self.state and value > self.on_threshold:
-            self.state = True
-        elif self.state and value < self.off_threshold:
-            self.state = False
-        return self.state
-
-
-def axle_force_deviation(single_track_n: F64, measured_n: F64) -> float:
-    """Eq. (29): |Fy,f,onetrack - Fy,f,measured| + |Fy,r,onetrack - Fy,r,measured|, N.
-
-    Args:
-        single_track_n: (2,) [front, rear] axle forces of the single-track model, N.
-        measured_n: (2,) [front, rear] measured (sensor + virtual) axle forces, N.
-    """
-    d = np.asarray(single_track_n, dtype=float) - np.asarray(measured_n, dtype=float)
-    # Tuononen 2009 eq. (29)
-    return float(abs(d[0]) + abs(d[1]))
-
-
-def transition_matrix(
-    dt_s: float, vx_m_s: float, mass_kg: float, yaw_inertia_kg_m2: float, lf_m: float, lr_m: float
-) -> F64:
-    """(4, 4) state transition of eq. (21) for x = [vy, r, Fy_f, Fy_r] over ``dt_s``."""
-    ts = dt_s
-    # Tuononen 2009 eq. (21): discretized eq. (19)-(20), forces as identity (random walk)
-    return np.array(
-        [
-            [1.0, -ts * vx_m_s, ts / mass_kg, ts / mass_kg],
-            [0.0, 1.0, lf_m / yaw_inertia_kg_m2 * ts, -lr_m / yaw_inertia_kg_m2 * ts],
-            [0.0, 0.0, 1.0, 0.0],
-            [0.0, 0.0, 0.0, 1.0],
-        ]
-    )
-
-
-#: Measurement matrix of eq. (22): every state is measured (vy, r by the single-track model).
-MEASUREMENT_MATRIX: F64 = np.eye(4)
-
-
-class TyreForceKF:
-    """The Kalman filter of Tuononen 2009 eq. (1)-(8), (21)-(22) on x = [vy_cg, r, Ff, Fr].
-
-    Args:
-        mass_kg, yaw_inertia_kg_m2, lf_m, lr_m: vehicle parameters (Table 1).
-        q_diag: (4,) process noise variances per step [(m/s)^2, (rad/s)^2, N^2, N^2].
-    """
-
-    def __init__(
-        self,
-        mass_kg: float,
-        yaw_inertia_kg_m2: float,
-        lf_m: float,
-        lr_m: float,
-        q_diag: F64,
-    ) -> None:
-        self.mass_kg = mass_kg
-        self.yaw_inertia_kg_m2 = yaw_inertia_kg_m2
-        self.lf_m = lf_m
-        self.lr_m = lr_m
-        self.q: F64 = np.diag(np.asarray(q_diag, dtype=float))
-        self.x: F64 = np.zeros(4)
-        self.p: F64 = np.eye(4)
-
-    def reset(self, x0: F64, p0_diag: F64) -> None:
-        """Set the state (4,) and a diagonal covariance (4,)."""
-        self.x = np.asarray(x0, dtype=float).copy()
-        self.p = np.diag(np.asarray(p0_diag, dtype=float))
-
-    def predict(self, dt_s: float, vx_m_s: float, yaw_moment_nm: float = 0.0) -> None:
-        """Time update over ``dt_s`` with forward speed ``vx_m_s`` (eq. 1, 5).
-
-        ``yaw_moment_nm``: known extra yaw moment (N m) held over the step (0 in the paper).
-        """
-        a = transition_matrix(
-            dt_s, vx_m_s, self.mass_kg, self.yaw_inertia_kg_m2, self.lf_m, self.lr_m
-        )
-        # eq. (1): x_k^- = A x_k-1  (+ the known moment input on the yaw rate, beyond eq. 21)
-        self.x = a @ self.x
-        self.x[1] += dt_s * yaw_moment_nm / self.yaw_inertia_kg_m2
-        # a priori covariance: P_k^- = A P A^T + Q
-        self.p = a @ self.p @ a.T + self.q
-
-    def update(self, z: F64, h: F64, r_diag: F64) -> None:
-        """Measurement update with z (n,), H (n, 4) and diagonal R (n,) (eq. 2, 7, 8)."""
-        r = np.diag(np.asarray(r_diag, dtype=float))
-        s = h @ self.p @ h.T + r
-        # eq. (7): K = P^- H^T (H P^- H^T + R)^-1
-        k = np.linalg.solve(s, h @ self.p).T
-        # eq. (8): x_k = x_k^- + K (z_k - H x_k^-)
-        self.x = self.x + k @ (z - h @ self.x)
-        # a posteriori covariance (Joseph form, keeps P symmetric positive definite)
-        i_kh = np.eye(4) - k @ h
-        self.p = i_kh @ self.p @ i_kh.T + k @ r @ k.T
-        self.p = 0.5 * (self.p + self.p.T)
 
 
 @dataclass
@@ -418,20 +191,8 @@ class TyreForceEstimator:
         c = config
         self.single_track_params = SingleTrackParams.from_vehicle(vehicle)
         self.tyres = (
-            MagicFormulaTyre(
-                c.mf_shape_c,
-                c.mf_curvature_e,
-                c.mf_friction_mu,
-                vehicle.cornering_stiffness_front_n_rad / 2.0,
-                c.mf_b_front_1_rad,
-            ),
-            MagicFormulaTyre(
-                c.mf_shape_c,
-                c.mf_curvature_e,
-                c.mf_friction_mu,
-                vehicle.cornering_stiffness_rear_n_rad / 2.0,
-                c.mf_b_rear_1_rad,
-            ),
+            MagicFormulaTyre(vehicle.cornering_stiffness_front_n_rad / 2.0),
+            MagicFormulaTyre(vehicle.cornering_stiffness_rear_n_rad / 2.0),
         )
         g, m, wb = GRAVITY_M_S2, vehicle.mass_kg, vehicle.wheelbase_m
         #: Static wheel loads from the vehicle parameters, N, (2,) [front wheel, rear wheel].
@@ -455,14 +216,11 @@ class TyreForceEstimator:
         v = self.vehicle
         self.kf = TyreForceKF(v.mass_kg, v.yaw_inertia_kg_m2, v.lf_m, v.lr_m, self._q_diag)
         self.single_track = SingleTrackModel(self.single_track_params, self.config.min_speed_m_s)
-        self.relay = HysteresisRelay(
-            self.config.relay_on_threshold_n, self.config.relay_off_threshold_n
-        )
+        self.relay = HysteresisRelay(RELAY_ON_THRESHOLD_N, RELAY_OFF_THRESHOLD_N)
         #: Static load of each wheel, N, (4,) in the order fl, fr, rl, rr (eq. 12).
         self.static_load_n = np.repeat(self.nominal_static_load_n, 2)
-        self._held = {k: _Held() for k in ("forces", "steering", "wheels", "imu")}
+        self._held = {k: _Held() for k in ("forces", "steering", "wheels")}
         self._speed_m_s: float | None = None
-        self._gyro_used_t_ns: int | None = None
         self._t_ns: int | None = None
         self._initialized = False
         self._linearity = "unknown"
@@ -529,24 +287,6 @@ class TyreForceEstimator:
         else:
             self._speed_m_s = float(0.5 * (ws[2] + ws[3]) * radius)
 
-    def on_imu(
-        self, t_ns: int, angular_velocity_rad_s: Any, linear_acceleration_m_s2: Any
-    ) -> None:
-        """IMU sample in base_link axes: gyro (3,) rad/s, specific force (3,) m/s^2.
-
-        Only the gyro z is used, and only with ``use_gyro_yaw_rate`` (the paper uses the
-        IMU for validation only).
-        """
-        try:
-            t = self._check_stamp("imu", t_ns)
-            gyro = self._vector("imu gyro", angular_velocity_rad_s, 3)
-            acc = self._vector("imu accel", linear_acceleration_m_s2, 3)
-            _finite("imu", np.concatenate([gyro, acc]))
-        except (InputError, TypeError, ValueError) as exc:
-            self._drop(exc.kind if isinstance(exc, InputError) else "bad_value")
-            return
-        self._held["imu"] = _Held(t, float(gyro[2]))
-
     def on_tire_forces(
         self, t_ns: int, fx_n: Any, fy_n: Any, fz_n: Any, valid: Any
     ) -> LateralEstimate | None:
@@ -585,8 +325,7 @@ class TyreForceEstimator:
     ) -> tuple[F64, F64, float]:
         """Measured (sensor + virtual) axle lateral forces in body axes [front, rear] (N, (2,)),
         which axles are measured ((2,) bool), and the track yaw moment (N m, 0 when an axle is
-        not measured or ``track_yaw_moment`` is off)."""
-        c = self.config
+        not measured)."""
         out = np.zeros(2)
         have = np.zeros(2, dtype=bool)
         moment = 0.0
@@ -600,10 +339,7 @@ class TyreForceEstimator:
                 s, v = (i, j) if ok[i] else (j, i)
                 self._learn_static_load(dt_s, s, fy[s], fz[s])
                 fz_v = virtual_load(fz[s], self.static_load_n[s], self.static_load_n[v])
-                if c.virtual_sensor_method == "inverse_mf":
-                    fy_v = self.tyres[axle].virtual_force(fy[s], fz[s], fz_v)
-                else:
-                    fy_v = virtual_force_normalized(fy[s], fz[s], fz_v)
+                fy_v = self.tyres[axle].virtual_force(fy[s], fz[s], fz_v)
                 fy_w = np.array([fy[s], fy_v]) if s == i else np.array([fy_v, fy[s]])
                 # longitudinal force of the virtual wheel: that of its axle partner
                 fx_w = np.array([fx[s], fx[s]])
@@ -617,36 +353,34 @@ class TyreForceEstimator:
             out[axle] = fy_body.sum()
             # yaw moment of the body-x forces: -y_i Fx_i with y = +half (left), -half (right)
             moment += -half_track * (fx_body[0] - fx_body[1])
-        if not (c.track_yaw_moment and np.all(have)):
+        if not np.all(have):
             moment = 0.0
         return out, have, moment
 
     def _learn_static_load(self, dt_s: float, i: int, fy: float, fz: float) -> None:
         """Eq. (12) static load: average of Fz,1 recorded while Fy,1 ~ 0."""
-        c = self.config
-        if abs(fy) < c.static_load_fy_threshold_n and dt_s > 0.0:
-            w = min(1.0, dt_s / c.static_load_time_constant_s)
+        if abs(fy) < STATIC_LOAD_FY_THRESHOLD_N and dt_s > 0.0:
+            w = min(1.0, dt_s / STATIC_LOAD_TIME_CONSTANT_S)
             self.static_load_n[i] += w * (fz - self.static_load_n[i])
             # the virtual partner of the same axle has the same static load (symmetric car)
             self.static_load_n[i ^ 1] = self.static_load_n[i]
 
     def _initialize(self, t: int, vx: float, delta: float, forces: F64) -> None:
-        c = self.config
         self.single_track.reset(vx, delta)
         self._st_delta_rad = delta
         x0 = np.concatenate([self.single_track.x, forces])
         p0 = np.array(
             [
-                c.initial_vy_variance_m2_s2,
-                c.initial_yaw_rate_variance_rad2_s2,
-                c.initial_force_variance_n2,
-                c.initial_force_variance_n2,
+                INITIAL_VY_VARIANCE_M2_S2,
+                INITIAL_YAW_RATE_VARIANCE_RAD2_S2,
+                INITIAL_FORCE_VARIANCE_N2,
+                INITIAL_FORCE_VARIANCE_N2,
             ]
         )
         self.kf.reset(x0, p0)
         self._initialized = True
         self._t_ns = t
-        self._linearity = "unknown" if vx < c.min_speed_m_s else "linear"
+        self._linearity = "unknown" if vx < self.config.min_speed_m_s else "linear"
         self.relay.state = False
         self._deviation_lp_n = np.zeros(2)
 
@@ -677,8 +411,7 @@ class TyreForceEstimator:
         # low-pass of the signed per-axle differences (beyond the paper: removes the bias that
         # the sensor noise gives |.| in eq. 29 before the relay sees it)
         diff = np.where(have, f_st - measured, 0.0)
-        tau = c.deviation_filter_time_constant_s
-        w = 1.0 if tau <= 0.0 else min(1.0, dt / tau)
+        w = min(1.0, dt / DEVIATION_FILTER_TIME_CONSTANT_S)
         self._deviation_lp_n += w * (diff - self._deviation_lp_n)
         self._deviation_n = axle_force_deviation(self._deviation_lp_n, np.zeros(2))
         nonlinear = self.relay.update(self._deviation_n)
@@ -695,17 +428,6 @@ class TyreForceEstimator:
         z = np.concatenate([st, measured[have]])
         r_diag = [r_st[0], r_st[1]] + [c.force_variance_n2] * int(have.sum())
         h = MEASUREMENT_MATRIX[rows]
-        gyro = self._held["imu"]
-        if (
-            c.use_gyro_yaw_rate
-            and gyro.t_ns is not None
-            and gyro.t_ns != self._gyro_used_t_ns
-            and self._fresh("imu", t)
-        ):
-            self._gyro_used_t_ns = gyro.t_ns
-            h = np.vstack([h, MEASUREMENT_MATRIX[1]])
-            z = np.append(z, gyro.value)
-            r_diag.append(c.gyro_variance_rad2_s2)
         self.kf.update(z, h, np.asarray(r_diag))
         if not np.all(np.isfinite(self.kf.x)) or not np.all(np.isfinite(self.kf.p)):
             self._drop("diverged")
@@ -753,8 +475,7 @@ class TyreForceEstimator:
         """Current estimate (of base_link); zeros and the prior covariance before the first."""
         vx = float(self._speed_m_s or 0.0)
         if not self._initialized:
-            c = self.config
-            p2 = np.diag([c.initial_vy_variance_m2_s2, c.initial_yaw_rate_variance_rad2_s2])
+            p2 = np.diag([INITIAL_VY_VARIANCE_M2_S2, INITIAL_YAW_RATE_VARIANCE_RAD2_S2])
             return self._to_base_link(0, vx, np.zeros(2), p2, np.zeros(2), SOURCE)
         return self._to_base_link(
             int(self._t_ns or 0), vx, self.kf.x[:2], self.kf.p[:2, :2], self.kf.x[2:], SOURCE

@@ -1,15 +1,10 @@
 """Virtual tyre sensors: the lateral force of a wheel without a sensor (Tuononen 2009, 3.2).
 
 The missing wheel of an axle is estimated from the sensor wheel of the *same axle* by the
-"similarity method": both tyres run at (nearly) the same slip angle, so
-
-* (a) the inverse Magic Formula (eq. 11) gives the slip angle of the sensor tyre from its
-  measured (Fy, Fz), and the same formula gives the virtual tyre's force at that slip angle
-  and its own load; or
-* (b) the normalized lateral force (eq. 14) of the sensor tyre is applied to the virtual
-  tyre's load (eq. 15).
-
-The virtual tyre's vertical load comes from the measured load change (eq. 12-13).
+"similarity method": both tyres run at (nearly) the same slip angle, so the inverse Magic
+Formula (eq. 11) gives the slip angle of the sensor tyre from its measured (Fy, Fz), and the
+same formula gives the virtual tyre's force at that slip angle and its own load. The virtual
+tyre's vertical load comes from the measured load change (eq. 12-13).
 
 Units: forces N, slip angles rad. Functions are scalar (called once per axle and sample).
 """
@@ -24,6 +19,16 @@ from functools import cached_property
 SATURATION_FRACTION = 0.999
 #: Smallest vertical load used by the virtual sensors (a lifted wheel), N.
 MIN_LOAD_N = 50.0
+
+# Shape of the eq. (11) Magic Formula of the virtual sensors: typical passenger-car lateral
+# values (Pacejka), the same as the simulator's tyres (``sim/tires.py``); under the similarity
+# method only the shape of the curve matters, the sensor tyre fixes the operating point.
+#: shape factor C, 1 (in (1, 2): the curve has a peak).
+MF_SHAPE_C = 1.3
+#: curvature factor E, 1 (< 1).
+MF_CURVATURE_E = -0.5
+#: peak friction coefficient, D = mu Fz, 1 (dry asphalt).
+MF_FRICTION_MU = 1.0
 
 
 def _shape(x: float, e: float) -> float:
@@ -107,37 +112,25 @@ def virtual_load(
     return max(MIN_LOAD_N, fz_virtual_static_n - delta_fz)
 
 
-def virtual_force_normalized(
-    fy_measured_n: float, fz_measured_n: float, fz_virtual_n: float
-) -> float:
-    """Virtual tyre lateral force by the normalized lateral force, N."""
-    # Tuononen 2009 eq. (14): mu_f = Fy,1 / Fz,1
-    mu_f = fy_measured_n / max(MIN_LOAD_N, fz_measured_n)
-    # Tuononen 2009 eq. (15): Fy,2 = mu_f Fz,2
-    return mu_f * fz_virtual_n
-
-
 @dataclass(frozen=True)
 class MagicFormulaTyre:
     """Lateral Magic Formula of one axle's tyres, with D = mu Fz (similarity in the load).
 
-    ``b_1_rad`` None: B is set per load so that the small-slip stiffness B C D equals
+    B is set per load so that the small-slip stiffness B C D equals
     ``cornering_stiffness_n_rad`` (load-independent cornering stiffness, as the simulator's
-    tyre). A number: constant B (the paper's assumption; then the stiffness scales with Fz).
+    tyre).
 
     Attributes:
+        cornering_stiffness_n_rad: small-slip stiffness of one tyre, N/rad.
         c: shape factor C, 1 (in (1, 2)).
         e: curvature factor E, 1 (< 1).
         mu: peak friction coefficient, D = mu Fz, 1.
-        cornering_stiffness_n_rad: small-slip stiffness of one tyre, N/rad (used if B is None).
-        b_1_rad: constant stiffness factor B, 1/rad, or None.
     """
 
-    c: float
-    e: float
-    mu: float
     cornering_stiffness_n_rad: float
-    b_1_rad: float | None = None
+    c: float = MF_SHAPE_C
+    e: float = MF_CURVATURE_E
+    mu: float = MF_FRICTION_MU
 
     @cached_property
     def x_peak(self) -> float:
@@ -147,8 +140,6 @@ class MagicFormulaTyre:
     def factors(self, fz_n: float) -> tuple[float, float]:
         """(B 1/rad, D N) at vertical load ``fz_n`` (N)."""
         d = self.mu * max(MIN_LOAD_N, fz_n)
-        if self.b_1_rad is not None:
-            return self.b_1_rad, d
         # small-slip slope dFy/dalpha = B C D = cornering stiffness
         return self.cornering_stiffness_n_rad / (self.c * d), d
 
@@ -165,6 +156,6 @@ class MagicFormulaTyre:
     def virtual_force(
         self, fy_measured_n: float, fz_measured_n: float, fz_virtual_n: float
     ) -> float:
-        """Virtual tyre lateral force, N, at the sensor tyre's slip angle (method a)."""
+        """Virtual tyre lateral force, N, at the sensor tyre's slip angle."""
         alpha = self.slip_angle(fy_measured_n, fz_measured_n)
         return self.force(alpha, fz_virtual_n)
