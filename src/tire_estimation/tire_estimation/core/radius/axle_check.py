@@ -8,26 +8,34 @@ The radius model reads the heading change from the difference of the rear wheel 
 In a turn with yaw rate ``r`` the right wheel of an axle turns faster than the left by about
 ``x = r l_T / r0`` rad/s. When the two report the same speed through the turns (a locked axle
 or spool, one sensor's signal copied to both sides, a dead sensor held at the other's value),
-the split is unobservable: only the axle's common radius is. At ``min_speed_m_s`` or more the
-check fits the measured difference ``y = w_right - w_left`` by least squares (exponential
-forgetting over ``memory`` samples) to ``y = slope x + c w``, where ``w`` is the axle's mean
-wheel speed and ``c w`` the difference a left-right radius split makes: ``slope`` is about 1 on
-a free axle and about 0 on a locked one (wheel-speed noise does not bias it). A verdict needs
-the turns to carry information: ``sum x_perp^2`` (``x`` without its part along ``w``) at least
-that of ``min_turning`` samples at ``min_yaw_rate_rad_s``.
+the split is unobservable: only the axle's common radius is.
+
+At ``min_speed_m_s`` or more the check fits the measured difference ``y = w_right - w_left`` to
+``y = slope x + c_k w`` by least squares, where ``w`` is the axle's mean wheel speed and
+``c_k w`` the difference a left-right radius split makes. The split term ``c_k`` has its own
+value in every block of ``block_s`` seconds, so a split that changes (a tyre losing pressure
+changes it by about ``d/r0``, far more than a turn's ``x``) misfits one block only; ``slope``
+is pooled over the blocks with exponential forgetting (``memory_s``). ``slope`` is about 1 on a
+free axle and about 0 on a locked one (wheel-speed noise does not bias it). A verdict needs the
+turns to carry information: the sum over the blocks of ``x_perp^2 dt`` (``x`` without its part
+along ``w`` within its block) at least that of ``min_turning_s`` seconds at
+``min_yaw_rate_rad_s``.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
-from tire_estimation.core.validation import require_positive, require_range
+from tire_estimation.core.validation import POSITIVE, Rule, check_rules, in_range
 from tire_estimation.core.vehicle import VehicleParams
 
 #: axle name -> (left, right) index in the wheel-speed vector (fl, fr, rl, rr)
 AXLES = {"front": (0, 1), "rear": (2, 3)}
+
+#: longest sample interval one wheel-speed sample stands for, s (a gap counts as this)
+_MAX_DT_S = 0.1
 
 
 @dataclass(frozen=True)
@@ -39,25 +47,32 @@ class AxleCheckConfig:
             the yaw rate of the information needed for a verdict. Default 0.05 (a 400 m
             radius at 20 m/s).
         min_speed_m_s: samples below this speed are left out, m/s. Default 2.
-        memory: time constant of the fit's forgetting, samples. Default 6000 (60 s at 100 Hz).
-        min_turning: the information needed for a verdict, in turning samples at
-            ``min_yaw_rate_rad_s``. Default 300.
+        block_s: length of the blocks with their own split term, s. Default 20.
+        memory_s: time constant of the forgetting over the blocks, s. Default 60.
+        min_turning_s: the information needed for a verdict, in seconds of turning at
+            ``min_yaw_rate_rad_s``. Default 3.
         locked_slope: the split is unobservable while the fitted slope is below this, 1.
-            Default 0.2.
+            Default 0.5 (midway between a free and a locked axle).
     """
 
     min_yaw_rate_rad_s: float = 0.05
     min_speed_m_s: float = 2.0
-    memory: int = 6000
-    min_turning: int = 300
-    locked_slope: float = 0.2
+    block_s: float = 20.0
+    memory_s: float = 60.0
+    min_turning_s: float = 3.0
+    locked_slope: float = 0.5
+
+    RULES: ClassVar[dict[str, Rule]] = {
+        "min_yaw_rate_rad_s": POSITIVE,
+        "min_speed_m_s": POSITIVE,
+        "block_s": POSITIVE,
+        "memory_s": POSITIVE,
+        "min_turning_s": POSITIVE,
+        "locked_slope": in_range(0.0, 1.0),
+    }
 
     def __post_init__(self) -> None:
-        require_positive("min_yaw_rate_rad_s", self.min_yaw_rate_rad_s)
-        require_positive("min_speed_m_s", self.min_speed_m_s)
-        require_positive("memory", self.memory)
-        require_positive("min_turning", self.min_turning)
-        require_range("locked_slope", self.locked_slope, 0.0, 1.0)
+        check_rules(self, self.RULES)
 
 
 @dataclass(frozen=True)
@@ -80,22 +95,64 @@ class AxleStatus:
     reason: str
 
 
+class _AxleFit:
+    """Pooled slope of ``y = slope x + c_k w`` with one ``c_k`` per block, for one axle."""
+
+    def __init__(self, block_s: float, memory_s: float) -> None:
+        self._block_s = block_s
+        self._decay = math.exp(-block_s / memory_s)
+        # dt-weighted sums of x^2, x w, w^2, x y, w y of the open block
+        self._sums = [0.0] * 5
+        self._block_start_ns: int | None = None
+        # forgotten sums over the closed blocks of x_perp^2 and x_perp y
+        self.info = 0.0
+        self.cross = 0.0
+
+    @staticmethod
+    def _perp(sums: list[float]) -> tuple[float, float]:
+        """``(sum x_perp^2, sum x_perp y)`` of one block, its split term fitted."""
+        sxx, sxw, sww, sxy, swy = sums
+        if sww <= 0.0:
+            return 0.0, 0.0
+        # normal equations of y = slope x + c w with c eliminated: x_perp = x - (sxw / sww) w
+        return sxx - sxw * sxw / sww, sxy - sxw * swy / sww
+
+    def add(self, t_ns: int, dt_s: float, x: float, w: float, y: float) -> None:
+        if self._block_start_ns is None:
+            self._block_start_ns = t_ns
+        elif (t_ns - self._block_start_ns) * 1e-9 >= self._block_s:
+            info, cross = self._perp(self._sums)
+            self.info = self._decay * self.info + info
+            self.cross = self._decay * self.cross + cross
+            self._sums = [0.0] * 5
+            self._block_start_ns = t_ns
+        s = self._sums
+        s[0] += dt_s * x * x
+        s[1] += dt_s * x * w
+        s[2] += dt_s * w * w
+        s[3] += dt_s * x * y
+        s[4] += dt_s * w * y
+
+    def totals(self) -> tuple[float, float]:
+        """Information and cross term over the closed blocks and the open one."""
+        info, cross = self._perp(self._sums)
+        return self.info + info, self.cross + cross
+
+
 class AxleCheck:
     """Fits, per axle, the wheel-speed difference to the one the gyro implies."""
 
     def __init__(self, vehicle: VehicleParams, config: AxleCheckConfig | None = None) -> None:
         self.config = config or AxleCheckConfig()
+        c = self.config
         # w_right - w_left per unit yaw rate: l_T / r0, s (eq. 6b)
         self._gain_s = vehicle.track_width_m / vehicle.nominal_tire_radius_m
         self._radius_m = vehicle.nominal_tire_radius_m
-        self._forget = 1.0 - 1.0 / self.config.memory
-        # information needed: min_turning samples of x = min_yaw_rate l_T / r0
-        self._min_info = (
-            self.config.min_turning * (self.config.min_yaw_rate_rad_s * self._gain_s) ** 2
-        )
+        # information needed: min_turning_s seconds of x = min_yaw_rate l_T / r0
+        self._min_info = c.min_turning_s * (c.min_yaw_rate_rad_s * self._gain_s) ** 2
         self._yaw_rate: float | None = None
-        # discounted sums of x^2, x w, w^2, x y, w y per axle
-        self._sums = {axle: [0.0] * 5 for axle in AXLES}
+        self._last_t_ns: int | None = None
+        self._fits = {axle: _AxleFit(c.block_s, c.memory_s) for axle in AXLES}
         self._turning = dict.fromkeys(AXLES, 0)
         # the slope of the last verdict, kept while the recent turns carry too little
         # information (a straight stretch does not undo what the turns showed)
@@ -105,13 +162,14 @@ class AxleCheck:
         """The latest gyro yaw rate (z), rad/s."""
         self._yaw_rate = float(gyro_rad_s[2])
 
-    def on_wheel_speeds(self, wheel_speed_rad_s: Any) -> None:
+    def on_wheel_speeds(self, t_ns: int, wheel_speed_rad_s: Any) -> None:
         """One wheel-speed sample (fl, fr, rl, rr), rad/s; NaN for a wheel not reported."""
+        last, self._last_t_ns = self._last_t_ns, t_ns
         r = self._yaw_rate
-        if r is None:
+        if r is None or last is None:
             return
         c = self.config
-        lam = self._forget
+        dt_s = min(max((t_ns - last) * 1e-9, 0.0), _MAX_DT_S)
         x = r * self._gain_s
         turning = abs(r) >= c.min_yaw_rate_rad_s
         for axle, (i, j) in AXLES.items():
@@ -121,29 +179,17 @@ class AxleCheck:
             w = 0.5 * (wl + wr)
             if w * self._radius_m < c.min_speed_m_s:
                 continue
-            y = wr - wl
             self._turning[axle] += turning
-            s = self._sums[axle]
-            s[0] = lam * s[0] + x * x
-            s[1] = lam * s[1] + x * w
-            s[2] = lam * s[2] + w * w
-            s[3] = lam * s[3] + x * y
-            s[4] = lam * s[4] + w * y
-
-    def _info(self, axle: str) -> float:
-        sxx, sxw, sww = self._sums[axle][:3]
-        # sum of x_perp^2: the information on the slope once the split term is fitted
-        return sxx - sxw * sxw / sww if sww > 0.0 else 0.0
+            self._fits[axle].add(t_ns, dt_s, x, w, wr - wl)
 
     def slope(self, axle: str) -> float:
-        """Least-squares slope of the measured on the expected difference (split fitted), or
-        the slope of the last verdict while the recent turns carry too little information."""
-        sxx, sxw, sww, sxy, swy = self._sums[axle]
-        det = sxx * sww - sxw * sxw
-        if det <= 0.0 or self._info(axle) < self._min_info:
+        """Least-squares slope of the measured on the expected difference (split fitted per
+        block), or the slope of the last verdict while the recent turns carry too little
+        information."""
+        info, cross = self._fits[axle].totals()
+        if info < self._min_info:
             return self._decided.get(axle, math.nan)
-        # normal equations of y = slope x + c w: slope = (sww sxy - sxw swy) / det
-        slope = (sww * sxy - sxw * swy) / det
+        slope = cross / info
         self._decided[axle] = slope
         return slope
 

@@ -499,7 +499,7 @@ class RadiusEstimator:
                 self._drop(exc.kind if isinstance(exc, InputError) else "bad_value")
                 return
             t_ns = int(t_ns)
-        self.axles.on_wheel_speeds(ws)
+        self.axles.on_wheel_speeds(t_ns, ws)
         if self.config.locked_axle_gyro_heading and self.axles.locked("rear"):
             ws = self._rear_heading_from_gyro(t_ns, ws)
         if self._speed_gain:
