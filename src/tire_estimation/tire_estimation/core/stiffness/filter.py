@@ -11,7 +11,7 @@ The filters other than Algorithm 1 share the settings of :class:`BaselineConfig`
 the single-track model of ``core.stiffness.model`` (eq. 1-12, with ``w = C - C_n``, eq. 7) in the
 form of :func:`model`: state derivative and measurement mean per row of states and stiffness
 deviations. With ``friction_coefficient`` mu > 0 that is Algorithm 1's friction-limited lateral
-tyre (``saturation_peak`` = ``friction``): ``Fy = mu Fz tanh(C alpha / (mu Fz))`` per axle,
+tyre (peak at the friction limit): ``Fy = mu Fz tanh(C alpha / (mu Fz))`` per axle,
 i.e. ``C phi(alpha)`` with ``alpha_s = mu Fz / C`` at each row's own stiffness, in the shape
 Algorithm 1 is given (``tyre_shape``).
 """
@@ -24,8 +24,9 @@ from typing import Any, TypeVar
 import numpy as np
 from numpy.typing import NDArray
 
-from tire_estimation.core.stiffness.config import StiffnessEstimatorConfig
+from tire_estimation.core.stiffness.config import require_stiffness_prior
 from tire_estimation.core.stiffness.model import (
+    WHEEL_SPEED_NOISE_STD_M_S,
     SingleTrackParams,
     linearize,
     saturation_slip_at,
@@ -41,28 +42,19 @@ C = TypeVar("C", bound="BaselineConfig")
 
 @dataclass(frozen=True)
 class BaselineConfig:
-    """Settings a filter other than Algorithm 1 shares with it (names, units, defaults and checks
-    as ``StiffnessEstimatorConfig``): the front-end's and the common part of the filter's.
+    """Settings a filter other than Algorithm 1 shares with it (names, units, ranges, defaults
+    and meaning as in ``StiffnessEstimatorConfig``).
 
     Attributes:
-        drive: driven axle whose Cx is estimated: ``vehicle``, ``front``, ``rear`` or ``all``.
         initial_stiffness_factor: initial guess of every stiffness, fraction of nominal, 1
             (default 1.0).
         initial_stiffness_std_fraction: prior std of the stiffness, fraction of nominal, 1
             (default 0.3, paper Sec. VI-A).
-        min_stiffness_fraction: lower projection bound, fraction of nominal, 1 (default 0.05).
-        max_stiffness_fraction: upper projection bound, fraction of nominal, 1 (default 3.0).
         accel_noise_std_m_s2: accelerometer white-noise std (R of eq. 12), m/s^2 (0.05).
         gyro_noise_std_rad_s: gyro white-noise std (R of eq. 12), rad/s (0.00175).
-        wheel_speed_noise_std_m_s: std of the axle-mean ``R_w omega``, carried into ``R``
-            through the slip (eq. 2-3) as in Algorithm 1, m/s (0.035).
-        initial_vx_std_m_s: initial std of vX around the measured speed, m/s (0.3).
         initial_vy_std_m_s: initial std of vY, m/s (0.3).
-        initial_yaw_rate_std_rad_s: initial std of the yaw rate, rad/s (0.0175).
-        wheel_radius_m: effective wheel radius, m; 0 = the vehicle's nominal radius (0.0).
         rolling_resistance_n: known constant longitudinal resistance, N (0.0).
         drag_n_s2_m2: known aerodynamic drag coefficient k (F = k vX^2), N s^2/m^2 (0.0).
-        roll_gain: c_phi g of Sec. II-A, 1 (0.0).
         friction_coefficient: road friction coefficient mu of Algorithm 1's friction-limited
             lateral tyre ``Fy = mu Fz tanh(C alpha / (mu Fz))`` per axle (static axle load
             ``Fz``), 1; 0 keeps the linear tyre of eq. (2) (0.0).
@@ -73,51 +65,25 @@ class BaselineConfig:
             vehicle's (0.0).
         cornering_stiffness_rear_n_rad: nominal rear cornering stiffness, N/rad; 0 = the
             vehicle's (0.0).
-        min_speed_m_s: below this speed nothing is learned, m/s (5.0).
-        activation_window_s: window of the RMS steering angle, s (1.0).
-        activation_steer_rad: minimum RMS road-wheel angle to learn (Sec. V), rad (0.003).
-        activation_replay_s: when learning starts, rewind the filter to the onset of the
-            steering within this time and replay the inputs since with learning on, s (0.0 =
-            off).
-        activation_accel_x_window_s: window of the std of the measured ax, s (3.0).
-        activation_accel_x_std_m_s2: minimum std of the measured ax to learn Cx, m/s^2 (0.2).
-        max_gap_s: a larger gap between IMU samples re-initializes the filter, s (0.5).
-        max_input_age_s: wheel speed / steering / velocity older than this are stale, s (0.2).
     """
 
-    drive: str = "vehicle"
     initial_stiffness_factor: float = 1.0
     initial_stiffness_std_fraction: float = 0.3
-    min_stiffness_fraction: float = 0.05
-    max_stiffness_fraction: float = 3.0
     accel_noise_std_m_s2: float = 0.05
     gyro_noise_std_rad_s: float = 0.00175
-    wheel_speed_noise_std_m_s: float = 0.035
-    initial_vx_std_m_s: float = 0.3
     initial_vy_std_m_s: float = 0.3
-    initial_yaw_rate_std_rad_s: float = 0.0175
-    wheel_radius_m: float = 0.0
     rolling_resistance_n: float = 0.0
     drag_n_s2_m2: float = 0.0
-    roll_gain: float = 0.0
     friction_coefficient: float = 0.0
     tyre_shape: str = "tanh"
     magic_formula_shape_c: float = 1.3
     magic_formula_curvature_e: float = 0.0
     cornering_stiffness_front_n_rad: float = 0.0
     cornering_stiffness_rear_n_rad: float = 0.0
-    min_speed_m_s: float = 5.0
-    activation_window_s: float = 1.0
-    activation_steer_rad: float = 0.003
-    activation_replay_s: float = 0.0
-    activation_accel_x_window_s: float = 3.0
-    activation_accel_x_std_m_s2: float = 0.2
-    max_gap_s: float = 0.5
-    max_input_age_s: float = 0.2
 
     def __post_init__(self) -> None:
         # the shared settings obey Algorithm 1's rules (ConfigError names the field and value)
-        StiffnessEstimatorConfig(**{f.name: getattr(self, f.name) for f in fields(BaselineConfig)})
+        require_stiffness_prior(self)
 
     @classmethod
     def sharing(cls: type[C], other: Any, **overrides: Any) -> C:
@@ -243,7 +209,7 @@ def measurement_cov(
     wheel_speed_m_s: tuple[float, float],
     p: SingleTrackParams,
     cx: F64,
-    wheel_speed_std_m_s: float,
+    wheel_speed_std_m_s: float = WHEEL_SPEED_NOISE_STD_M_S,
 ) -> F64:
     """IMU noise ``R`` (3, 3) plus the wheel-speed noise carried into ``y``, (N, 3, 3).
 
@@ -257,14 +223,6 @@ def measurement_cov(
     g = wheel_speed_gain(x, delta_rad, wheel_speed_m_s, p, cx)
     # eq. (2)-(3): Cov = R + s^2 G^T G
     return out + wheel_speed_std_m_s**2 * np.einsum("nai,naj->nij", g, g)
-
-
-def stiffness_bounds(config: BaselineConfig, nominal: F64) -> tuple[F64, F64]:
-    """Bounds of ``w = C - C_n`` (Sec. V projection)."""
-    return (
-        config.min_stiffness_fraction * nominal - nominal,
-        config.max_stiffness_fraction * nominal - nominal,
-    )
 
 
 def imu_noise_cov(config: BaselineConfig) -> F64:
@@ -288,5 +246,4 @@ __all__ = [
     "imu_noise_cov",
     "measurement_cov",
     "model",
-    "stiffness_bounds",
 ]
