@@ -44,7 +44,9 @@ stiffness estimate (particle spread, ``sqrt(diag P)``), not the std of the stiff
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -58,7 +60,6 @@ from tire_estimation.core.stiffness.filter import (
     StiffnessFilter,
     friction_saturation,
     imu_noise_cov,
-    measurement_cov,
     model,
 )
 from tire_estimation.core.stiffness.frontend import StiffnessFrontEnd
@@ -67,6 +68,7 @@ from tire_estimation.core.stiffness.model import (
     WHEEL_SPEED_NOISE_STD_M_S,
     SingleTrackParams,
     linearize,
+    measurement_cov,
     stiffness_bounds,
 )
 from tire_estimation.core.validation import (
@@ -85,6 +87,16 @@ _LOG_2PI = math.log(2.0 * math.pi)
 
 
 # ---------------------------------------------------------------------------- configuration
+def _require_walks(config: Any, prefix: str, check: Callable[[str, float], None]) -> None:
+    """The stiffness random walk within [0, 5] of nominal per sqrt(s), and ``check`` on the
+    state noises ``{prefix}_vx_m_s_sqrt_s``, ``_vy_m_s_sqrt_s`` and ``_yaw_rate_rad_s_sqrt_s``."""
+    walk = config.stiffness_walk_std_fraction_sqrt_s
+    require_range("stiffness_walk_std_fraction_sqrt_s", walk, 0.0, 5.0)
+    for state in ("vx_m_s_sqrt_s", "vy_m_s_sqrt_s", "yaw_rate_rad_s_sqrt_s"):
+        name = f"{prefix}_{state}"
+        check(name, getattr(config, name))
+
+
 @dataclass(frozen=True)
 class AugPfConfig(BaselineConfig):
     """AUGPF: bootstrap particle filter on ``[vX, vY, r, dCx, dCy_f, dCy_r]``.
@@ -113,18 +125,7 @@ class AugPfConfig(BaselineConfig):
         super().__post_init__()
         require_int_range("n_particles", self.n_particles, 1, 1_000_000)
         require_range("resample_threshold", self.resample_threshold, 0.0, 1.0)
-        require_range(
-            "stiffness_walk_std_fraction_sqrt_s",
-            self.stiffness_walk_std_fraction_sqrt_s,
-            0.0,
-            5.0,
-        )
-        for name in (
-            "state_jitter_vx_m_s_sqrt_s",
-            "state_jitter_vy_m_s_sqrt_s",
-            "state_jitter_yaw_rate_rad_s_sqrt_s",
-        ):
-            require_non_negative(name, getattr(self, name))
+        _require_walks(self, "state_jitter", require_non_negative)
 
 
 @dataclass(frozen=True)
@@ -147,18 +148,7 @@ class EkfConfig(BaselineConfig):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        require_range(
-            "stiffness_walk_std_fraction_sqrt_s",
-            self.stiffness_walk_std_fraction_sqrt_s,
-            0.0,
-            5.0,
-        )
-        for name in (
-            "process_vx_m_s_sqrt_s",
-            "process_vy_m_s_sqrt_s",
-            "process_yaw_rate_rad_s_sqrt_s",
-        ):
-            require_positive(name, getattr(self, name))
+        _require_walks(self, "process", require_positive)
 
 
 @dataclass(frozen=True)
@@ -318,7 +308,6 @@ class AugPf(StiffnessFilter):
             meas.wheel_speed_m_s,
             p,
             self.nominal[0] + self.w[:, 0],
-            WHEEL_SPEED_NOISE_STD_M_S,
         )
         # eq. (12): q_k ∝ q_{k-1} N(y; h(x) + d(x) w, R)  (bootstrap: proposal = prior)
         self.log_w += gaussian_logpdf(meas.y[None, :] - y_hat, cov)
@@ -428,7 +417,6 @@ class AugEkf(StiffnessFilter):
             meas.wheel_speed_m_s,
             self.params,
             np.array([self.nominal[0] + w[0]]),
-            WHEEL_SPEED_NOISE_STD_M_S,
         )[0]
         # S = H P H^T + R, K = P H^T S^-1
         s = h @ self.p @ h.T + r

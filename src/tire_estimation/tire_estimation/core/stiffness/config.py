@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Any
+from dataclasses import dataclass, fields
+from typing import Any, TypeVar
 
 from tire_estimation.core.stiffness.model import TYRE_SHAPES
 from tire_estimation.core.validation import (
@@ -17,6 +17,7 @@ from tire_estimation.core.validation import (
 STATE_PROPOSALS = ("prior", "measured")
 NIW_UPDATES = ("sampled", "rao_blackwellized")
 FIRST_LEARNING = ("mpf", "grid")
+C = TypeVar("C", bound="BaselineConfig")
 
 
 def require_tyre_shape(config: Any) -> None:
@@ -27,7 +28,80 @@ def require_tyre_shape(config: Any) -> None:
 
 
 @dataclass(frozen=True)
-class StiffnessEstimatorConfig:
+class BaselineConfig:
+    """Settings every stiffness filter shares: Algorithm 1's (:class:`StiffnessEstimatorConfig`
+    extends them) and those of the filters it is compared with (``core.stiffness.grid``,
+    ``evaluation.stiffness_baselines``); ranges as in :class:`StiffnessEstimatorConfig`.
+
+    Attributes:
+        initial_stiffness_factor: initial guess of every stiffness, fraction of nominal, 1
+            (default 1.0).
+        initial_stiffness_std_fraction: prior std of the stiffness, fraction of nominal, 1
+            (default 0.3, paper Sec. VI-A).
+        accel_noise_std_m_s2: accelerometer white-noise std (R of eq. 12), m/s^2 (0.05).
+        gyro_noise_std_rad_s: gyro white-noise std (R of eq. 12), rad/s (0.00175).
+        initial_vy_std_m_s: initial std of vY, m/s (0.3).
+        rolling_resistance_n: known constant longitudinal resistance, N (0.0).
+        drag_n_s2_m2: known aerodynamic drag coefficient k (F = k vX^2), N s^2/m^2 (0.0).
+        friction_coefficient: road friction coefficient mu of Algorithm 1's friction-limited
+            lateral tyre ``Fy = mu Fz tanh(C alpha / (mu Fz))`` per axle (static axle load
+            ``Fz``), 1; 0 keeps the linear tyre of eq. (2) (0.0).
+        tyre_shape: ``tanh`` or ``magic_formula``, as Algorithm 1's (``tanh``).
+        magic_formula_shape_c: shape factor C of the ``magic_formula`` tyre, 1 (1.3).
+        magic_formula_curvature_e: curvature factor E of the ``magic_formula`` tyre, 1 (0.0).
+        cornering_stiffness_front_n_rad: nominal front cornering stiffness, N/rad; 0 = the
+            vehicle's (0.0).
+        cornering_stiffness_rear_n_rad: nominal rear cornering stiffness, N/rad; 0 = the
+            vehicle's (0.0).
+    """
+
+    initial_stiffness_factor: float = 1.0
+    initial_stiffness_std_fraction: float = 0.3
+    accel_noise_std_m_s2: float = 0.05
+    gyro_noise_std_rad_s: float = 0.00175
+    initial_vy_std_m_s: float = 0.3
+    rolling_resistance_n: float = 0.0
+    drag_n_s2_m2: float = 0.0
+    friction_coefficient: float = 0.0
+    tyre_shape: str = "tanh"
+    magic_formula_shape_c: float = 1.3
+    magic_formula_curvature_e: float = 0.0
+    cornering_stiffness_front_n_rad: float = 0.0
+    cornering_stiffness_rear_n_rad: float = 0.0
+
+    def __post_init__(self) -> None:
+        require_range("initial_stiffness_factor", self.initial_stiffness_factor, 0.05, 5.0)
+        require_range(
+            "initial_stiffness_std_fraction", self.initial_stiffness_std_fraction, 1e-4, 5.0
+        )
+        require_positive("accel_noise_std_m_s2", self.accel_noise_std_m_s2)
+        require_positive("gyro_noise_std_rad_s", self.gyro_noise_std_rad_s)
+        for name in ("initial_vy_std_m_s", "rolling_resistance_n", "drag_n_s2_m2"):
+            require_non_negative(name, getattr(self, name))
+        if self.friction_coefficient != 0.0:
+            require_range("friction_coefficient", self.friction_coefficient, 0.1, 5.0)
+        require_tyre_shape(self)
+        for name in ("cornering_stiffness_front_n_rad", "cornering_stiffness_rear_n_rad"):
+            require_range(name, getattr(self, name), 0.0, 1e7)
+
+    @classmethod
+    def sharing(cls: type[C], other: Any, **overrides: Any) -> C:
+        """This config with the :class:`BaselineConfig` fields copied from ``other``.
+
+        Every field declared on :class:`BaselineConfig` that ``other`` (a dataclass, e.g. a
+        ``StiffnessEstimatorConfig``) also has is copied; the method's own fields (e.g.
+        ``RlsConfig.forgetting``, which is not the NiW forgetting of Algorithm 1) keep their
+        defaults unless given in ``overrides``. E.g. ``AugPfConfig.sharing(alg1_config,
+        n_particles=100)`` initializes a baseline with the values Algorithm 1 uses for the
+        variables in common (paper Sec. VI-A).
+        """
+        names = {f.name for f in fields(BaselineConfig)}
+        shared = {f.name: getattr(other, f.name) for f in fields(other) if f.name in names}
+        return cls(**{**shared, **overrides})
+
+
+@dataclass(frozen=True)
+class StiffnessEstimatorConfig(BaselineConfig):
     """Tuning of the stiffness MPF (Algorithm 1) and its front-end; checked at construction.
 
     The tuning constants nobody sets live next to the equations they serve
@@ -98,30 +172,18 @@ class StiffnessEstimatorConfig:
 
     n_particles: int = 200
     forgetting: float = 0.99
-    initial_stiffness_factor: float = 1.0
-    initial_stiffness_std_fraction: float = 0.3
     stiffness_noise_std_fraction: float = 0.03
-    accel_noise_std_m_s2: float = 0.05
-    gyro_noise_std_rad_s: float = 0.00175
     imu_bias_states: bool = True
-    initial_vy_std_m_s: float = 0.3
     state_jitter_vx_m_s_sqrt_s: float = 0.015
     state_proposal: str = "prior"
     niw_update: str = "sampled"
     first_learning: str = "mpf"
     grid_handover_s: float = 2.0
     grid_publish_s: float = 30.0
-    rolling_resistance_n: float = 0.0
-    drag_n_s2_m2: float = 0.0
-    friction_coefficient: float = 0.0
-    tyre_shape: str = "tanh"
-    magic_formula_shape_c: float = 1.3
-    magic_formula_curvature_e: float = 0.0
-    cornering_stiffness_front_n_rad: float = 0.0
-    cornering_stiffness_rear_n_rad: float = 0.0
     speed_noise_std_m_s: float = 0.02
 
     def __post_init__(self) -> None:
+        super().__post_init__()
         require_int_range("n_particles", self.n_particles, 1, 1_000_000)
         require_range("forgetting", self.forgetting, 0.5, 1.0)
         require_choice("state_proposal", self.state_proposal, STATE_PROPOSALS)
@@ -129,24 +191,6 @@ class StiffnessEstimatorConfig:
         require_choice("first_learning", self.first_learning, FIRST_LEARNING)
         require_range("grid_handover_s", self.grid_handover_s, 0.01, 600.0)
         require_range("grid_publish_s", self.grid_publish_s, 0.0, 1e6)
-        require_stiffness_prior(self)
         require_positive("speed_noise_std_m_s", self.speed_noise_std_m_s)
         require_non_negative("state_jitter_vx_m_s_sqrt_s", self.state_jitter_vx_m_s_sqrt_s)
         require_range("stiffness_noise_std_fraction", self.stiffness_noise_std_fraction, 1e-5, 5.0)
-
-
-def require_stiffness_prior(config: Any) -> None:
-    """Check the settings Algorithm 1 shares with the other stiffness filters (ConfigError)."""
-    require_range("initial_stiffness_factor", config.initial_stiffness_factor, 0.05, 5.0)
-    require_range(
-        "initial_stiffness_std_fraction", config.initial_stiffness_std_fraction, 1e-4, 5.0
-    )
-    require_positive("accel_noise_std_m_s2", config.accel_noise_std_m_s2)
-    require_positive("gyro_noise_std_rad_s", config.gyro_noise_std_rad_s)
-    for name in ("initial_vy_std_m_s", "rolling_resistance_n", "drag_n_s2_m2"):
-        require_non_negative(name, getattr(config, name))
-    if config.friction_coefficient != 0.0:
-        require_range("friction_coefficient", config.friction_coefficient, 0.1, 5.0)
-    require_tyre_shape(config)
-    for name in ("cornering_stiffness_front_n_rad", "cornering_stiffness_rear_n_rad"):
-        require_range(name, getattr(config, name), 0.0, 1e7)

@@ -34,7 +34,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tire_estimation.core.input_checks import finite_vector, stamp_after
-from tire_estimation.core.stiffness.config import StiffnessEstimatorConfig
 from tire_estimation.core.stiffness.filter import (
     BaselineConfig,
     FilterEstimate,
@@ -47,8 +46,8 @@ from tire_estimation.errors import InputError
 
 F64 = NDArray[np.float64]
 F = TypeVar("F", bound=StiffnessFilter)
-#: the settings the front-end reads (Algorithm 1's, or the same names of another filter's)
-FrontEndConfig: TypeAlias = StiffnessEstimatorConfig | BaselineConfig
+#: the settings the front-end reads (Algorithm 1's extend them)
+FrontEndConfig: TypeAlias = BaselineConfig
 
 #: Sec. V activation: below this speed nothing is learned (the slip angles are small against
 #: their noise), m/s; the filter starts at half of it.
@@ -194,8 +193,8 @@ class StiffnessFrontEnd(Generic[F]):
     """Sample-by-sample front-end of one stiffness filter (see the module doc).
 
     Args:
-        config: Algorithm 1's :class:`StiffnessEstimatorConfig` or a :class:`BaselineConfig`
-            subclass (the settings of the same names).
+        config: a :class:`BaselineConfig` (Algorithm 1's ``StiffnessEstimatorConfig`` or another
+            filter's).
         vehicle: geometry, nominal stiffness and drive.
         rng: random generator of every draw.
 

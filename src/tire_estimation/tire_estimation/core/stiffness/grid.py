@@ -63,12 +63,12 @@ from tire_estimation.core.stiffness.filter import (
     Measurement,
     StiffnessFilter,
     imu_noise_cov,
-    measurement_cov,
     model,
 )
 from tire_estimation.core.stiffness.model import (
     WHEEL_SPEED_NOISE_STD_M_S,
     SingleTrackParams,
+    measurement_cov,
     stiffness_bounds,
 )
 from tire_estimation.core.validation import (
@@ -377,7 +377,6 @@ class GridEkf(StiffnessFilter):
             meas.wheel_speed_m_s,
             self.params,
             self.nominal[0] + self.w[:, 0],
-            WHEEL_SPEED_NOISE_STD_M_S,
         )
         # eq. (12) linearized per cell: S = H P H^T + R, K = P H^T S^-1
         ph_t = self.p @ np.transpose(h_jac, (0, 2, 1))

@@ -52,6 +52,8 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from tire_estimation.core.stiffness import mat3
+
 F64 = NDArray[np.float64]
 IDX = NDArray[np.intp]
 #: a 3x3 matrix as a row-major 9-tuple (kept in registers by the compiler), a 3-vector as a 3-tuple
@@ -137,22 +139,18 @@ def _quad(a: M3, v: V3) -> float:
     return v[0] * av[0] + v[1] * av[1] + v[2] * av[2]
 
 
+#: ``mat3.sym_cofactors`` compiled (the same expressions in the same order)
+_sym_cofactors = numba.njit(**_JIT)(mat3.sym_cofactors)
+
+
 @numba.njit(**_JIT)
 def _inv_sym(a: M3) -> tuple[M3, float]:
     """Inverse and determinant of a symmetric 3x3 by cofactors (``mat3.inv_sym``).
 
     Reads only the upper triangle of ``a``.
     """
-    a00, a01, a02, a11, a12, a22 = a[0], a[1], a[2], a[4], a[5], a[8]
-    # cofactors C_ij (symmetric for symmetric a)
-    c00 = a11 * a22 - a12 * a12
-    c01 = a02 * a12 - a01 * a22
-    c02 = a01 * a12 - a02 * a11
-    c11 = a00 * a22 - a02 * a02
-    c12 = a01 * a02 - a00 * a12
-    c22 = a00 * a11 - a01 * a01
-    # det = a_0j C_0j (Laplace expansion along row 0); a^-1 = C^T / det
-    det = a00 * c00 + a01 * c01 + a02 * c02
+    c00, c01, c02, c11, c12, c22, det = _sym_cofactors(a[0], a[1], a[2], a[4], a[5], a[8])
+    # a^-1 = C^T / det
     inv_det = 1.0 / det
     i01 = c01 * inv_det
     i02 = c02 * inv_det

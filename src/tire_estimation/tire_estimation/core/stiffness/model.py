@@ -428,6 +428,32 @@ def wheel_speed_gain(
     return out
 
 
+def measurement_cov(
+    r_cov: F64,
+    x: F64,
+    delta_rad: float,
+    wheel_speed_m_s: tuple[float, float],
+    p: SingleTrackParams,
+    cx: F64,
+    wheel_speed_std_m_s: float = WHEEL_SPEED_NOISE_STD_M_S,
+) -> F64:
+    """Measurement-noise covariance of ``y`` per row of ``x``, (N, 3, 3).
+
+    ``R`` (3, 3) of the IMU (eq. 12) plus the wheel-speed noise carried into ``y`` by the slip
+    (eq. 2-3): ``s^2 sum_axles g g^T`` with ``g`` from :func:`wheel_speed_gain` at the
+    longitudinal stiffness ``cx`` (N,) and ``s`` = ``wheel_speed_std_m_s``.
+    """
+    s = wheel_speed_std_m_s
+    if s <= 0.0 or p.drive not in ("front", "rear", "all"):
+        return np.tile(r_cov, (x.shape[0], 1, 1))
+    g = wheel_speed_gain(x, delta_rad, wheel_speed_m_s, p, cx)
+    # input noise through eq. (2)-(3): Cov = R + s^2 sum_axles g g^T
+    outer = g[:, 0, :, None] * g[:, 0, None, :]
+    for j in range(1, g.shape[1]):
+        outer += g[:, j, :, None] * g[:, j, None, :]
+    return r_cov + (s * s) * outer
+
+
 def stiffness_bounds(nominal: F64) -> tuple[F64, F64]:
     """Bounds of ``w = C - C_n`` (Sec. V projection), (3,) each."""
     return (

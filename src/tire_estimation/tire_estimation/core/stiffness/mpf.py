@@ -16,42 +16,32 @@ the conditional predictive (39)-(41) -> NiW update (19) -> bias update (30) -> e
 42) -> store the state derivative for the prediction (9) of the next step.
 
 Documented deviations from the printed paper: (i) eq. (40) is implemented as the conditional of
-the joint Student-t of Approximation 1 per eq. (41) (dof ``nu~ + n_e``, gain ``L11 d^T L22^-1``),
-the printed (40) mixes transposes and dofs; (ii) eq. (30) uses ``P - K S K^T`` (the printed
-``K S^-1 K^T`` is dimensionally a typo); (iii) a small random walk ("jitter") on the states
-keeps particle diversity when Sigma becomes small; (iv) the measurement noise ``R`` is
-augmented by the wheel-speed noise that the slip (eq. 3) carries into ``y`` (the wheel speeds
-are inputs ``u``); (v) the bias update (30) treats the total noise as the Student-t of
-Approximation 1 (a residual far outside ``S`` barely moves the bias) and, while the stiffness
-is learned, runs only while the particles' yaw rate plus bias agrees with the gyro
-(``yaw_rate_nis``, exponential mean below :data:`BIAS_GATE_SIGMA` squared; the gyro row of ``d``
-is zero, so otherwise the per-particle bias filters absorb every yaw-rate model error, after
-which the gyro no longer constrains the yaw rate and the filter diverges); (vi) without
-longitudinal excitation the Cx part of the statistics is frozen
-(:func:`~.student_t.freeze_component`); (vii) with a measured speed and no wheel speeds the slip
-(eq. 3), hence the longitudinal tyre force, is unknown: the measured ax drives vX (eq. 1a as
-kinematics, ``dvX/dt = ax + vY r``) and the speed replaces ax as measurement row 0
-(``model.kinematic_speed_row``); the ax bias is then not estimated; (viii) optional saturating
-lateral tyre ``Fy = C alpha_s tanh(alpha / alpha_s)`` (``friction_coefficient``, still affine in
-``C``) with the peak at the friction limit, ``alpha_s = mu Fz / C`` at each particle's stiffness
-mean, with the tanh or, for a tyre whose curve is known, Pacejka's Magic Formula shape scaled to
-the same stiffness and peak (``tyre_shape``); (ix) optional (``niw_update`` =
-``rao_blackwellized``), against the collapse of the particles onto a jointly scaled stiffness
-pair at activation: the NiW mean and ``gamma`` updated with the measurement's information share
-of the draw of ``w`` (:func:`~.student_t.niw_mean_gains`); (x) the bias update (30) adds ``(tau
-/ Ts) P`` to its noise (:data:`BIAS_AVERAGE_S` = tau), which caps its gain at ``Ts / (tau +
-Ts)``: right after the initialization (``P`` = ``P_0``) eq. (30) as printed takes the
-particle's own start-up transient as bias within a few steps, after which the yaw-rate gate of
-(v) keeps it; with the cap the bias is an average over about tau; (xi) the statistics of all
-particles are replaced by their weighted moment match (:func:`niw.collapse`) when a learning
-phase ends, so that weighting and resampling for the lateral state do not move the stiffness
-estimate while nothing is learned (the paper runs Algorithm 1 only while the stiffness is
-observable, Sec. V).
+the joint Student-t of Approximation 1 per eq. (41) (dof ``nu~ + n_e``, gain ``L11 d^T L22^-1``);
+(ii) eq. (30) uses ``P - K S K^T`` (the printed ``K S^-1 K^T`` is dimensionally a typo); (iii) a
+small random walk ("jitter") on the states keeps particle diversity when Sigma becomes small;
+(iv) ``R`` is augmented by the wheel-speed noise that the slip (eq. 3) carries into ``y``; (v)
+the bias update (30) treats the total noise as the Student-t of Approximation 1 and, while the
+stiffness is learned, runs only while the particles' yaw rate plus bias agrees with the gyro
+(the gyro row of ``d`` is zero, so otherwise the bias filters absorb every yaw-rate model error
+and the gyro no longer constrains the yaw rate); (vi) without longitudinal excitation the Cx
+part of the statistics is frozen (``student_t.freeze_component``); (vii) with a measured speed
+and no wheel speeds the measured ax drives vX (``dvX/dt = ax + vY r``) and the speed replaces ax
+as measurement row 0 (``model.kinematic_speed_row``), the ax bias not estimated; (viii) optional
+saturating lateral tyre ``Fy = C alpha_s phi(alpha / alpha_s)`` (``friction_coefficient``,
+``tyre_shape``) with the peak at the friction limit, ``alpha_s = mu Fz / C`` at each particle's
+stiffness mean; (ix) optional (``niw_update`` = ``rao_blackwellized``): the NiW mean and
+``gamma`` updated with the measurement's information share of the draw of ``w``
+(``student_t.niw_mean_gains``), against the collapse of the particles onto a jointly scaled
+stiffness pair at activation; (x) the bias update (30) adds ``(tau / Ts) P`` to its noise, which
+caps its gain at ``Ts / (tau + Ts)``, so that the bias is an average over about tau instead of
+the particle's own start-up transient; (xi) when a learning phase ends the statistics of all
+particles are replaced by their weighted moment match (``niw.collapse``), so that weighting and
+resampling for the lateral state do not move the stiffness estimate while nothing is learned
+(the paper runs Algorithm 1 only while the stiffness is observable, Sec. V).
 
-Speed: the per-particle algebra after the linearization runs in the compiled kernels of
-:mod:`.kernels` (three passes over the particles per IMU step). With ``state_proposal`` =
-``measured`` the rows drawn given their measurement are weighed apart
-(:mod:`.proposal`); that step runs the NumPy functions of :mod:`.student_t`.
+The per-particle algebra after the linearization runs in the compiled kernels of
+:mod:`.kernels`; with ``state_proposal`` = ``measured`` (:mod:`.proposal`) the step runs the
+NumPy functions of :mod:`.student_t`.
 """
 
 from __future__ import annotations
@@ -66,14 +56,13 @@ from tire_estimation.core.stiffness import kernels as stiffness_kernels
 from tire_estimation.core.stiffness import mat3
 from tire_estimation.core.stiffness.config import StiffnessEstimatorConfig
 from tire_estimation.core.stiffness.model import (
-    WHEEL_SPEED_NOISE_STD_M_S,
     Linearized,
     SingleTrackParams,
     kinematic_speed_row,
     linearize,
+    measurement_cov,
     saturation_slip_at,
     stiffness_bounds,
-    wheel_speed_gain,
 )
 from tire_estimation.core.stiffness.proposal import (
     marginal_maha_logdet,
@@ -114,9 +103,8 @@ GYRO_BIAS_WALK_RAD_S_SQRT_S = 0.0001
 BIAS_GATE_SIGMA = 3.0
 #: ... averaged exponentially over this time constant, s.
 BIAS_GATE_WINDOW_S = 1.0
-#: Deviation (x): time constant tau of the bias update, s; on ``stiffness_step`` with IMU biases
-#: 1 of 40 drives ran away at each of three filter seeds with 2 s, against 5-9 with eq. (30)
-#: as printed (tau = 0).
+#: Deviation (x): time constant tau of the bias update, s (``stiffness_step`` with IMU biases:
+#: 1 of 40 drives ran away per filter seed with 2 s, 5-9 with eq. (30) as printed, tau = 0).
 BIAS_AVERAGE_S = 2.0
 
 
@@ -359,8 +347,7 @@ class StiffnessMpf:
         return lin, np.array([vx_m_s, y[1], y[2]]), r_cov
 
     def _track_yaw_rate_nis(self, nis: float) -> None:
-        """Deviation (v): the exponential mean of the yaw-rate NIS over
-        :data:`BIAS_GATE_WINDOW_S`."""
+        """Deviation (v): the exponential mean of the yaw-rate NIS (:data:`BIAS_GATE_WINDOW_S`)."""
         self.yaw_rate_nis = nis
         a = min(1.0, self._dt_s / BIAS_GATE_WINDOW_S)
         self.yaw_rate_nis_mean += a * (self.yaw_rate_nis - self.yaw_rate_nis_mean)
@@ -373,7 +360,7 @@ class StiffnessMpf:
             self.evidence_steps += 1
 
     def _resample_if_needed(self) -> NDArray[np.intp] | None:
-        """Algorithm 1 lines 8-10: the ancestors (weights reset) or None."""
+        """Algorithm 1 lines 8-10: the ancestors (weights reset), or None without resampling."""
         idx = None
         if self.n_eff <= RESAMPLE_THRESHOLD * self.n:
             idx = self._resample(self.weights, self.rng)
@@ -538,10 +525,8 @@ class StiffnessMpf:
 
     def _hold_statistics(self, learn: bool, freeze_cx: bool) -> None:
         """Deviation (xi): at the first step without learning after a learning phase, every
-        particle takes the weighted moment match of the statistics (:func:`niw.collapse`, the
-        learned components set ``gamma``), so that the estimate (27) stays at its last learned
-        value while the particles are weighted and resampled for the state only.
-        """
+        particle takes the weighted moment match of the statistics (:func:`niw.collapse`; the
+        learned components set ``gamma``): the estimate (27) stays at its last learned value."""
         if learn:
             self._last_learned_components = np.flatnonzero(self._learned_components(freeze_cx))
         elif self._learned_last_step:
@@ -574,22 +559,10 @@ class StiffnessMpf:
         return np.array([0.0 if freeze_cx else 1.0, 1.0, 1.0])
 
     def measurement_cov(self, delta_rad: float, wheel_speed_m_s: tuple[float, float]) -> F64:
-        """Measurement-noise covariance of ``y`` per particle, (N, 3, 3) (deviation iv).
-
-        ``R`` of the IMU (eq. 12) plus the wheel-speed noise carried into ``y`` by the slip
-        (eq. 2-3): ``s^2 G^T G`` with ``G`` from :func:`wheel_speed_gain` at each particle's
-        mean Cx (nominal + mu, eq. 7) and ``s`` = :data:`WHEEL_SPEED_NOISE_STD_M_S`.
-        """
-        s = WHEEL_SPEED_NOISE_STD_M_S
-        if self.params.drive not in ("front", "rear", "all"):
-            return np.tile(self.r_cov, (self.n, 1, 1))
+        """Measurement-noise covariance of ``y`` per particle, (N, 3, 3) (deviation iv):
+        :func:`~.model.measurement_cov` at each particle's mean Cx (nominal + mu, eq. 7)."""
         cx = self.nominal[0] + self.stats.mean[:, 0]
-        g = wheel_speed_gain(self.x, delta_rad, wheel_speed_m_s, self.params, cx)
-        # input noise through eq. (2)-(3): Cov = s^2 sum_axles g g^T
-        outer = g[:, 0, :, None] * g[:, 0, None, :]
-        for j in range(1, g.shape[1]):
-            outer += g[:, j, :, None] * g[:, j, None, :]
-        return self.r_cov + (s * s) * outer
+        return measurement_cov(self.r_cov, self.x, delta_rad, wheel_speed_m_s, self.params, cx)
 
     def _take(self, idx: NDArray[np.intp]) -> None:
         self.x = self.x[idx]
