@@ -6,7 +6,7 @@ error (estimate minus truth, at the CG) 0.5 s before, at, and 0.2 s after the fi
 sample, the Cy front / rear errors 0.5 s and 2 s after it, and the true vY RMS over the first
 0.5 s; then the correlation of the vY error with the rear error (docs/results.md, section 6).
 
-    python scripts/snow_activation_vy.py 1.5 0 30 [--set activation_replay_s=1]
+    python scripts/snow_activation_vy.py 1.5 0 30 [--set FIELD=VALUE ...]
 """
 
 from __future__ import annotations

@@ -24,6 +24,7 @@ from snow_activation_vy import drive_args
 
 import tire_estimation.evaluation.stiffness as ev
 from tire_estimation.core.stiffness.estimator import StiffnessEstimator
+from tire_estimation.core.stiffness.frontend import INITIAL_YAW_RATE_STD_RAD_S
 from tire_estimation.evaluation.stiffness_bound import (
     bound_noise,
     deterministic_crlb,
@@ -56,7 +57,7 @@ def main() -> None:
         for frac in args.noise:
             c = dataclasses.replace(cfg, stiffness_noise_std_fraction=frac)
             noise = bound_noise(
-                c, np.asarray(p.nominal), cfg.initial_vy_std_m_s, cfg.initial_yaw_rate_std_rad_s
+                c, np.asarray(p.nominal), cfg.initial_vy_std_m_s, INITIAL_YAW_RATE_STD_RAD_S
             )
             std = posterior_bound(sig, p, k0, AFTER_S, noise)
             rows.append((f"noise {frac:g} of nominal", 100.0 * std / truth[1:]))

@@ -70,7 +70,7 @@ def test_stiffness_mpf_is_moved_from_the_cg_to_base_link() -> None:
     # * 0.7 N s^2/m^2; the rest is the default configuration
     assert cfg.rolling_resistance_n == pytest.approx(176.58)
     assert cfg.drag_n_s2_m2 == pytest.approx(0.42)
-    assert cfg.accel_bias_std_m_s2 == StiffnessEstimatorConfig().accel_bias_std_m_s2 > 0.0
+    assert cfg.imu_bias_states == StiffnessEstimatorConfig().imu_bias_states
     trace = lateral_tyre.add_stiffness_mpf(lateral_tyre.run(sim), sim, cfg, seed=3)
     assert trace.mpf_vy_m_s is not None and trace.mpf_yaw_rate_rad_s is not None
     ok = (trace.t_s >= trace.t_s[0] + lateral_tyre.WARMUP_S) & np.isfinite(trace.mpf_vy_m_s)

@@ -66,9 +66,9 @@ def _scores(sim: SimResult, est: Any) -> tuple[float, float, float]:
         (RlsConfig, {"forgetting": 1.5}, "forgetting"),
         (RlsConfig, {"kf_stiffness": "true"}, "kf_stiffness"),
         (RlsConfig, {"kf_measures_accel": 1}, "kf_measures_accel"),
-        (BaselineConfig, {"drive": "left"}, "drive"),
+        (BaselineConfig, {"tyre_shape": "pacejka"}, "tyre_shape"),
         (BaselineConfig, {"accel_noise_std_m_s2": float("nan")}, "accel_noise_std_m_s2"),
-        (EkfConfig, {"wheel_radius_m": 0.05}, "wheel_radius_m"),
+        (EkfConfig, {"initial_vy_std_m_s": -0.1}, "initial_vy_std_m_s"),
         (AugPfConfig, {"friction_coefficient": 0.05}, "friction_coefficient"),
     ],
 )
@@ -80,18 +80,17 @@ def test_config_errors_name_field_and_value(cls: type, kw: dict[str, Any], field
 
 
 def test_sharing_copies_common_fields() -> None:
-    alg1 = StiffnessEstimatorConfig(n_particles=30, accel_noise_std_m_s2=0.07, roll_gain=0.1)
+    alg1 = StiffnessEstimatorConfig(n_particles=30, accel_noise_std_m_s2=0.07, drag_n_s2_m2=0.4)
     cfg = AugPfConfig.sharing(alg1, n_particles=12)
     assert cfg.n_particles == 12
     assert cfg.accel_noise_std_m_s2 == 0.07
-    assert cfg.roll_gain == 0.1
+    assert cfg.drag_n_s2_m2 == 0.4
     assert EkfConfig.sharing(alg1).gyro_noise_std_rad_s == alg1.gyro_noise_std_rad_s
     # the methods' own fields are not copied: n_particles, and RlsConfig.forgetting (the RLS
     # forgetting factor) is not Algorithm 1's NiW forgetting of the same name
     assert AugPfConfig.sharing(alg1).n_particles == AugPfConfig().n_particles
-    other = StiffnessEstimatorConfig(forgetting=0.95, resample_threshold=0.3)
+    other = StiffnessEstimatorConfig(forgetting=0.95)
     assert RlsConfig.sharing(other).forgetting == RlsConfig().forgetting
-    assert AugPfConfig.sharing(other).resample_threshold == AugPfConfig().resample_threshold
 
 
 # ------------------------------------------------------------------ model helpers

@@ -38,7 +38,7 @@ def test_sine_study_applies_the_config_overrides() -> None:
     from tire_estimation.errors import ConfigError
 
     with pytest.raises(ConfigError):
-        sine_study("snow_sine", 1.5, runs=1, n=10, overrides={"activation_steer_rad": -1.0})
+        sine_study("snow_sine", 1.5, runs=1, n=10, overrides={"initial_vy_std_m_s": -1.0})
 
 
 def test_set_values_parse_as_numbers_or_text() -> None:

@@ -8,8 +8,10 @@ import numpy as np
 import pytest
 
 from tire_estimation.core import niw
+from tire_estimation.core.stiffness import estimator as stiffness_estimator
 from tire_estimation.core.stiffness.config import StiffnessEstimatorConfig
 from tire_estimation.core.stiffness.estimator import StiffnessEstimator
+from tire_estimation.core.stiffness.frontend import MAX_GAP_S
 from tire_estimation.core.stiffness.grid import GridEkf, posterior
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.errors import ConfigError
@@ -74,7 +76,9 @@ def test_grid_hands_its_posterior_to_algorithm_1_once(monkeypatch: pytest.Monkey
     assert np.max(np.abs(rel[ts > ts[-1] - 5.0, 1:])) < 0.03
 
 
-def test_a_grid_that_does_not_fit_the_data_is_dropped_and_algorithm_1_goes_on() -> None:
+def test_a_grid_that_does_not_fit_the_data_is_dropped_and_algorithm_1_goes_on(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
     # snow drive 24, N = 50: the grid's mean NIS at the hand-over is about 4 (3 measurements), so
     # a gate of 1.0 rejects it; Algorithm 1 has learned beside it from the same samples with the
     # same random numbers, so from the drop on everything is the first_learning = mpf run
@@ -86,11 +90,8 @@ def test_a_grid_that_does_not_fit_the_data_is_dropped_and_algorithm_1_goes_on() 
         "tyre_shape": "magic_formula",
         "magic_formula_curvature_e": -0.5,
     }
-    gated = run(
-        sim,
-        eval_config(50, first_learning="grid", grid_handover_max_nis=1.0, **kw),
-        seed=7,
-    )
+    monkeypatch.setattr(stiffness_estimator, "GRID_MAX_NIS", 1.0)
+    gated = run(sim, eval_config(50, first_learning="grid", **kw), seed=7)
     alone = run(sim, eval_config(50, **kw), seed=7)
     assert (int(gated["grid_handovers"]), int(gated["grid_rejections"])) == (0, 1)
     assert (int(alone["grid_handovers"]), int(alone["grid_rejections"])) == (0, 0)
@@ -146,7 +147,7 @@ def test_the_grid_published_past_the_hand_over_is_dropped_when_the_stiffness_dro
 
 def test_a_gap_after_the_hand_over_drops_the_published_grid() -> None:
     # snow drive 24, N = 20: after the hand-over the grid is published; an IMU gap longer than
-    # max_gap_s re-initializes the filter, which keeps its learned statistics, so the grid (it
+    # MAX_GAP_S re-initializes the filter, which keeps its learned statistics, so the grid (it
     # would restart from the prior) is dropped and Algorithm 1's estimate is published
     sim = simulate("snow_sine", seed=24, sensors=NO_BIAS)
     cfg = eval_config(
@@ -174,7 +175,7 @@ def test_a_gap_after_the_hand_over_drops_the_published_grid() -> None:
             est.on_wheel_speeds(t, v)
         elif kind == 1:
             est.on_steering(t, v)
-        elif gap_from is None or t > gap_from + int((cfg.max_gap_s + 0.1) * 1e9):
+        elif gap_from is None or t > gap_from + int((MAX_GAP_S + 0.1) * 1e9):
             est.on_imu(t, v[0], v[1])
             if gap_from is not None:
                 break
@@ -206,7 +207,5 @@ def test_first_learning_is_validated() -> None:
         StiffnessEstimatorConfig(first_learning="ekf")
     with pytest.raises(ConfigError, match="grid_handover_s"):
         StiffnessEstimatorConfig(grid_handover_s=0.0)
-    with pytest.raises(ConfigError, match="grid_handover_max_nis"):
-        StiffnessEstimatorConfig(grid_handover_max_nis=0.5)
     with pytest.raises(ConfigError, match="grid_publish_s"):
         StiffnessEstimatorConfig(grid_publish_s=-1.0)

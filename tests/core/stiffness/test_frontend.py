@@ -1,4 +1,4 @@
-"""One front-end for every stiffness filter (``core/stiffness_frontend``): the same inputs give
+"""One front-end for every stiffness filter (``core/stiffness/frontend.py``): the same inputs give
 Algorithm 1 and any other filter the same measurements and learning flags."""
 
 from __future__ import annotations
@@ -14,7 +14,6 @@ import numpy as np
 import pytest
 
 import tire_estimation.core as core_pkg
-from tests.core.stiffness.test_activation_replay import _RecordingMpf
 from tire_estimation.core.stiffness.config import StiffnessEstimatorConfig
 from tire_estimation.core.stiffness.estimator import StiffnessEstimator
 from tire_estimation.core.stiffness.filter import (
@@ -60,16 +59,28 @@ class _LogFrontEnd(StiffnessFrontEnd[_Log]):
         return _Log()
 
 
-class _MpfLog(_RecordingMpf):
-    """``_RecordingMpf`` (the MPF's call signature) that keeps the inputs of every update."""
+class _MpfLog:
+    """Stands in for ``StiffnessMpf`` (its call signature); keeps the inputs of every update."""
 
     def __init__(self) -> None:
-        super().__init__()
+        self.initialized = False
         self.steps: list[tuple[bool, bool, tuple[Any, ...]]] = []
 
-    def update(self, y: Any, delta_rad: float, wheel_speed_m_s: Any, learn: bool, *a: Any) -> None:
-        super().update(y, delta_rad, wheel_speed_m_s, learn, *a)
-        vx_m_s, learn_cx = a
+    def initialize(self, x0: Any, x0_std: Any, bias0: Any = None) -> None:
+        self.initialized = True
+
+    def predict(self, dt_s: float, learn: bool, learn_cx: bool | None = None) -> None:
+        pass
+
+    def update(
+        self,
+        y: Any,
+        delta_rad: float,
+        wheel_speed_m_s: Any,
+        learn: bool,
+        vx_m_s: float | None = None,
+        learn_cx: bool | None = None,
+    ) -> None:
         self.steps.append((learn, learn_cx, (tuple(y), delta_rad, wheel_speed_m_s, vx_m_s)))
 
 
@@ -129,13 +140,13 @@ def test_cx_is_learned_only_with_wheel_speeds() -> None:
 
 
 def test_the_measurement_and_the_initial_state() -> None:
-    est = _front_end(roll_gain=0.5)
+    est = _front_end()
     _drive(est, wheels=False, n=10)
     meas = est.filter.log[-1][2]
     assert meas.vx_measured and meas.speed_m_s == 20.0
     assert meas.wheel_speed_m_s == (20.0, 20.0)
-    # eq. (12) y = [ax, ay / (1 + c_phi g), r]
-    np.testing.assert_allclose(meas.y, [0.0, 0.3 / 1.5, 0.01])
+    # eq. (12) y = [ax, ay, r]
+    np.testing.assert_allclose(meas.y, [0.0, 0.3, 0.01])
     np.testing.assert_allclose(est.filter.x0, [20.0, 0.0, 0.01])
     e = est.estimate()
     assert e.vx_m_s == 20.0 and e.mean_log_predictive is None

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from tire_estimation.core.stiffness.config import StiffnessEstimatorConfig
 from tire_estimation.core.stiffness.filter import Measurement
 from tire_estimation.core.stiffness.grid import (
     GridConfig,
@@ -156,9 +157,11 @@ def test_the_ekfs_carry_the_imu_biases_when_their_prior_is_not_zero() -> None:
     # without a bias prior the state has no bias part and the reading is a yaw rate
     g = _filter(grid_points=9, accel_bias_std_m_s2=0.0, gyro_bias_std_rad_s=0.0)
     assert g.nx == 3 and g.estimate().bias is None
-    # sharing takes Algorithm 1's bias settings (the evaluation's bias-free ones: no states)
+    # sharing follows Algorithm 1's imu_bias_states (the evaluation's bias-free one: no states)
     alg1 = eval_config(50)
-    assert GridConfig.sharing(alg1).accel_bias_std_m_s2 == alg1.accel_bias_std_m_s2 == 0.0
+    assert not alg1.imu_bias_states
+    assert not GridConfig.sharing(alg1).estimates_bias
+    assert GridConfig.sharing(StiffnessEstimatorConfig()).estimates_bias
 
 
 def test_no_learning_within_the_hold_after_initialization() -> None:

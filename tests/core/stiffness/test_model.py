@@ -284,9 +284,7 @@ def test_friction_limited_saturation_keeps_the_peak_at_mu_fz() -> None:
 
 def test_mpf_friction_peak_uses_each_particles_stiffness_mean() -> None:
     v = VehicleParams()
-    cfg = StiffnessEstimatorConfig(
-        n_particles=4, friction_coefficient=0.3, saturation_peak="friction"
-    )
+    cfg = StiffnessEstimatorConfig(n_particles=4, friction_coefficient=0.3)
     p = SingleTrackParams.from_vehicle(v, friction_coefficient=0.3)
     mpf = StiffnessMpf(cfg, p, np.random.default_rng(0))
     mpf.stats.mean[:, 1] = np.array([-0.5, 0.0, 0.5, 1.0]) * p.nominal[1]
@@ -295,10 +293,7 @@ def test_mpf_friction_peak_uses_each_particles_stiffness_mean() -> None:
     assert sat is not None
     c = p.nominal[1] + mpf.stats.mean[:, 1]
     assert np.allclose(sat[0], p.saturation_slip_front_rad * p.nominal[1] / c)
-    # ``friction`` is the default; ``scaled`` and the linear tyre take the slips of ``p``
-    assert StiffnessEstimatorConfig().saturation_peak == "friction"
-    scaled = StiffnessEstimatorConfig(n_particles=4, saturation_peak="scaled")
-    assert StiffnessMpf(scaled, p, np.random.default_rng(0))._saturation_slips() is None
+    # the linear tyre has no saturation slips
     lin_p = SingleTrackParams.from_vehicle(v)
     assert StiffnessMpf(cfg, lin_p, np.random.default_rng(0))._saturation_slips() is None
 

@@ -6,13 +6,15 @@ import numpy as np
 import pytest
 from scipy import stats as sst
 
+from tests.core.stiffness.reference_mpf import NumpyMpf
 from tire_estimation.core import niw
+from tire_estimation.core.stiffness import mpf as stiffness_mpf
 from tire_estimation.core.stiffness.config import StiffnessEstimatorConfig
 from tire_estimation.core.stiffness.estimator import StiffnessEstimator
 from tire_estimation.core.stiffness.model import SingleTrackParams
-from tire_estimation.core.stiffness.mpf import (
+from tire_estimation.core.stiffness.mpf import StiffnessMpf
+from tire_estimation.core.stiffness.student_t import (
     ConditionalPredictive,
-    StiffnessMpf,
     bias_update,
     conditional_predictive,
     freeze_component,
@@ -22,7 +24,6 @@ from tire_estimation.core.stiffness.mpf import (
     yaw_rate_nis,
 )
 from tire_estimation.core.vehicle import VehicleParams
-from tire_estimation.errors import ConfigError
 from tire_estimation.evaluation import stiffness as stiffness_eval
 from tire_estimation.sim import SensorConfig, simulate
 
@@ -111,10 +112,7 @@ def _run(minutes: float, n: int, seed: int) -> tuple[np.ndarray, np.ndarray, np.
     sim = simulate("stiffness_step", seed=seed, minutes=minutes, sensors=sensors)
     cfg = StiffnessEstimatorConfig(
         n_particles=n,
-        accel_bias_std_m_s2=0.0,
-        gyro_bias_std_rad_s=0.0,
-        accel_bias_walk_m_s2_sqrt_s=0.0,
-        gyro_bias_walk_rad_s_sqrt_s=0.0,
+        imu_bias_states=False,
         initial_stiffness_factor=0.7,
         rolling_resistance_n=177.0,
         drag_n_s2_m2=0.42,
@@ -264,48 +262,15 @@ def test_bias_gate_holds_the_gyro_bias_while_the_model_disagrees() -> None:
     assert straight.estimate().bias[2] > np.radians(1.0)
 
 
-def test_bias_hold_keeps_the_bias_after_initialization() -> None:
-    # bias_hold_s: no bias update (eq. 30) within the hold after initialize(), even on straight
-    # driving where it otherwise always runs; a re-initialization restarts the hold
-    y = np.array([0.0, 0.0, np.radians(3.0)])
-    u = (20.0, 20.0)
-    params = SingleTrackParams.from_vehicle(VehicleParams())
-    cfg = StiffnessEstimatorConfig(n_particles=50, bias_hold_s=1.0)
-    mpf = StiffnessMpf(cfg, params, np.random.default_rng(3))
-    mpf.initialize(np.array([20.0, 0.0, 0.0]), np.array([0.1, 0.05, 0.002]))
-    for _ in range(90):
-        mpf.predict(0.01, False)
-        mpf.update(y, 0.0, u, False)
-    assert mpf.time_since_init == pytest.approx(0.9)
-    assert not mpf.bias_updated
-    assert np.all(mpf.b == 0.0)
-    for _ in range(110):
-        mpf.predict(0.01, False)
-        mpf.update(y, 0.0, u, False)
-    assert mpf.bias_updated
-    assert mpf.estimate().bias[2] > np.radians(1.0)
-    mpf.initialize(np.array([20.0, 0.0, 0.0]), np.array([0.1, 0.05, 0.002]))
-    mpf.predict(0.01, False)
-    mpf.update(y, 0.0, u, False)
-    assert mpf.time_since_init == pytest.approx(0.01)
-    assert not mpf.bias_updated
-    assert np.all(mpf.b == 0.0)
-
-
-def test_bias_hold_must_be_non_negative() -> None:
-    with pytest.raises(ConfigError):
-        StiffnessEstimatorConfig(bias_hold_s=-1.0)
-
-
 def test_bias_model_matches_the_simulator_imu() -> None:
     # eq. (11) random walk and R against sim/config.py (same units: per sqrt(s), per sample)
     c, s = StiffnessEstimatorConfig(), SensorConfig()
     assert c.gyro_noise_std_rad_s == s.gyro_noise_std_rad_s
     assert c.accel_noise_std_m_s2 == s.accel_noise_std_m_s2
-    assert c.gyro_bias_std_rad_s == s.gyro_bias_initial_std_rad_s
-    assert c.accel_bias_std_m_s2 == s.accel_bias_initial_std_m_s2
-    assert c.gyro_bias_walk_rad_s_sqrt_s == s.gyro_bias_random_walk_rad_s_sqrt_s
-    assert c.accel_bias_walk_m_s2_sqrt_s == s.accel_bias_random_walk_m_s2_sqrt_s
+    assert s.gyro_bias_initial_std_rad_s == stiffness_mpf.GYRO_BIAS_STD_RAD_S
+    assert s.accel_bias_initial_std_m_s2 == stiffness_mpf.ACCEL_BIAS_STD_M_S2
+    assert s.gyro_bias_random_walk_rad_s_sqrt_s == stiffness_mpf.GYRO_BIAS_WALK_RAD_S_SQRT_S
+    assert s.accel_bias_random_walk_m_s2_sqrt_s == stiffness_mpf.ACCEL_BIAS_WALK_M_S2_SQRT_S
     # eq. (29) P_{k+1} = P_k + Q with Q = walk^2 T
     mpf = _mpf(2)
     p0 = mpf.p_bias.copy()
@@ -346,15 +311,9 @@ def test_initial_transient_is_not_absorbed_by_the_biases() -> None:
     assert scores["vy_rmse_cg_m_s"] < 0.3
 
 
-def _kinematic_mpf(model: str) -> StiffnessMpf:
+def _kinematic_mpf() -> StiffnessMpf:
     cfg = StiffnessEstimatorConfig(
-        n_particles=5,
-        measured_speed_model=model,
-        speed_noise_std_m_s=0.05,
-        state_jitter_vx_m_s_sqrt_s=0.0,
-        state_jitter_vy_m_s_sqrt_s=0.0,
-        state_jitter_yaw_rate_rad_s_sqrt_s=0.0,
-        resample_threshold=0.0,
+        n_particles=5, speed_noise_std_m_s=0.05, state_jitter_vx_m_s_sqrt_s=0.0
     )
     mpf = StiffnessMpf(
         cfg, SingleTrackParams.from_vehicle(VehicleParams()), np.random.default_rng(0)
@@ -365,14 +324,14 @@ def _kinematic_mpf(model: str) -> StiffnessMpf:
     return mpf
 
 
-def test_kinematic_speed_model_propagates_vx_with_measured_ax_and_weighs_the_speed() -> None:
+def test_kinematic_speed_model_propagates_vx_with_measured_ax_and_weighs_the_speed(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
     y = np.array([0.7, 6.0, 0.3])
-    # input model: vX replaced by the measured speed
-    mpf = _kinematic_mpf("input")
-    mpf.update(y, 0.02, (20.0, 20.0), learn=False, vx_m_s=20.0)
-    assert np.all(mpf.x[:, 0] == 20.0)
-    # kinematic model: vX kept, weighted by the measured speed (closest particle wins) ...
-    mpf = _kinematic_mpf("kinematic")
+    # no resampling: the particles keep their places
+    monkeypatch.setattr(stiffness_mpf, "RESAMPLE_THRESHOLD", 0.0)
+    # vX kept, weighted by the measured speed (closest particle wins) ...
+    mpf = _kinematic_mpf()
     x0 = mpf.x.copy()
     mpf.update(y, 0.02, (20.0, 20.0), learn=False, vx_m_s=20.0)
     assert np.array_equal(mpf.x[:, 0], x0[:, 0])
@@ -422,8 +381,10 @@ def test_mean_log_predictive_prefers_the_simulators_noise_level() -> None:
     assert right > _mean_log_predictive(0.25 * true_std) + 0.5
 
 
-def test_bias_average_follows_the_residual_with_its_time_constant() -> None:
-    # bias_average_s = tau: the bias update's noise R + (tau / Ts) P caps the gain at
+def test_bias_average_follows_the_residual_with_its_time_constant(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # BIAS_AVERAGE_S = tau (deviation x): the bias update's noise R + (tau / Ts) P caps the gain at
     # Ts / (tau + Ts), so a constant gyro residual of 3 deg/s (straight driving, the update
     # always runs) is followed like an exponential mean: 3 (1 - exp(-t / tau)) = 0.29, 1.90,
     # 2.85 deg/s at 0.1, 1, 3 s for tau = 1 s (a little faster: the Student-t weight shrinks
@@ -432,10 +393,10 @@ def test_bias_average_follows_the_residual_with_its_time_constant() -> None:
     y = np.array([0.0, 0.0, np.radians(3.0)])
     got = {}
     for tau in (0.0, 1.0):
-        for compiled in (True, False):
-            cfg = StiffnessEstimatorConfig(n_particles=50, bias_average_s=tau)
-            mpf = StiffnessMpf(cfg, params, np.random.default_rng(3))
-            mpf.compiled = compiled
+        monkeypatch.setattr(stiffness_mpf, "BIAS_AVERAGE_S", tau)
+        for compiled, cls in ((True, StiffnessMpf), (False, NumpyMpf)):
+            cfg = StiffnessEstimatorConfig(n_particles=50)
+            mpf = cls(cfg, params, np.random.default_rng(3))
             mpf.initialize(np.array([20.0, 0.0, 0.0]), np.array([0.1, 0.05, 0.002]))
             out = []
             for k in range(300):
@@ -447,10 +408,3 @@ def test_bias_average_follows_the_residual_with_its_time_constant() -> None:
     np.testing.assert_allclose(got[1.0, True], got[1.0, False], rtol=1e-12)
     np.testing.assert_allclose(got[1.0, True], [0.29, 1.90, 2.85], rtol=0.12)
     assert got[0.0, True][0] > 2.5
-    # the default is 2 s
-    assert StiffnessEstimatorConfig().bias_average_s == 2.0
-
-
-def test_bias_average_must_be_non_negative() -> None:
-    with pytest.raises(ConfigError, match="bias_average_s"):
-        StiffnessEstimatorConfig(bias_average_s=-1.0)

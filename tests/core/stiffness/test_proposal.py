@@ -8,18 +8,16 @@ from scipy import stats as sst
 from scipy.special import logsumexp
 
 from tire_estimation.core import niw
+from tire_estimation.core.stiffness import mpf as stiffness_mpf
 from tire_estimation.core.stiffness.config import StiffnessEstimatorConfig
 from tire_estimation.core.stiffness.model import SingleTrackParams
-from tire_estimation.core.stiffness.mpf import (
-    StiffnessMpf,
-    conditional_predictive,
-    likelihood_params,
-)
+from tire_estimation.core.stiffness.mpf import StiffnessMpf
 from tire_estimation.core.stiffness.proposal import (
     marginal_log_likelihood,
     marginal_maha_logdet,
     measured_state_proposal,
 )
+from tire_estimation.core.stiffness.student_t import conditional_predictive, likelihood_params
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.errors import ConfigError
 
@@ -122,32 +120,28 @@ def test_conditional_predictive_on_the_ax_ay_rows_only() -> None:
     np.testing.assert_allclose(cp.shape[0], ref_shape, rtol=1e-9)
 
 
-def _mpf(
-    proposal: str, jitter: float, n: int = 64, resample: float = 0.5, jitter_vx: float = 0.015
-) -> StiffnessMpf:
+def _mpf(proposal: str, jitter: float, n: int = 64, jitter_vx: float = 0.015) -> StiffnessMpf:
     veh = VehicleParams()
     cfg = StiffnessEstimatorConfig(
         n_particles=n,
-        resample_threshold=resample,
         state_proposal=proposal,
-        state_jitter_yaw_rate_rad_s_sqrt_s=jitter,
         state_jitter_vx_m_s_sqrt_s=jitter_vx,
-        accel_bias_std_m_s2=0.0,
-        gyro_bias_std_rad_s=0.0,
-        accel_bias_walk_m_s2_sqrt_s=0.0,
-        gyro_bias_walk_rad_s_sqrt_s=0.0,
+        imu_bias_states=False,
     )
     mpf = StiffnessMpf(cfg, SingleTrackParams.from_vehicle(veh), np.random.default_rng(7))
+    # a yaw-rate random walk of ``jitter`` rad/s/sqrt(s) (deviation iii)
+    mpf.jitter[2] = jitter
     mpf.initialize(np.array([20.0, 0.0, 0.0]), np.array([0.1, 0.1, 0.01]))
     return mpf
 
 
-def test_mpf_gyro_proposal_weights_and_draw() -> None:
+def test_mpf_gyro_proposal_weights_and_draw(monkeypatch: pytest.MonkeyPatch) -> None:
     # one update: the yaw rate moves toward the gyro by K = Q / S, and the weight increment is
     # N(nu; 0, S) times the Student-t marginal of the ax / ay rows at the new yaw rate
     from tire_estimation.core.stiffness.model import linearize
 
-    mpf = _mpf("measured", 0.05, resample=0.0)
+    monkeypatch.setattr(stiffness_mpf, "RESAMPLE_THRESHOLD", 0.0)
+    mpf = _mpf("measured", 0.05)
     dt, y, delta, u = 0.01, np.array([0.1, 0.5, 0.02]), 0.01, (20.0, 20.0)
     mpf.predict(dt, learn=False)
     r_pred = mpf.x[:, 2].copy()
@@ -194,13 +188,16 @@ def test_state_proposal_is_validated() -> None:
     assert StiffnessEstimatorConfig().state_proposal == "prior"
 
 
-def test_mpf_measured_proposal_draws_vx_from_the_measured_speed() -> None:
+def test_mpf_measured_proposal_draws_vx_from_the_measured_speed(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
     # kinematic speed model: vX and r are drawn given the speed and the gyro, the weight is
     # N(nu_v; 0, S_v) N(nu_r; 0, S_r) St(ay row), and predict() then leaves vX and r without
     # jitter (their random walk is drawn in update)
     from tire_estimation.core.stiffness.model import kinematic_speed_row, linearize
 
-    mpf = _mpf("measured", 0.05, resample=0.0, jitter_vx=0.2)
+    monkeypatch.setattr(stiffness_mpf, "RESAMPLE_THRESHOLD", 0.0)
+    mpf = _mpf("measured", 0.05, jitter_vx=0.2)
     dt, y, delta, speed = 0.01, np.array([0.3, 0.5, 0.02]), 0.01, 20.05
     mpf.predict(dt, learn=False)
     x_pred = mpf.x.copy()

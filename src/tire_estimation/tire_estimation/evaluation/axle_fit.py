@@ -196,7 +196,7 @@ def kinematic_accel_ratio(
     """Slope of the measured ay over the kinematic ``dvY/dt + vX r``, 1.
 
     1 for an accelerometer in the horizontal plane; ``1 + c_phi g`` (the paper's roll gain,
-    ``roll_gain`` of the stiffness MPF) when the body roll tilts it into gravity. Both sides are
+    Sec. II-A) when the body roll tilts it into gravity. Both sides are
     smoothed (quadratic Savitzky-Golay, ``smooth_samples``) before the regression.
 
     Raises:

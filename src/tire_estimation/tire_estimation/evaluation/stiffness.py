@@ -42,12 +42,7 @@ NO_BIAS = SensorConfig(
     gyro_bias_random_walk_rad_s_sqrt_s=0.0,
 )
 #: Bias estimation switched off (bias-free filter, paper Sec. VI-A).
-NO_BIAS_ESTIMATION: dict[str, float] = {
-    "accel_bias_std_m_s2": 0.0,
-    "gyro_bias_std_rad_s": 0.0,
-    "accel_bias_walk_m_s2_sqrt_s": 0.0,
-    "gyro_bias_walk_rad_s_sqrt_s": 0.0,
-}
+NO_BIAS_ESTIMATION: dict[str, bool] = {"imu_bias_states": False}
 #: Study mode: the MPF's generator is seeded with the drive's seed plus this offset (as method
 #: (c) of ``evaluation/lateral_tyre.py``).
 STUDY_SEED_OFFSET = 1000

@@ -29,7 +29,7 @@ checks, activation and replay, returning the same
 (:class:`~tire_estimation.core.stiffness.grid.GridConfig`) on its own.
 
 With ``friction_coefficient`` mu > 0 all three use the friction-limited lateral tyre of
-Algorithm 1 (``saturation_peak`` = ``friction``): ``Fy = mu Fz tanh(C alpha / (mu Fz))`` per axle,
+Algorithm 1 (peak at the friction limit): ``Fy = mu Fz tanh(C alpha / (mu Fz))`` per axle,
 i.e. ``C phi(alpha)`` with ``alpha_s = mu Fz / C`` at the method's own stiffness (per particle in
 AUGPF, the estimate in the EKF and the RLS), in the shape Algorithm 1 is given (``tyre_shape``:
 the tanh, or the Magic Formula of ``stiffness_model.lateral_slip_function``); the model is then no
@@ -44,7 +44,9 @@ stiffness estimate (particle spread, ``sqrt(diag P)``), not the std of the stiff
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -58,13 +60,17 @@ from tire_estimation.core.stiffness.filter import (
     StiffnessFilter,
     friction_saturation,
     imu_noise_cov,
-    measurement_cov,
     model,
-    stiffness_bounds,
 )
 from tire_estimation.core.stiffness.frontend import StiffnessFrontEnd
 from tire_estimation.core.stiffness.grid import GridConfig, GridEkf
-from tire_estimation.core.stiffness.model import SingleTrackParams, linearize
+from tire_estimation.core.stiffness.model import (
+    WHEEL_SPEED_NOISE_STD_M_S,
+    SingleTrackParams,
+    linearize,
+    measurement_cov,
+    stiffness_bounds,
+)
 from tire_estimation.core.validation import (
     require_int_range,
     require_non_negative,
@@ -81,6 +87,16 @@ _LOG_2PI = math.log(2.0 * math.pi)
 
 
 # ---------------------------------------------------------------------------- configuration
+def _require_walks(config: Any, prefix: str, check: Callable[[str, float], None]) -> None:
+    """The stiffness random walk within [0, 5] of nominal per sqrt(s), and ``check`` on the
+    state noises ``{prefix}_vx_m_s_sqrt_s``, ``_vy_m_s_sqrt_s`` and ``_yaw_rate_rad_s_sqrt_s``."""
+    walk = config.stiffness_walk_std_fraction_sqrt_s
+    require_range("stiffness_walk_std_fraction_sqrt_s", walk, 0.0, 5.0)
+    for state in ("vx_m_s_sqrt_s", "vy_m_s_sqrt_s", "yaw_rate_rad_s_sqrt_s"):
+        name = f"{prefix}_{state}"
+        check(name, getattr(config, name))
+
+
 @dataclass(frozen=True)
 class AugPfConfig(BaselineConfig):
     """AUGPF: bootstrap particle filter on ``[vX, vY, r, dCx, dCy_f, dCy_r]``.
@@ -109,18 +125,7 @@ class AugPfConfig(BaselineConfig):
         super().__post_init__()
         require_int_range("n_particles", self.n_particles, 1, 1_000_000)
         require_range("resample_threshold", self.resample_threshold, 0.0, 1.0)
-        require_range(
-            "stiffness_walk_std_fraction_sqrt_s",
-            self.stiffness_walk_std_fraction_sqrt_s,
-            0.0,
-            5.0,
-        )
-        for name in (
-            "state_jitter_vx_m_s_sqrt_s",
-            "state_jitter_vy_m_s_sqrt_s",
-            "state_jitter_yaw_rate_rad_s_sqrt_s",
-        ):
-            require_non_negative(name, getattr(self, name))
+        _require_walks(self, "state_jitter", require_non_negative)
 
 
 @dataclass(frozen=True)
@@ -143,18 +148,7 @@ class EkfConfig(BaselineConfig):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        require_range(
-            "stiffness_walk_std_fraction_sqrt_s",
-            self.stiffness_walk_std_fraction_sqrt_s,
-            0.0,
-            5.0,
-        )
-        for name in (
-            "process_vx_m_s_sqrt_s",
-            "process_vy_m_s_sqrt_s",
-            "process_yaw_rate_rad_s_sqrt_s",
-        ):
-            require_positive(name, getattr(self, name))
+        _require_walks(self, "process", require_positive)
 
 
 @dataclass(frozen=True)
@@ -251,7 +245,7 @@ class AugPf(StiffnessFilter):
         self.rng = rng
         self.n = config.n_particles
         self.nominal = np.asarray(params.nominal, dtype=float)
-        self.lower, self.upper = stiffness_bounds(config, self.nominal)
+        self.lower, self.upper = stiffness_bounds(self.nominal)
         self.r_cov = imu_noise_cov(config)
         self.jitter = np.array(
             [
@@ -314,7 +308,6 @@ class AugPf(StiffnessFilter):
             meas.wheel_speed_m_s,
             p,
             self.nominal[0] + self.w[:, 0],
-            self.config.wheel_speed_noise_std_m_s,
         )
         # eq. (12): q_k ∝ q_{k-1} N(y; h(x) + d(x) w, R)  (bootstrap: proposal = prior)
         self.log_w += gaussian_logpdf(meas.y[None, :] - y_hat, cov)
@@ -359,7 +352,7 @@ class AugEkf(StiffnessFilter):
         self.config = config
         self.params = params
         self.nominal = np.asarray(params.nominal, dtype=float)
-        self.lower, self.upper = stiffness_bounds(config, self.nominal)
+        self.lower, self.upper = stiffness_bounds(self.nominal)
         self.r_cov = imu_noise_cov(config)
         self.q_state = np.array(
             [
@@ -410,7 +403,7 @@ class AugEkf(StiffnessFilter):
             self.z[0] = meas.speed_m_s
             self.p[0, :] = 0.0
             self.p[:, 0] = 0.0
-            self.p[0, 0] = self.config.wheel_speed_noise_std_m_s**2 + 1e-6
+            self.p[0, 0] = WHEEL_SPEED_NOISE_STD_M_S**2 + 1e-6
         x, w = self.z[:3], self.z[3:]
         _, y_hat, _, d_meas, _, d = model_jacobian(
             x, w, meas.delta_rad, meas.wheel_speed_m_s, self.params
@@ -424,7 +417,6 @@ class AugEkf(StiffnessFilter):
             meas.wheel_speed_m_s,
             self.params,
             np.array([self.nominal[0] + w[0]]),
-            self.config.wheel_speed_noise_std_m_s,
         )[0]
         # S = H P H^T + R, K = P H^T S^-1
         s = h @ self.p @ h.T + r
@@ -480,7 +472,7 @@ class KfRls(StiffnessFilter):
         self.config = config
         self.params = params
         self.nominal = np.asarray(params.nominal, dtype=float)
-        self.lower, self.upper = stiffness_bounds(config, self.nominal)
+        self.lower, self.upper = stiffness_bounds(self.nominal)
         self.q_state = np.array(
             [config.process_vy_m_s_sqrt_s, config.process_yaw_rate_rad_s_sqrt_s]
         )
@@ -602,7 +594,7 @@ class KfRls(StiffnessFilter):
         """KF state and RLS parameters (Cx: the initial guess with the prior std)."""
         c = self.config
         cov = np.zeros((3, 3))
-        cov[0, 0] = c.wheel_speed_noise_std_m_s**2
+        cov[0, 0] = WHEEL_SPEED_NOISE_STD_M_S**2
         cov[1:, 1:] = self.p
         return FilterEstimate(
             stiffness=np.concatenate([[c.initial_stiffness_factor * self.nominal[0]], self.theta]),

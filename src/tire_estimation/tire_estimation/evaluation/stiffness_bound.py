@@ -33,6 +33,10 @@ from numpy.typing import NDArray
 from tire_estimation.core.stiffness.config import StiffnessEstimatorConfig
 from tire_estimation.core.stiffness.filter import model
 from tire_estimation.core.stiffness.model import SingleTrackParams
+from tire_estimation.core.stiffness.mpf import (
+    STATE_JITTER_VY_M_S_SQRT_S,
+    STATE_JITTER_YAW_RATE_RAD_S_SQRT_S,
+)
 from tire_estimation.evaluation.stiffness_baselines import model_jacobian
 from tire_estimation.sim.simulator import SimResult
 
@@ -92,8 +96,8 @@ def bound_noise(
     c_std = config.initial_stiffness_std_fraction * nominal
     return BoundNoise(
         stiffness_noise_std_n_rad=config.stiffness_noise_std_fraction * nominal,
-        jitter_vy_m_s_sqrt_s=config.state_jitter_vy_m_s_sqrt_s,
-        jitter_yaw_rate_rad_s_sqrt_s=config.state_jitter_yaw_rate_rad_s_sqrt_s,
+        jitter_vy_m_s_sqrt_s=STATE_JITTER_VY_M_S_SQRT_S,
+        jitter_yaw_rate_rad_s_sqrt_s=STATE_JITTER_YAW_RATE_RAD_S_SQRT_S,
         ay_std_m_s2=config.accel_noise_std_m_s2,
         gyro_std_rad_s=config.gyro_noise_std_rad_s,
         prior_std=np.array([vy_std_m_s, yaw_rate_std_rad_s, c_std[1], c_std[2]]),

@@ -151,8 +151,6 @@ def _stiffness_status(
         "reason": est.reason,
         "effective_sample_size": f"{float(est.n_eff):.1f}",
         "resample_count": str(int(stiffness.mpf.resample_count)),
-        "activation_replays": str(stiffness.replay_count),
-        "activation_restarts": str(stiffness.restart_count),
         "grid_handovers": str(stiffness.handover_count),
         "grid_rejections": str(stiffness.grid_rejection_count),
         "particles": str(stiffness.config.n_particles),

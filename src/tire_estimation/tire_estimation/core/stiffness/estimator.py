@@ -4,16 +4,14 @@ front-end.
 :class:`StiffnessEstimator` drives :class:`~tire_estimation.core.stiffness.mpf.StiffnessMpf`
 (through :class:`MpfFilter`) from the asynchronous sensor callbacks of
 :class:`~tire_estimation.core.stiffness.frontend.StiffnessFrontEnd`: the input checks, the
-speed, the activation and the replay at its onset are the front-end's. Added here, for
-Algorithm 1 only: the restart from the start of learning with a recentred prior
-(``activation_restart_s``), the point-mass filter of :mod:`~.stiffness_grid` learning first and
-handing its posterior over (``first_learning`` = ``grid``), the predictive density of the
-measurements, and the learned statistics as a state to save and restore.
+speed and the activation are the front-end's. Added here, for Algorithm 1 only: the
+point-mass filter of :mod:`~.grid` learning first and handing its posterior over
+(``first_learning`` = ``grid``), the predictive density of the measurements, and the learned
+statistics as a state to save and restore.
 """
 
 from __future__ import annotations
 
-import copy
 import dataclasses
 import math
 from collections.abc import Mapping
@@ -25,7 +23,7 @@ from numpy.typing import NDArray
 from tire_estimation.core import niw
 from tire_estimation.core.stiffness.config import StiffnessEstimatorConfig
 from tire_estimation.core.stiffness.filter import FilterEstimate, Measurement, StiffnessFilter
-from tire_estimation.core.stiffness.frontend import Step, StiffnessEstimate, StiffnessFrontEnd
+from tire_estimation.core.stiffness.frontend import StiffnessEstimate, StiffnessFrontEnd
 from tire_estimation.core.stiffness.grid import GridConfig, GridEkf, posterior
 from tire_estimation.core.stiffness.model import NAMES
 from tire_estimation.core.stiffness.mpf import StiffnessMpf
@@ -34,6 +32,11 @@ from tire_estimation.errors import InputError
 
 F64 = NDArray[np.float64]
 STATE_DICT_VERSION = 1
+#: ``first_learning`` = ``grid``: the hand-over happens, and the grid stays published after it,
+#: only while the grid's mean normalized innovation squared (``GridEkf.nis_mean``, 3
+#: measurements: about 3 when its model fits) is at most this. 2.9-4.9 on the simulated sine
+#: drives, 68 on the Revs 250 LM run, whose posterior would be confident and wrong.
+GRID_MAX_NIS = 10.0
 
 
 class MpfFilter(StiffnessFilter):
@@ -98,12 +101,9 @@ class StiffnessEstimator(StiffnessFrontEnd[MpfFilter]):
         vehicle: VehicleParams,
         rng: np.random.Generator,
     ) -> None:
-        #: times the filter restarted from the start of learning with a recentred prior
-        #: (``activation_restart_s``)
-        self.restart_count = 0
         #: times the grid handed its posterior to Algorithm 1 (``first_learning`` = ``grid``)
         self.handover_count = 0
-        #: times the grid was dropped by its NIS gate (mean NIS above ``grid_handover_max_nis``:
+        #: times the grid was dropped by its NIS gate (mean NIS above :data:`GRID_MAX_NIS`:
         #: its model does not fit the data, or no longer), before or after the hand-over
         self.grid_rejection_count = 0
         super().__init__(config, vehicle, rng)
@@ -124,14 +124,6 @@ class StiffnessEstimator(StiffnessFrontEnd[MpfFilter]):
     def reset(self) -> None:
         """Forget everything learned and all inputs."""
         super().reset()
-        # activation_restart_s: armed while the statistics are the prior's; the copy of the
-        # filter taken when learning started, its stamp, and the learning steps since
-        self._restart_armed = (
-            self.config.activation_restart_s > 0.0 and self.config.first_learning == "mpf"
-        )
-        self._restart_copy: MpfFilter | None = None
-        self._restart_t0_ns = 0
-        self._restart_steps: list[Step] = []
         # first_learning = grid: the point-mass filter that learns first (None once dropped)
         self._grid: GridEkf | None = None
         self._handed_over = False
@@ -146,37 +138,16 @@ class StiffnessEstimator(StiffnessFrontEnd[MpfFilter]):
             self._grid = None
         elif self._grid is not None:
             self._grid.initialize(x0, x0_std)
-        # a restart must not bring back the state from before the re-initialization
-        self._abandon_restart()
-
-    def _start_learning(self, t_ns: int) -> None:
-        """Learning starts at ``t_ns``: rewind (``activation_replay_s``), keep the copy for a
-        restart (``activation_restart_s``), run the rewound steps with learning on."""
-        steps = self._rewind()
-        if self._restart_armed:
-            memo = {id(obj): obj for obj in self.shared}
-            self._restart_copy = copy.deepcopy(self.filter, memo)
-            self._restart_t0_ns = t_ns
-            self._restart_steps = list(steps)
-        self._learn_steps(steps)
-
-    def _on_learning_stopped(self) -> None:
-        # learning stopped before the restart: the statistics are no longer the prior's
-        self._abandon_restart()
 
     def _after_step(self, t_ns: int, dt_s: float | None, meas: Measurement) -> None:
         if self._grid is not None:
             self._grid_step(dt_s, meas)
-        if self._restart_copy is not None:
-            self._restart_steps.append((dt_s, meas, self._cx_active))
-            if (t_ns - self._restart_t0_ns) * 1e-9 >= self.config.activation_restart_s:
-                self._restart()
 
     # ------------------------------------------------------------------ first_learning = grid
     def _grid_step(self, dt: float | None, meas: Measurement) -> None:
         """``first_learning`` = ``grid``: one step of the grid with the MPF's inputs and learning
         flags. Once it has learned ``grid_handover_s``: dropped whenever its mean NIS is above
-        ``grid_handover_max_nis``; else the hand-over, and the grid goes on (published) until it
+        :data:`GRID_MAX_NIS`; else the hand-over, and the grid goes on (published) until it
         has learned ``grid_publish_s``."""
         grid = self._grid
         assert grid is not None
@@ -186,7 +157,7 @@ class StiffnessEstimator(StiffnessFrontEnd[MpfFilter]):
         c = self.config
         if grid.learned_s < c.grid_handover_s:
             return
-        if grid.nis_mean > c.grid_handover_max_nis:
+        if grid.nis_mean > GRID_MAX_NIS:
             # the grid's model does not fit these data (or no longer: the stiffness changed):
             # no hand-over, or no more publishing; Algorithm 1 goes on
             self._grid = None
@@ -215,34 +186,6 @@ class StiffnessEstimator(StiffnessFrontEnd[MpfFilter]):
         if self._grid.learned_s >= self.config.grid_publish_s:
             self._grid = None
         self.handover_count += 1
-
-    # ------------------------------------------------------------------ activation_restart_s
-    def _abandon_restart(self) -> None:
-        """No restart of this learning phase (learning stopped, or the filter re-initialized
-        before ``activation_restart_s``); none later either, once anything was learned."""
-        if self._restart_copy is not None:
-            self._restart_armed = False
-        self._restart_copy = None
-        self._restart_steps = []
-
-    def _restart(self) -> None:
-        """``activation_restart_s`` after learning started: go back to the copy taken then,
-        move its prior mean to the current estimate and learn the steps since again.
-
-        Empirical Bayes (not in the paper): the prior keeps its width (``gamma_0 E[Sigma]``,
-        ``initial_stiffness_std_fraction`` of nominal), only its centre moves from the initial
-        guess to what the first seconds of excitation say, so the estimate no longer carries
-        the initial guess once the filter's statistics have narrowed.
-        """
-        restart, steps = self._restart_copy, self._restart_steps
-        assert restart is not None
-        # eq. (27a) mu_hat = sum q_i mu_i: the new centre of every particle's prior mean
-        restart.mpf.stats.mean[...] = self.mpf.weights @ self.mpf.stats.mean
-        self.filter = restart
-        self._restart_copy, self._restart_steps = None, []
-        self._restart_armed = False
-        self._learn_steps(steps)
-        self.restart_count += 1
 
     # ------------------------------------------------------------------ outputs
     def estimate(self) -> StiffnessEstimate:
@@ -306,12 +249,8 @@ class StiffnessEstimator(StiffnessFrontEnd[MpfFilter]):
         except (KeyError, TypeError, ValueError, AttributeError) as exc:
             raise InputError("state", f"malformed stiffness state: {exc}") from exc
         self.mpf.stats = stats
-        # a copy taken before would bring the old statistics back on the next activation
-        self._replay.clear()
-        # restored statistics are learned, not a prior to recentre or to learn on a grid
-        self._restart_copy, self._restart_steps = None, []
-        self._restart_armed = False
+        # restored statistics are learned, not a prior to learn on a grid
         self._grid = None
 
 
-__all__ = ["MpfFilter", "StiffnessEstimate", "StiffnessEstimator"]
+__all__ = ["GRID_MAX_NIS", "MpfFilter", "StiffnessEstimate", "StiffnessEstimator"]

@@ -11,128 +11,28 @@ The filters other than Algorithm 1 share the settings of :class:`BaselineConfig`
 the single-track model of ``core.stiffness.model`` (eq. 1-12, with ``w = C - C_n``, eq. 7) in the
 form of :func:`model`: state derivative and measurement mean per row of states and stiffness
 deviations. With ``friction_coefficient`` mu > 0 that is Algorithm 1's friction-limited lateral
-tyre (``saturation_peak`` = ``friction``): ``Fy = mu Fz tanh(C alpha / (mu Fz))`` per axle,
+tyre (peak at the friction limit): ``Fy = mu Fz tanh(C alpha / (mu Fz))`` per axle,
 i.e. ``C phi(alpha)`` with ``alpha_s = mu Fz / C`` at each row's own stiffness, in the shape
 Algorithm 1 is given (``tyre_shape``).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
-from typing import Any, TypeVar
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
-from tire_estimation.core.stiffness.config import StiffnessEstimatorConfig
+from tire_estimation.core.stiffness.config import BaselineConfig
 from tire_estimation.core.stiffness.model import (
     SingleTrackParams,
     linearize,
     saturation_slip_at,
-    wheel_speed_gain,
 )
 
 F64 = NDArray[np.float64]
 #: Central-difference steps of the numeric Jacobians in [vX m/s, vY m/s, r rad/s].
 JACOBIAN_STEP = np.array([1e-3, 1e-3, 1e-4])
-
-C = TypeVar("C", bound="BaselineConfig")
-
-
-@dataclass(frozen=True)
-class BaselineConfig:
-    """Settings a filter other than Algorithm 1 shares with it (names, units, defaults and checks
-    as ``StiffnessEstimatorConfig``): the front-end's and the common part of the filter's.
-
-    Attributes:
-        drive: driven axle whose Cx is estimated: ``vehicle``, ``front``, ``rear`` or ``all``.
-        initial_stiffness_factor: initial guess of every stiffness, fraction of nominal, 1
-            (default 1.0).
-        initial_stiffness_std_fraction: prior std of the stiffness, fraction of nominal, 1
-            (default 0.3, paper Sec. VI-A).
-        min_stiffness_fraction: lower projection bound, fraction of nominal, 1 (default 0.05).
-        max_stiffness_fraction: upper projection bound, fraction of nominal, 1 (default 3.0).
-        accel_noise_std_m_s2: accelerometer white-noise std (R of eq. 12), m/s^2 (0.05).
-        gyro_noise_std_rad_s: gyro white-noise std (R of eq. 12), rad/s (0.00175).
-        wheel_speed_noise_std_m_s: std of the axle-mean ``R_w omega``, carried into ``R``
-            through the slip (eq. 2-3) as in Algorithm 1, m/s (0.035).
-        initial_vx_std_m_s: initial std of vX around the measured speed, m/s (0.3).
-        initial_vy_std_m_s: initial std of vY, m/s (0.3).
-        initial_yaw_rate_std_rad_s: initial std of the yaw rate, rad/s (0.0175).
-        wheel_radius_m: effective wheel radius, m; 0 = the vehicle's nominal radius (0.0).
-        rolling_resistance_n: known constant longitudinal resistance, N (0.0).
-        drag_n_s2_m2: known aerodynamic drag coefficient k (F = k vX^2), N s^2/m^2 (0.0).
-        roll_gain: c_phi g of Sec. II-A, 1 (0.0).
-        friction_coefficient: road friction coefficient mu of Algorithm 1's friction-limited
-            lateral tyre ``Fy = mu Fz tanh(C alpha / (mu Fz))`` per axle (static axle load
-            ``Fz``), 1; 0 keeps the linear tyre of eq. (2) (0.0).
-        tyre_shape: ``tanh`` or ``magic_formula``, as Algorithm 1's (``tanh``).
-        magic_formula_shape_c: shape factor C of the ``magic_formula`` tyre, 1 (1.3).
-        magic_formula_curvature_e: curvature factor E of the ``magic_formula`` tyre, 1 (0.0).
-        cornering_stiffness_front_n_rad: nominal front cornering stiffness, N/rad; 0 = the
-            vehicle's (0.0).
-        cornering_stiffness_rear_n_rad: nominal rear cornering stiffness, N/rad; 0 = the
-            vehicle's (0.0).
-        min_speed_m_s: below this speed nothing is learned, m/s (5.0).
-        activation_window_s: window of the RMS steering angle, s (1.0).
-        activation_steer_rad: minimum RMS road-wheel angle to learn (Sec. V), rad (0.003).
-        activation_replay_s: when learning starts, rewind the filter to the onset of the
-            steering within this time and replay the inputs since with learning on, s (0.0 =
-            off).
-        activation_accel_x_window_s: window of the std of the measured ax, s (3.0).
-        activation_accel_x_std_m_s2: minimum std of the measured ax to learn Cx, m/s^2 (0.2).
-        max_gap_s: a larger gap between IMU samples re-initializes the filter, s (0.5).
-        max_input_age_s: wheel speed / steering / velocity older than this are stale, s (0.2).
-    """
-
-    drive: str = "vehicle"
-    initial_stiffness_factor: float = 1.0
-    initial_stiffness_std_fraction: float = 0.3
-    min_stiffness_fraction: float = 0.05
-    max_stiffness_fraction: float = 3.0
-    accel_noise_std_m_s2: float = 0.05
-    gyro_noise_std_rad_s: float = 0.00175
-    wheel_speed_noise_std_m_s: float = 0.035
-    initial_vx_std_m_s: float = 0.3
-    initial_vy_std_m_s: float = 0.3
-    initial_yaw_rate_std_rad_s: float = 0.0175
-    wheel_radius_m: float = 0.0
-    rolling_resistance_n: float = 0.0
-    drag_n_s2_m2: float = 0.0
-    roll_gain: float = 0.0
-    friction_coefficient: float = 0.0
-    tyre_shape: str = "tanh"
-    magic_formula_shape_c: float = 1.3
-    magic_formula_curvature_e: float = 0.0
-    cornering_stiffness_front_n_rad: float = 0.0
-    cornering_stiffness_rear_n_rad: float = 0.0
-    min_speed_m_s: float = 5.0
-    activation_window_s: float = 1.0
-    activation_steer_rad: float = 0.003
-    activation_replay_s: float = 0.0
-    activation_accel_x_window_s: float = 3.0
-    activation_accel_x_std_m_s2: float = 0.2
-    max_gap_s: float = 0.5
-    max_input_age_s: float = 0.2
-
-    def __post_init__(self) -> None:
-        # the shared settings obey Algorithm 1's rules (ConfigError names the field and value)
-        StiffnessEstimatorConfig(**{f.name: getattr(self, f.name) for f in fields(BaselineConfig)})
-
-    @classmethod
-    def sharing(cls: type[C], other: Any, **overrides: Any) -> C:
-        """This config with the :class:`BaselineConfig` fields copied from ``other``.
-
-        Every field declared on :class:`BaselineConfig` that ``other`` (a dataclass, e.g. a
-        ``StiffnessEstimatorConfig``) also has is copied; the method's own fields (e.g.
-        ``RlsConfig.forgetting``, which is not the NiW forgetting of Algorithm 1) keep their
-        defaults unless given in ``overrides``. E.g. ``AugPfConfig.sharing(alg1_config,
-        n_particles=100)`` initializes a baseline with the values Algorithm 1 uses for the
-        variables in common (paper Sec. VI-A).
-        """
-        names = {f.name for f in fields(BaselineConfig)}
-        shared = {f.name: getattr(other, f.name) for f in fields(other) if f.name in names}
-        return cls(**{**shared, **overrides})
 
 
 @dataclass(frozen=True)
@@ -236,37 +136,6 @@ def model(
     return rate, y_hat, lin.a, lin.d
 
 
-def measurement_cov(
-    r_cov: F64,
-    x: F64,
-    delta_rad: float,
-    wheel_speed_m_s: tuple[float, float],
-    p: SingleTrackParams,
-    cx: F64,
-    wheel_speed_std_m_s: float,
-) -> F64:
-    """IMU noise ``R`` (3, 3) plus the wheel-speed noise carried into ``y``, (N, 3, 3).
-
-    As Algorithm 1 (``StiffnessMpf.measurement_cov``): ``R + s^2 sum_axles g g^T`` with ``g``
-    from :func:`~tire_estimation.core.stiffness.model.wheel_speed_gain` at Cx = ``cx`` (N,).
-    """
-    n = x.shape[0]
-    out = np.broadcast_to(r_cov, (n, 3, 3)).copy()
-    if wheel_speed_std_m_s <= 0.0:
-        return out
-    g = wheel_speed_gain(x, delta_rad, wheel_speed_m_s, p, cx)
-    # eq. (2)-(3): Cov = R + s^2 G^T G
-    return out + wheel_speed_std_m_s**2 * np.einsum("nai,naj->nij", g, g)
-
-
-def stiffness_bounds(config: BaselineConfig, nominal: F64) -> tuple[F64, F64]:
-    """Bounds of ``w = C - C_n`` (Sec. V projection)."""
-    return (
-        config.min_stiffness_fraction * nominal - nominal,
-        config.max_stiffness_fraction * nominal - nominal,
-    )
-
-
 def imu_noise_cov(config: BaselineConfig) -> F64:
     """``R`` of eq. (12): diag(sigma_a^2, sigma_a^2, sigma_g^2), (3, 3)."""
     return np.diag(
@@ -286,7 +155,5 @@ __all__ = [
     "StiffnessFilter",
     "friction_saturation",
     "imu_noise_cov",
-    "measurement_cov",
     "model",
-    "stiffness_bounds",
 ]

@@ -7,17 +7,16 @@ The IMU drives the filter; the latest wheel speeds (or a measured longitudinal s
 steering angle are its inputs ``u``. Per IMU sample it
 
 * checks every stream (integer, increasing stamps; length, finite values, range) and the age of
-  the inputs (``max_input_age_s``); bad input never raises: it is dropped and counted in
+  the inputs (:data:`MAX_INPUT_AGE_S`); bad input never raises: it is dropped and counted in
   :attr:`StiffnessFrontEnd.stats`;
 * takes the speed from the wheel speeds (undriven axle) or from the measured velocity, the
-  steering angle, and the measurement ``y`` of eq. (12) with the roll compensation;
+  steering angle, and the measurement ``y`` of eq. (12);
 * (re-)initializes the filter at the measured speed (first sample, after a gap of more than
-  ``max_gap_s``);
+  :data:`MAX_GAP_S`);
 * decides the activation (Sec. V) over sliding windows: the stiffness is learned above
-  ``min_speed_m_s`` with an RMS steering angle of at least ``activation_steer_rad``; Cx also
-  needs wheel speeds and a std of the measured ax of at least ``activation_accel_x_std_m_s2``;
-* when learning starts, rewinds the filter to the onset of the steering and replays the inputs
-  since with learning on (``activation_replay_s``, :mod:`~.activation_replay`).
+  :data:`MIN_LEARN_SPEED_M_S` with an RMS steering angle of at least
+  :data:`ACTIVATION_STEER_RAD`; Cx also needs wheel speeds and a std of the measured ax of at
+  least :data:`ACTIVATION_ACCEL_X_STD_M_S2`.
 
 A filter's front-end subclass builds the filter (:meth:`StiffnessFrontEnd.make_filter`) and may
 add to the steps through the hooks (``_on_initialize``, ``_start_learning``,
@@ -35,25 +34,43 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tire_estimation.core.input_checks import finite_vector, stamp_after
-from tire_estimation.core.stiffness.activation_replay import ActivationReplay
-from tire_estimation.core.stiffness.config import StiffnessEstimatorConfig
 from tire_estimation.core.stiffness.filter import (
     BaselineConfig,
     FilterEstimate,
     Measurement,
     StiffnessFilter,
 )
-from tire_estimation.core.stiffness.model import NAMES, SingleTrackParams, roll_compensate
+from tire_estimation.core.stiffness.model import NAMES, SingleTrackParams
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.errors import InputError
 
 F64 = NDArray[np.float64]
 F = TypeVar("F", bound=StiffnessFilter)
-#: the settings the front-end reads (Algorithm 1's, or the same names of another filter's)
-FrontEndConfig: TypeAlias = StiffnessEstimatorConfig | BaselineConfig
-#: one IMU step as the filter ran it: dt_s (None on the first step), the measurement, and the
-#: Cx excitation (``learn_cx`` of a replay with learning on)
-Step: TypeAlias = tuple[float | None, Measurement, bool]
+#: the settings the front-end reads (Algorithm 1's extend them)
+FrontEndConfig: TypeAlias = BaselineConfig
+
+#: Sec. V activation: below this speed nothing is learned (the slip angles are small against
+#: their noise), m/s; the filter starts at half of it.
+MIN_LEARN_SPEED_M_S = 5.0
+#: Length of the sliding (box) window of the RMS steering angle, s: learning stops at most one
+#: window after the excitation ends.
+ACTIVATION_WINDOW_S = 1.0
+#: Sec. V lateral excitation: minimum RMS road-wheel angle over the window to learn, rad
+#: (0.17 deg, above the steering sensor's offset and noise).
+ACTIVATION_STEER_RAD = 0.003
+#: Length of the sliding window of the longitudinal excitation measure, s.
+ACTIVATION_ACCEL_X_WINDOW_S = 3.0
+#: Sec. II-B: minimum std of the measured ax over its window to learn Cx (the wheel slip must
+#: vary, else Cx is confounded with the accelerometer bias and the resistances), m/s^2.
+ACTIVATION_ACCEL_X_STD_M_S2 = 0.2
+#: A larger gap between IMU samples re-initializes the filter, s (five 10-Hz samples).
+MAX_GAP_S = 0.5
+#: Wheel speed / steering / velocity older than this are stale, s.
+MAX_INPUT_AGE_S = 0.2
+#: Initial std of vX around the measured speed (wheel-speed scale error), m/s.
+INITIAL_VX_STD_M_S = 0.3
+#: Initial std of the yaw rate around the gyro (its bias prior, 1 deg/s), rad/s.
+INITIAL_YAW_RATE_STD_RAD_S = 0.0175
 
 #: input streams and the range of their values (|value| above it is dropped as out of range)
 _LIMITS = {"wheel": 1000.0, "steering": 1.2, "velocity": 150.0}
@@ -157,11 +174,8 @@ def single_track_params(config: FrontEndConfig, vehicle: VehicleParams) -> Singl
     """The single-track parameters of ``vehicle`` with the settings of ``config``."""
     return SingleTrackParams.from_vehicle(
         vehicle,
-        drive=vehicle.drive if config.drive == "vehicle" else config.drive,
-        wheel_radius_m=config.wheel_radius_m or None,
         rolling_resistance_n=config.rolling_resistance_n,
         drag_n_s2_m2=config.drag_n_s2_m2,
-        roll_gain=config.roll_gain,
         friction_coefficient=config.friction_coefficient,
         cornering_stiffness_front_n_rad=config.cornering_stiffness_front_n_rad or None,
         cornering_stiffness_rear_n_rad=config.cornering_stiffness_rear_n_rad or None,
@@ -179,17 +193,15 @@ class StiffnessFrontEnd(Generic[F]):
     """Sample-by-sample front-end of one stiffness filter (see the module doc).
 
     Args:
-        config: Algorithm 1's :class:`StiffnessEstimatorConfig` or a :class:`BaselineConfig`
-            subclass (the settings of the same names).
+        config: a :class:`BaselineConfig` (Algorithm 1's ``StiffnessEstimatorConfig`` or another
+            filter's).
         vehicle: geometry, nominal stiffness and drive.
-        rng: random generator of every draw; a rewound copy of the filter shares it (and
-            ``config`` and :attr:`params`) with the live filter.
+        rng: random generator of every draw.
 
     Attributes:
-        filter: the filter (:meth:`make_filter`; a rewind replaces it by its copy).
+        filter: the filter (:meth:`make_filter`).
         stats: dropped samples by kind (``bad_stamp``, ``duplicate``, ``out_of_order``,
             ``wrong_length``, ``nan``, ``bad_value``, ``out_of_range``, ``no_speed``, ``gap``).
-        replay_count: times learning started with a replay of the window before it.
     """
 
     def __init__(
@@ -200,10 +212,7 @@ class StiffnessFrontEnd(Generic[F]):
         self.rng = rng
         self.params = single_track_params(config, vehicle)
         self.nominal = np.asarray(self.params.nominal, dtype=float)
-        #: objects a copy of the filter shares with the live one
-        self.shared: tuple[object, ...] = (rng, config, self.params)
         self.stats: dict[str, int] = {}
-        self.replay_count = 0
         self.reset()
 
     def make_filter(self) -> F:
@@ -213,9 +222,6 @@ class StiffnessFrontEnd(Generic[F]):
     def reset(self) -> None:
         """Forget everything learned and all inputs."""
         self.filter: F = self.make_filter()
-        self._replay: ActivationReplay[F, Step] = ActivationReplay(
-            self.config.activation_replay_s, shared=self.shared
-        )
         self._last: dict[str, int | None] = {
             "imu": None,
             "wheel": None,
@@ -225,8 +231,8 @@ class StiffnessFrontEnd(Generic[F]):
         self._wheel: F64 | None = None
         self._steer = 0.0
         self._vx_meas: float | None = None
-        self._steer_window = SlidingWindow(self.config.activation_window_s)
-        self._accel_x_window = SlidingWindow(self.config.activation_accel_x_window_s)
+        self._steer_window = SlidingWindow(ACTIVATION_WINDOW_S)
+        self._accel_x_window = SlidingWindow(ACTIVATION_ACCEL_X_WINDOW_S)
         self._active = False
         self._cx_active = False
         self._reason = "not initialized"
@@ -259,7 +265,7 @@ class StiffnessFrontEnd(Generic[F]):
 
     def _fresh(self, stream: str, t_ns: int) -> bool:
         last = self._last[stream]
-        return last is not None and (t_ns - last) * 1e-9 <= self.config.max_input_age_s
+        return last is not None and (t_ns - last) * 1e-9 <= MAX_INPUT_AGE_S
 
     def on_wheel_speeds(self, t_ns: int, wheel_speed_rad_s: Any) -> None:
         """Wheel speeds (fl, fr, rl, rr), rad/s."""
@@ -296,8 +302,8 @@ class StiffnessFrontEnd(Generic[F]):
         else:
             return None
         return Measurement(
-            # eq. (12) y = [ax, ay / (1 + c_phi g), r]
-            y=np.array([acc[0], roll_compensate(float(acc[1]), self.params.roll_gain), gyro[2]]),
+            # eq. (12) y = [ax, ay, r]
+            y=np.array([acc[0], float(acc[1]), gyro[2]]),
             delta_rad=self._steer if self._fresh("steering", t_ns) else 0.0,
             wheel_speed_m_s=(wf, wr),
             speed_m_s=speed,
@@ -321,27 +327,21 @@ class StiffnessFrontEnd(Generic[F]):
             self._learning_off("no speed input")
             self._drop("no_speed")
             return
-        c = self.config
         dt = None if last is None else (t - last) * 1e-9
-        if dt is not None and dt > c.max_gap_s:
+        if dt is not None and dt > MAX_GAP_S:
             self._drop("gap")
             self.filter.initialized = False
         if not self.filter.initialized:
-            if meas.speed_m_s < 0.5 * c.min_speed_m_s:
+            if meas.speed_m_s < 0.5 * MIN_LEARN_SPEED_M_S:
                 self._learning_off("speed below minimum")
                 return
             self._initialize(meas)
             dt = None
-        cx_excited = self._activation(t, meas)
+        self._activation(t, meas)
         if dt is not None:
             self.filter.predict(dt, self._active, self._cx_active)
         self.filter.update(meas, self._active, self._cx_active)
         self._after_step(t, dt, meas)
-        if meas.speed_m_s < c.min_speed_m_s:
-            # nothing below the minimum speed is ever learned, not even in a replay
-            self._replay.clear()
-        elif not self._active:
-            self._replay.record(t, (dt, meas, cx_excited), self.filter)
 
     # ------------------------------------------------------------------ filter steps
     def _learning_off(self, reason: str) -> None:
@@ -350,34 +350,33 @@ class StiffnessFrontEnd(Generic[F]):
 
     def _initialize(self, meas: Measurement) -> None:
         """(Re-)start the filter at the measured speed, no lateral speed and the measured yaw
-        rate; forget the activation windows and the replay."""
-        c = self.config
+        rate; forget the activation windows."""
         x0 = np.array([meas.speed_m_s, 0.0, float(meas.y[2])])
-        std = np.array([c.initial_vx_std_m_s, c.initial_vy_std_m_s, c.initial_yaw_rate_std_rad_s])
+        std = np.array(
+            [INITIAL_VX_STD_M_S, self.config.initial_vy_std_m_s, INITIAL_YAW_RATE_STD_RAD_S]
+        )
         self.filter.initialize(x0, std)
         self._steer_window.reset()
         self._accel_x_window.reset()
-        self._replay.clear()
         self._active = False
         self._on_initialize(x0, std)
 
-    def _activation(self, t_ns: int, meas: Measurement) -> bool:
+    def _activation(self, t_ns: int, meas: Measurement) -> None:
         """Sec. V activation over sliding windows: the RMS road-wheel angle (lateral excitation)
         and, for Cx, the variation (std) of the measured longitudinal acceleration; starts or
-        stops learning. Returns the Cx excitation of this step."""
-        c = self.config
+        stops learning."""
         was_active = self._active
         self._steer_window.add(t_ns, meas.delta_rad)
         self._accel_x_window.add(t_ns, float(meas.y[0]))
-        if meas.speed_m_s < c.min_speed_m_s:
+        if meas.speed_m_s < MIN_LEARN_SPEED_M_S:
             self._active, self._reason = False, "speed below minimum"
-        elif self._steer_window.rms < c.activation_steer_rad:
+        elif self._steer_window.rms < ACTIVATION_STEER_RAD:
             self._active, self._reason = False, "no lateral excitation"
         else:
             self._active, self._reason = True, "excited"
         # without wheel speeds the slip (eq. 3) is unknown: Cx is not observable, keep it frozen
         cx_excited = (
-            not meas.vx_measured and self._accel_x_window.std >= c.activation_accel_x_std_m_s2
+            not meas.vx_measured and self._accel_x_window.std >= ACTIVATION_ACCEL_X_STD_M_S2
         )
         self._cx_active = self._active and cx_excited
         if self._active and not self._cx_active:
@@ -387,36 +386,13 @@ class StiffnessFrontEnd(Generic[F]):
             self._start_learning(t_ns)
         elif not self._active:
             self._on_learning_stopped()
-        return cx_excited
-
-    def _rewind(self) -> list[Step]:
-        """Learning starts: rewind the filter to before the first step of the last
-        ``activation_replay_s`` with a steering angle of at least ``activation_steer_rad``
-        (:mod:`~.activation_replay`); returns the steps since, to be run again with learning on
-        (none without a rewind)."""
-        threshold = self.config.activation_steer_rad
-        got = self._replay.rewind(excited=lambda step: abs(step[1].delta_rad) >= threshold)
-        if got is None:
-            return []
-        self.filter, steps = got
-        self.replay_count += 1
-        return steps
-
-    def _learn_steps(self, steps: list[Step]) -> None:
-        """Run recorded IMU steps on the filter with learning on."""
-        for dt_s, meas, cx_excited in steps:
-            if dt_s is not None:
-                self.filter.predict(dt_s, True, cx_excited)
-            self.filter.update(meas, True, cx_excited)
 
     # ------------------------------------------------------------------ hooks
     def _on_initialize(self, x0: F64, x0_std: F64) -> None:
         """The filter was (re-)initialized at ``x0`` with std ``x0_std``."""
 
     def _start_learning(self, t_ns: int) -> None:
-        """Learning starts at ``t_ns`` (before this step's filter step): rewind and learn the
-        steps since the onset of the excitation."""
-        self._learn_steps(self._rewind())
+        """Learning starts at ``t_ns`` (before this step's filter step)."""
 
     def _on_learning_stopped(self) -> None:
         """A step without learning (before this step's filter step)."""
@@ -460,7 +436,6 @@ class StiffnessFrontEnd(Generic[F]):
 __all__ = [
     "FrontEndConfig",
     "SlidingWindow",
-    "Step",
     "StiffnessEstimate",
     "StiffnessFrontEnd",
     "single_track_params",

@@ -33,9 +33,10 @@ estimate stays at the stiffness from before the 50 % drop (docs/results.md secti
 "The grid learns first").
 
 IMU biases: with a non-zero ``accel_bias_std_m_s2`` or ``gyro_bias_std_rad_s`` (Algorithm 1's
-fields and defaults, eq. 11-12) each cell's EKF carries ``[b_ax, b_ay, b_r]`` as random-walk
-states beside the vehicle state; they enter the measurement additively, so given the cell they
-are linear, as in Algorithm 1's per-particle bias Kalman filters (eq. 29-30).
+values, eq. 11-12; zero when its ``imu_bias_states`` is false) each cell's EKF carries ``[b_ax,
+b_ay, b_r]`` as random-walk states beside the vehicle state; they enter the measurement
+additively, so given the cell they are linear, as in Algorithm 1's per-particle bias Kalman
+filters (eq. 29-30).
 
 Left out: ``Cx`` is not estimated (held at the prior: the sine drives do not excite it, and
 Algorithm 1 freezes it there as well). In the estimator node it runs only as the first learner
@@ -62,11 +63,14 @@ from tire_estimation.core.stiffness.filter import (
     Measurement,
     StiffnessFilter,
     imu_noise_cov,
-    measurement_cov,
     model,
+)
+from tire_estimation.core.stiffness.model import (
+    WHEEL_SPEED_NOISE_STD_M_S,
+    SingleTrackParams,
+    measurement_cov,
     stiffness_bounds,
 )
-from tire_estimation.core.stiffness.model import SingleTrackParams
 from tire_estimation.core.validation import (
     require_int_range,
     require_non_negative,
@@ -112,9 +116,9 @@ class GridConfig(BaselineConfig):
             the data), s (default 1.0).
     """
 
-    #: fields :meth:`sharing` copies from Algorithm 1's configuration besides the
-    #: :class:`BaselineConfig` ones (same meaning and unit there)
-    SHARED_WITH_ALGORITHM_1: ClassVar[tuple[str, ...]] = (
+    #: the bias fields, zero when Algorithm 1's configuration has no bias states
+    #: (``imu_bias_states`` false)
+    BIAS_FIELDS: ClassVar[tuple[str, ...]] = (
         "accel_bias_std_m_s2",
         "gyro_bias_std_rad_s",
         "accel_bias_walk_m_s2_sqrt_s",
@@ -138,13 +142,11 @@ class GridConfig(BaselineConfig):
 
     @classmethod
     def sharing(cls, other: Any, **overrides: Any) -> GridConfig:
-        """:meth:`BaselineConfig.sharing`, plus the bias fields of Algorithm 1's configuration
-        (:attr:`SHARED_WITH_ALGORITHM_1`) where ``other`` has them."""
-        extra = {
-            name: getattr(other, name)
-            for name in cls.SHARED_WITH_ALGORITHM_1
-            if hasattr(other, name)
-        }
+        """:meth:`BaselineConfig.sharing`, without bias states where ``other`` has
+        ``imu_bias_states`` false."""
+        extra: dict[str, float] = {}
+        if not getattr(other, "imu_bias_states", True):
+            extra = dict.fromkeys(cls.BIAS_FIELDS, 0.0)
         return super().sharing(other, **{**extra, **overrides})
 
     @property
@@ -165,7 +167,7 @@ class GridConfig(BaselineConfig):
             "state_jitter_vx_m_s_sqrt_s",
             "state_jitter_vy_m_s_sqrt_s",
             "state_jitter_yaw_rate_rad_s_sqrt_s",
-            *self.SHARED_WITH_ALGORITHM_1,
+            *self.BIAS_FIELDS,
         ):
             require_non_negative(name, getattr(self, name))
         require_positive("initial_stiffness_std_fraction", self.initial_stiffness_std_fraction)
@@ -213,7 +215,7 @@ class GridEkf(StiffnessFilter):
         self.config = config
         self.params = params
         self.nominal = np.asarray(params.nominal, dtype=float)
-        self.lower, self.upper = stiffness_bounds(config, self.nominal)
+        self.lower, self.upper = stiffness_bounds(self.nominal)
         self.r_cov = imu_noise_cov(config)
         c = config
         jitter = [
@@ -346,7 +348,7 @@ class GridEkf(StiffnessFilter):
             self.x[:, 0] = meas.speed_m_s
             self.p[:, 0, :] = 0.0
             self.p[:, :, 0] = 0.0
-            self.p[:, 0, 0] = self.config.wheel_speed_noise_std_m_s**2 + 1e-6
+            self.p[:, 0, 0] = WHEEL_SPEED_NOISE_STD_M_S**2 + 1e-6
         k = self.k
         eye = np.diag(JACOBIAN_STEP)
         xv = self.x[:, :3]
@@ -375,7 +377,6 @@ class GridEkf(StiffnessFilter):
             meas.wheel_speed_m_s,
             self.params,
             self.nominal[0] + self.w[:, 0],
-            self.config.wheel_speed_noise_std_m_s,
         )
         # eq. (12) linearized per cell: S = H P H^T + R, K = P H^T S^-1
         ph_t = self.p @ np.transpose(h_jac, (0, 2, 1))

@@ -5,7 +5,7 @@ noise-adaptive particle filtering", IEEE TCST 2018, after the model has been lin
 (``stiffness_model.linearize``, eq. 9-12, stays NumPy) is three passes over the particles:
 
 * :func:`predict_states` -- eq. (9) ``x_{k+1} = x_k + Ts (rate_n + a w_k)`` plus the optional
-  state jitter (deviation iii of ``stiffness_mpf``) and eq. (29) ``P += Q Ts``;
+  state jitter (deviation iii of ``core.stiffness.mpf``) and eq. (29) ``P += Q Ts``;
 * :func:`likelihood_weights` -- ``e_bar = y - h - b`` (eq. 12), the Student-t of
   Approximation 1 (eq. 35): ``mu_e = d mu``, ``Lambda~_e = (1+gamma)/nu~ d Lambda d^T +
   (nu~-2)/nu~ (R + P)``, its inverse and determinant by cofactors, the weights (36), their
@@ -17,11 +17,12 @@ noise-adaptive particle filtering", IEEE TCST 2018, after the model has been lin
   (eq. 19, Remark 3), the optional Cx freeze (deviation vi), the Student-t-weighted bias Kalman
   update (eq. 30, deviations ii and v) and the state derivative (eq. 9) for the next step.
 
-Where the NumPy reference (``stiffness_mpf.likelihood_params``, ``conditional_predictive``,
+Where the NumPy functions (``student_t.likelihood_params``, ``conditional_predictive``,
 ``sample_student_t``, ``bias_update``, ``niw.measurement_update``, ``freeze_component``) reads
 one triangle of a symmetric matrix (the cofactor inverse the upper, the Cholesky factor the
 lower), the kernels read the same one, and they keep its order of operations, so the results
-equal the reference to rounding (tests/core/stiffness/test_kernels.py). Small matrices are
+equal the NumPy reference filter of the tests to rounding (tests/core/stiffness/reference_mpf.py,
+test_kernels.py). Small matrices are
 row-major 9-tuples (registers, no allocation per particle). The particle arrays keep the
 filter's layout (``(N, 3)``, ``(N, 3, 3)``); ``gamma`` and ``nu`` of the NiW statistics are
 shared scalars (``niw.init_stats(shared=True)``, as in the MPF).
@@ -50,6 +51,8 @@ import math
 import numba
 import numpy as np
 from numpy.typing import NDArray
+
+from tire_estimation.core.stiffness import mat3
 
 F64 = NDArray[np.float64]
 IDX = NDArray[np.intp]
@@ -131,9 +134,13 @@ def _mv(a: M3, v: V3) -> V3:
 
 @numba.njit(**_JIT)
 def _quad(a: M3, v: V3) -> float:
-    """``v^T a v`` (as ``stiffness_mpf._maha``: ``sum_k v_k (a v)_k``)."""
+    """``v^T a v`` (as ``student_t.mahalanobis``: ``sum_k v_k (a v)_k``)."""
     av = _mv(a, v)
     return v[0] * av[0] + v[1] * av[1] + v[2] * av[2]
+
+
+#: ``mat3.sym_cofactors`` compiled (the same expressions in the same order)
+_sym_cofactors = numba.njit(**_JIT)(mat3.sym_cofactors)
 
 
 @numba.njit(**_JIT)
@@ -142,16 +149,8 @@ def _inv_sym(a: M3) -> tuple[M3, float]:
 
     Reads only the upper triangle of ``a``.
     """
-    a00, a01, a02, a11, a12, a22 = a[0], a[1], a[2], a[4], a[5], a[8]
-    # cofactors C_ij (symmetric for symmetric a)
-    c00 = a11 * a22 - a12 * a12
-    c01 = a02 * a12 - a01 * a22
-    c02 = a01 * a12 - a02 * a11
-    c11 = a00 * a22 - a02 * a02
-    c12 = a01 * a02 - a00 * a12
-    c22 = a00 * a11 - a01 * a01
-    # det = a_0j C_0j (Laplace expansion along row 0); a^-1 = C^T / det
-    det = a00 * c00 + a01 * c01 + a02 * c02
+    c00, c01, c02, c11, c12, c22, det = _sym_cofactors(a[0], a[1], a[2], a[4], a[5], a[8])
+    # a^-1 = C^T / det
     inv_det = 1.0 / det
     i01 = c01 * inv_det
     i02 = c02 * inv_det
@@ -305,7 +304,7 @@ def likelihood_weights(
 def information_fraction(
     d: F64, scale: F64, shape_inv: F64, w_fac: float, components: F64, weights: F64
 ) -> float:
-    """Weighted mean over particles of ``stiffness_mpf.information_fraction``, one pass.
+    """Weighted mean over particles of ``student_t.information_fraction``, one pass.
 
     ``B_i = Lambda_11 d^T Lambda~_e^-1 d`` with ``Lambda_11 = w_fac Lambda`` (eq. 21, ``w_fac =
     (1 + gamma) / nu~``), ``shape_inv`` from :func:`likelihood_weights`; ``beta_i`` the mean of
@@ -349,8 +348,6 @@ def posterior_step(
     bias_on: bool,
     mean_gains: F64,
     rng: np.random.Generator,
-    draw_share: float = 1.0,
-    drive_by_mean: bool = False,
 ) -> tuple[F64, F64, F64, F64, F64, F64, F64]:
     """Algorithm 1 lines 4, 15, 17-18 for the particles ``idx`` (ancestors after resampling).
 
@@ -361,15 +358,12 @@ def posterior_step(
 
     ``learn`` applies the NiW update (19) (the caller updates the shared ``gamma``, ``nu``);
     ``freeze_mean0`` / ``freeze_scale00`` (N,) non-empty keep the Cx part as
-    ``stiffness_mpf.freeze_component`` (particle ``i`` with ancestor ``j`` gets the mean
+    ``student_t.freeze_component`` (particle ``i`` with ancestor ``j`` gets the mean
     ``freeze_mean0[j]`` and variance ``freeze_scale00[j]``, already scaled by the ratio of
     ``nu - 4``); ``bias_on`` runs the bias
     update (30). ``mean_gains`` (2,) non-empty ``(g_loc, g_w)`` replaces the mean update of eq.
     (19) by ``mu += g_loc (loc - mu) + g_w (w - loc)`` (``loc`` the conditional mean of eq. 41;
-    ``stiffness_mpf.niw_mean_gains``); empty is eq. (19). ``draw_share`` ``h`` < 1 drives the
-    state with ``loc + h (w - loc)`` instead of ``w`` (``stiffness_mpf.propagated_draw``);
-    ``drive_by_mean`` drives it with the particle's NiW mean ``mu`` after this step (deviation
-    xiii, ``inactive_propagation`` = ``mean``).
+    ``student_t.niw_mean_gains``); empty is eq. (19).
 
     Returns new arrays ``(x, b, p_bias, rate, mean, scale, w)``: ``rate = rate_n + a w`` for
     eq. (9) of the next step, ``w`` (N, 3) the sampled stiffness deviation after projection.
@@ -457,7 +451,7 @@ def posterior_step(
                 lam[8] + c_niw * (dw[2] * dw[2]),
             )  # fmt: skip
             if split:
-                # niw_update tempered / rao_blackwellized: mu += g_loc (loc - mu) + g_w (w - loc)
+                # niw_update rao_blackwellized: mu += g_loc (loc - mu) + g_w (w - loc)
                 mu = (
                     _clip(mu[0] + (g_loc * (loc[0] - mu[0]) + g_w * (w0 - loc[0])), lower[0],
                           upper[0]),
@@ -531,19 +525,8 @@ def posterior_step(
             for k in range(3):
                 b_o[i, k] = b[j, k]
             _st(p_o[i], pj)
-        # line 18 (first half): derivative for eq. (9), rate = rate_n + a w_k; deviation (xii):
-        # with draw_share h < 1 the state is driven by loc + h (w_k - loc), projected
-        w_s = w
-        if drive_by_mean:
-            # deviation (xiii): the held stiffness mu drives the state
-            w_s = mu
-        elif draw_share < 1.0:
-            w_s = (
-                _clip(loc[0] + draw_share * (w0 - loc[0]), lower[0], upper[0]),
-                _clip(loc[1] + draw_share * (w1 - loc[1]), lower[1], upper[1]),
-                _clip(loc[2] + draw_share * (w2 - loc[2]), lower[2], upper[2]),
-            )
-        aw = _mv(_ld(a[j]), w_s)
+        # line 18 (first half): derivative for eq. (9), rate = rate_n + a w_k
+        aw = _mv(_ld(a[j]), w)
         for k in range(3):
             x_o[i, k] = x[j, k]
             rate_o[i, k] = rate_n[j, k] + aw[k]

@@ -11,10 +11,13 @@ Layouts: ``aos`` = ``(N, 3, 3)`` / ``(N, 3)`` (the filter's arrays), ``soa`` = `
 
 from __future__ import annotations
 
+from typing import TypeVar
+
 import numpy as np
 from numpy.typing import NDArray
 
 F64 = NDArray[np.float64]
+T = TypeVar("T", float, F64)
 
 
 _TO_SOA = {2: (1, 0), 3: (1, 2, 0)}
@@ -51,14 +54,9 @@ def sym(a: F64) -> F64:
     return 0.5 * (a + a.transpose(1, 0, 2))
 
 
-def inv_sym(a: F64) -> tuple[F64, F64]:
-    """Inverse and determinant of symmetric 3x3 matrices ``(3, 3, N)`` by cofactors.
-
-    Only the upper triangle of ``a`` is read. Returns ``(a^-1 (3, 3, N), det (N,))``; the
-    determinant is not checked (a singular matrix gives inf/nan, as ``np.linalg.inv`` raises).
-    """
-    a00, a01, a02 = a[0, 0], a[0, 1], a[0, 2]
-    a11, a12, a22 = a[1, 1], a[1, 2], a[2, 2]
+def sym_cofactors(a00: T, a01: T, a02: T, a11: T, a12: T, a22: T) -> tuple[T, ...]:
+    """Cofactors ``C00, C01, C02, C11, C12, C22`` and the determinant of the symmetric 3x3 with
+    the upper triangle ``a00 ... a22`` (floats or arrays; also compiled in ``kernels``)."""
     # cofactors C_ij (symmetric for symmetric a)
     c00 = a11 * a22 - a12 * a12
     c01 = a02 * a12 - a01 * a22
@@ -66,8 +64,21 @@ def inv_sym(a: F64) -> tuple[F64, F64]:
     c11 = a00 * a22 - a02 * a02
     c12 = a01 * a02 - a00 * a12
     c22 = a00 * a11 - a01 * a01
-    # det = a_0j C_0j (Laplace expansion along row 0); a^-1 = C^T / det
+    # det = a_0j C_0j (Laplace expansion along row 0)
     det = a00 * c00 + a01 * c01 + a02 * c02
+    return c00, c01, c02, c11, c12, c22, det
+
+
+def inv_sym(a: F64) -> tuple[F64, F64]:
+    """Inverse and determinant of symmetric 3x3 matrices ``(3, 3, N)`` by cofactors.
+
+    Only the upper triangle of ``a`` is read. Returns ``(a^-1 (3, 3, N), det (N,))``; the
+    determinant is not checked (a singular matrix gives inf/nan, as ``np.linalg.inv`` raises).
+    """
+    c00, c01, c02, c11, c12, c22, det = sym_cofactors(
+        a[0, 0], a[0, 1], a[0, 2], a[1, 1], a[1, 2], a[2, 2]
+    )
+    # a^-1 = C^T / det
     inv_det = 1.0 / det
     out = np.empty_like(a)
     out[0, 0] = c00 * inv_det

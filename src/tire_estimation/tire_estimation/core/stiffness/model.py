@@ -44,6 +44,13 @@ MIN_SPEED_M_S = 1.0
 NAMES = ("cx_front", "cy_front", "cy_rear")
 #: Shapes of the saturating lateral tyre (:func:`lateral_slip_function`).
 TYRE_SHAPES = ("tanh", "magic_formula")
+#: Projection bounds of every stiffness (Sec. V), fractions of nominal: wide enough for a
+#: tyre on ice (5 %) and a stiff race tyre (300 %), so that they only catch a diverging draw.
+MIN_STIFFNESS_FRACTION = 0.05
+MAX_STIFFNESS_FRACTION = 3.0
+#: Std of the axle-mean wheel speed ``R_w omega`` (ABS edge timing), m/s: the simulator's
+#: 48-tooth sensor; carried into ``y`` through the slip (eq. 2-3) it is added to R.
+WHEEL_SPEED_NOISE_STD_M_S = 0.035
 
 
 @dataclass(frozen=True)
@@ -62,7 +69,6 @@ class SingleTrackParams:
         nominal: nominal stiffness C_n of eq. (7), (3,) = [Cx, Cy_front, Cy_rear].
         rolling_resistance_n: constant longitudinal resistance, N (0 = paper's Assumption 4).
         drag_n_s2_m2: aerodynamic drag coefficient k in F = k vx^2, N s^2/m^2.
-        roll_gain: c_phi g of Sec. II-A (measured ay is divided by 1 + c_phi g), 1.
         saturation_slip_front_rad: saturation slip angle alpha_s of the front axle of
             :func:`lateral_slip_function`, rad (0 = linear tyre, eq. 2 as printed).
         saturation_slip_rear_rad: the same for the rear axle, rad (0 = linear).
@@ -82,7 +88,6 @@ class SingleTrackParams:
     nominal: tuple[float, float, float]
     rolling_resistance_n: float = 0.0
     drag_n_s2_m2: float = 0.0
-    roll_gain: float = 0.0
     saturation_slip_front_rad: float = 0.0
     saturation_slip_rear_rad: float = 0.0
     tyre_shape: str = "tanh"
@@ -96,7 +101,6 @@ class SingleTrackParams:
         wheel_radius_m: float | None = None,
         rolling_resistance_n: float = 0.0,
         drag_n_s2_m2: float = 0.0,
-        roll_gain: float = 0.0,
         friction_coefficient: float = 0.0,
         cornering_stiffness_front_n_rad: float | None = None,
         cornering_stiffness_rear_n_rad: float | None = None,
@@ -151,7 +155,6 @@ class SingleTrackParams:
             nominal=(float(cx), cyf, cyr),
             rolling_resistance_n=rolling_resistance_n,
             drag_n_s2_m2=drag_n_s2_m2,
-            roll_gain=roll_gain,
             saturation_slip_front_rad=sat_f,
             saturation_slip_rear_rad=sat_r,
             tyre_shape=tyre_shape,
@@ -425,6 +428,35 @@ def wheel_speed_gain(
     return out
 
 
-def roll_compensate(accel_y_m_s2: float, roll_gain: float) -> float:
-    """Sec. II-A: divide the measured lateral acceleration by ``1 + c_phi g``."""
-    return accel_y_m_s2 / (1.0 + roll_gain)
+def measurement_cov(
+    r_cov: F64,
+    x: F64,
+    delta_rad: float,
+    wheel_speed_m_s: tuple[float, float],
+    p: SingleTrackParams,
+    cx: F64,
+    wheel_speed_std_m_s: float = WHEEL_SPEED_NOISE_STD_M_S,
+) -> F64:
+    """Measurement-noise covariance of ``y`` per row of ``x``, (N, 3, 3).
+
+    ``R`` (3, 3) of the IMU (eq. 12) plus the wheel-speed noise carried into ``y`` by the slip
+    (eq. 2-3): ``s^2 sum_axles g g^T`` with ``g`` from :func:`wheel_speed_gain` at the
+    longitudinal stiffness ``cx`` (N,) and ``s`` = ``wheel_speed_std_m_s``.
+    """
+    s = wheel_speed_std_m_s
+    if s <= 0.0 or p.drive not in ("front", "rear", "all"):
+        return np.tile(r_cov, (x.shape[0], 1, 1))
+    g = wheel_speed_gain(x, delta_rad, wheel_speed_m_s, p, cx)
+    # input noise through eq. (2)-(3): Cov = R + s^2 sum_axles g g^T
+    outer = g[:, 0, :, None] * g[:, 0, None, :]
+    for j in range(1, g.shape[1]):
+        outer += g[:, j, :, None] * g[:, j, None, :]
+    return r_cov + (s * s) * outer
+
+
+def stiffness_bounds(nominal: F64) -> tuple[F64, F64]:
+    """Bounds of ``w = C - C_n`` (Sec. V projection), (3,) each."""
+    return (
+        MIN_STIFFNESS_FRACTION * nominal - nominal,
+        MAX_STIFFNESS_FRACTION * nominal - nominal,
+    )
