@@ -240,6 +240,8 @@ def evaluate_accuracy(spec: CaseSpec, run: CaseRun, at_s: float) -> dict[str, An
 
 
 def score_case(spec: CaseSpec, run: CaseRun, row: dict[str, Any], accuracy_at_s: float) -> None:
+    """Add the result fields of ``spec`` to ``row``: the accuracy of a calibration case at
+    ``accuracy_at_s``, else the detection of both methods (``mpf_*``, ``aug_kf_*``)."""
     if spec.kind == "calibration":
         row.update(evaluate_accuracy(spec, run, accuracy_at_s))
     else:
