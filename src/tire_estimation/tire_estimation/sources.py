@@ -9,8 +9,8 @@ the way the node does.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-from typing import TYPE_CHECKING
+from collections.abc import Callable, Iterator
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -110,24 +110,18 @@ def stream_samples(
     """Every sample of the given streams, merged in the pipeline's order (lazy).
 
     Without ``gnss_velocity`` the Doppler velocity that ``gnss`` carries is used."""
-    parts: list[Iterator[Sample]] = []
-    if wheel_speeds is not None:
-        parts.append(_wheel_speeds(wheel_speeds))
-    if steering is not None:
-        parts.append(_steering(steering))
-    if imu is not None:
-        parts.append(_imu(imu))
-    if gnss is not None:
-        parts.append(_fixes(gnss))
-        if gnss_velocity is None:
-            gnss_velocity = velocity_stream(gnss)
-    if gnss_velocity is not None:
-        parts.append(_velocities(gnss_velocity))
-    if tire_forces is not None:
-        parts.append(_tire_forces(tire_forces))
-    if velocity is not None:
-        parts.append(_measured_velocity(velocity))
-    return merge(parts)
+    if gnss is not None and gnss_velocity is None:
+        gnss_velocity = velocity_stream(gnss)
+    streams: tuple[tuple[Any, Callable[[Any], Iterator[Sample]]], ...] = (
+        (wheel_speeds, _wheel_speeds),
+        (steering, _steering),
+        (imu, _imu),
+        (gnss, _fixes),
+        (gnss_velocity, _velocities),
+        (tire_forces, _tire_forces),
+        (velocity, _measured_velocity),
+    )
+    return merge([samples(s) for s, samples in streams if s is not None])
 
 
 def sample_count(*streams: object) -> int:

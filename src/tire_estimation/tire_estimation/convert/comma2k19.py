@@ -57,16 +57,12 @@ from tire_estimation.bag.writer import (
     joint_series,
     odometry_series,
     velocity_series,
-    write_contract_bag,
 )
 from tire_estimation.convert.common import (
-    ATTRIBUTION_FILE,
-    CONVERSION_FILE,
-    CUSTOM_CONVERSION,
     CUSTOM_REFERENCE_ORIGIN,
-    CUSTOM_SOURCE,
     UNMEASURED_VELOCITY_VARIANCE,
     ConvertError,
+    attribution,
     body_rates,
     diff_noise_std,
     increasing_rows,
@@ -74,6 +70,7 @@ from tire_estimation.convert.common import (
     matrices_to_quaternions_xyzw,
     require_dir,
     seconds_to_ns,
+    write_converted_bag,
 )
 from tire_estimation.core.geodesy import LocalTangentPlane
 from tire_estimation.core.vehicle import VehicleParams
@@ -479,8 +476,8 @@ def _checks(seg: Comma2k19Segment, ref: ReferenceTrajectory) -> dict[str, Any]:
 
 def _attribution(command: str | None) -> str:
     cmd = command or "tire-estimation convert comma2k19 SEGMENT_DIR --out BAG"
-    return f"""# Attribution
-
+    return attribution(
+        """\
 This bag is converted from one segment of **comma2k19** by comma.ai
 (<https://github.com/commaai/comma2k19>), released under the MIT license (copy in
 `LICENSE` next to this file). Paper: H. Schafer, E. Santana, A. Haden, R. Biasini,
@@ -491,14 +488,9 @@ California route 280), one minute.
 
 The measurements were converted to the tire_estimation contract (units, frames, nominal tyre
 radius, steering ratio, device mounting and lever arm); see `conversion.yaml`,
-`vehicle.yaml` and `docs/data_comma2k19.md` of the project.
-
-Command:
-
-```
-{cmd}
-```
-"""
+`vehicle.yaml` and `docs/data_comma2k19.md` of the project.""",
+        cmd,
+    )
 
 
 def convert_comma2k19(
@@ -525,31 +517,22 @@ def convert_comma2k19(
     vehicle = rav4_vehicle(opts)
     origin = info["reference_origin"]
     origin_yaml = yaml.safe_dump([origin["lat_deg"], origin["lon_deg"], origin["alt_m"]])
-    files: dict[str, str | bytes] = {
-        CONVERSION_FILE: yaml.safe_dump(info, sort_keys=False),
-        ATTRIBUTION_FILE: _attribution(command),
-    }
-    for candidate in (seg.path / "LICENSE", seg.path.parent / "LICENSE"):
-        if candidate.is_file():
-            files["LICENSE"] = candidate.read_bytes()
-            break
-    path = write_contract_bag(
+    license_file = next(
+        (c for c in (seg.path / "LICENSE", seg.path.parent / "LICENSE") if c.is_file()), None
+    )
+    return write_converted_bag(
         out_dir,
         vehicle,
         series,
+        info,
+        source=f"comma2k19 {seg.path.name}",
+        conversion_keys=("clock", "options", "device_mount"),
+        attribution_md=_attribution(command),
         vehicle_comment=RAV4_VEHICLE_COMMENT,
-        custom_data={
-            CUSTOM_SOURCE: f"comma2k19 {seg.path.name}",
-            CUSTOM_ORIGIN: origin_yaml,
-            CUSTOM_REFERENCE_ORIGIN: origin_yaml,
-            CUSTOM_CONVERSION: yaml.safe_dump(
-                {k: info[k] for k in ("clock", "options", "device_mount")}, sort_keys=False
-            ),
-        },
-        extra_files=files,
+        source_files={"LICENSE": license_file},
+        custom_data={CUSTOM_ORIGIN: origin_yaml, CUSTOM_REFERENCE_ORIGIN: origin_yaml},
         overwrite=overwrite,
     )
-    return path
 
 
 __all__ = [

@@ -3,13 +3,17 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+import yaml
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
+from tire_estimation.bag.writer import TopicSeries, write_contract_bag
+from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.errors import BagError
 
 F64 = NDArray[np.float64]
@@ -102,3 +106,57 @@ def yaw_quaternions_xyzw(yaw_rad: F64) -> F64:
     half = 0.5 * np.asarray(yaw_rad, dtype=np.float64)
     zeros = np.zeros_like(half)
     return np.stack([zeros, zeros, np.sin(half), np.cos(half)], axis=1)
+
+
+def attribution(body: str, command: str) -> str:
+    """``ATTRIBUTION.md`` of a converted bag: ``body`` (the source, its licence, what was
+    converted) and the ``command`` that made the bag."""
+    return f"# Attribution\n\n{body}\n\nCommand:\n\n```\n{command}\n```\n"
+
+
+def write_converted_bag(
+    out_dir: Path | str,
+    vehicle: VehicleParams,
+    series: list[TopicSeries],
+    info: Mapping[str, Any],
+    *,
+    source: str,
+    conversion_keys: Sequence[str],
+    attribution_md: str,
+    vehicle_comment: str,
+    source_files: Mapping[str, Path | None] | None = None,
+    custom_data: Mapping[str, str] | None = None,
+    overwrite: bool = False,
+) -> Path:
+    """Write a converted recording as a contract bag directory ``out_dir``; return its path.
+
+    Next to the topics: ``conversion.yaml`` (``info``), ``ATTRIBUTION.md`` (``attribution_md``)
+    and each of ``source_files`` (bag file name -> source path) that exists. Custom data:
+    ``tire_estimation.source`` = ``source``, then ``custom_data``, then
+    ``tire_estimation.conversion`` = the ``conversion_keys`` of ``info``.
+
+    Raises:
+        BagError: ``out_dir`` exists (without ``overwrite``) or cannot be written.
+    """
+    files: dict[str, str | bytes] = {
+        CONVERSION_FILE: yaml.safe_dump(dict(info), sort_keys=False),
+        ATTRIBUTION_FILE: attribution_md,
+    }
+    for name, path in (source_files or {}).items():
+        if path is not None and path.is_file():
+            files[name] = path.read_bytes()
+    return write_contract_bag(
+        out_dir,
+        vehicle,
+        series,
+        vehicle_comment=vehicle_comment,
+        custom_data={
+            CUSTOM_SOURCE: source,
+            **(custom_data or {}),
+            CUSTOM_CONVERSION: yaml.safe_dump(
+                {k: info[k] for k in conversion_keys}, sort_keys=False
+            ),
+        },
+        extra_files=files,
+        overwrite=overwrite,
+    )

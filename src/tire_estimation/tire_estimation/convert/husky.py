@@ -81,7 +81,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 from numpy.typing import NDArray
 
 from tire_estimation.bag import topics as tp
@@ -90,16 +89,13 @@ from tire_estimation.bag.writer import (
     fix_series,
     imu_series,
     joint_series,
-    write_contract_bag,
 )
 from tire_estimation.convert.common import (
-    ATTRIBUTION_FILE,
-    CONVERSION_FILE,
-    CUSTOM_CONVERSION,
-    CUSTOM_SOURCE,
     ConvertError,
+    attribution,
     diff_noise_std,
     increasing_rows,
+    write_converted_bag,
 )
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.core.wheels import WHEELS
@@ -592,22 +588,17 @@ def _checks(rec: HuskyRecording, opts: HuskyOptions) -> dict[str, Any]:
 
 def _attribution(command: str | None) -> str:
     cmd = command or "tire-estimation convert husky DATA_DIR --out BAG"
-    return f"""# Attribution
-
+    return attribution(
+        """\
 Converted from `test/test1.bag` of cra-ros-pkg/robot_localization (Charles River Analytics,
 2014; BSD licence, see `SOURCE_README.md` when present): a Clearpath Husky driven around a
 parking lot with a Microstrain 3DM-GX2 IMU and a GPS receiver.
 
 The measurements were converted to the tire_estimation contract (side wheel speeds from the
 drive controller's odometry, IMU rotated into base_link, GNSS copied); see `conversion.yaml`,
-`vehicle.yaml` and `docs/data_husky.md` of the project.
-
-Command:
-
-```
-{cmd}
-```
-"""
+`vehicle.yaml` and `docs/data_husky.md` of the project.""",
+        cmd,
+    )
 
 
 def convert_husky(
@@ -632,25 +623,16 @@ def convert_husky(
     rec = load_husky(data_dir)
     series, info = husky_series(rec, opts)
     vehicle = husky_vehicle(opts)
-    files: dict[str, str | bytes] = {
-        CONVERSION_FILE: yaml.safe_dump(info, sort_keys=False),
-        ATTRIBUTION_FILE: _attribution(command),
-    }
-    readme = rec.path.parent / "README.md"
-    if readme.is_file():
-        files["SOURCE_README.md"] = readme.read_bytes()
-    return write_contract_bag(
+    return write_converted_bag(
         out_dir,
         vehicle,
         series,
+        info,
+        source=f"husky robot_localization {rec.path.name}",
+        conversion_keys=("clock", "options", "imu_to_base_link"),
+        attribution_md=_attribution(command),
         vehicle_comment=HUSKY_VEHICLE_COMMENT,
-        custom_data={
-            CUSTOM_SOURCE: f"husky robot_localization {rec.path.name}",
-            CUSTOM_CONVERSION: yaml.safe_dump(
-                {k: info[k] for k in ("clock", "options", "imu_to_base_link")}, sort_keys=False
-            ),
-        },
-        extra_files=files,
+        source_files={"SOURCE_README.md": rec.path.parent / "README.md"},
         overwrite=overwrite,
     )
 

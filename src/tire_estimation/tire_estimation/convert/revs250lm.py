@@ -40,7 +40,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 from numpy.typing import NDArray
 
 from tire_estimation.bag import topics as tp
@@ -50,20 +49,17 @@ from tire_estimation.bag.writer import (
     joint_series,
     odometry_series,
     velocity_series,
-    write_contract_bag,
 )
 from tire_estimation.convert.common import (
-    ATTRIBUTION_FILE,
-    CONVERSION_FILE,
-    CUSTOM_CONVERSION,
-    CUSTOM_SOURCE,
     STANDARD_GRAVITY_M_S2,
     UNMEASURED_POSE_VARIANCE,
     UNMEASURED_VELOCITY_VARIANCE,
     ConvertError,
+    attribution,
     diff_noise_std,
     require_dir,
     seconds_to_ns,
+    write_converted_bag,
     yaw_quaternions_xyzw,
 )
 from tire_estimation.core.vehicle import VehicleParams
@@ -246,21 +242,16 @@ def revs_series(
 
 def _attribution(command: str | None) -> str:
     cmd = command or "tire-estimation convert revs250lm DATA_DIR --out BAG"
-    return f"""# Attribution
-
+    return attribution(
+        """\
 Converted from the Stanford Revs program measurements of a 1964 Ferrari 250 LM (Targa
 Sixty-Six 2014, run `20140222_01_01_03_250lm`, samples 15000-70000) as exported by the
 open-source benchmark `MBDS/sideslip-angle-vehicle-estimation` (Leanza, Reina,
 Blanco-Claraco, "A Factor-Graph-Based Approach to Vehicle Sideslip Angle Estimation",
 Sensors 21(16):5409, 2021); that repository's license is in `LICENSE-of-source-repo`.
-For evaluation only: do not commit this bag or copies of the data.
-
-Command:
-
-```
-{cmd}
-```
-"""
+For evaluation only: do not commit this bag or copies of the data.""",
+        cmd,
+    )
 
 
 def convert_revs250lm(
@@ -279,24 +270,16 @@ def convert_revs250lm(
     data = load_revs(data_dir)
     vehicle = revs_vehicle()
     series, info = revs_series(data, vehicle)
-    files: dict[str, str | bytes] = {
-        CONVERSION_FILE: yaml.safe_dump(info, sort_keys=False),
-        ATTRIBUTION_FILE: _attribution(command),
-    }
     license_file = Path(data_dir) / "LICENSE-of-source-repo"
-    if license_file.is_file():
-        files[license_file.name] = license_file.read_bytes()
-    return write_contract_bag(
+    return write_converted_bag(
         out_dir,
         vehicle,
         series,
+        info,
+        source="revs250lm 20140222_01_01_03_250lm",
+        conversion_keys=("clock", "topics"),
+        attribution_md=_attribution(command),
         vehicle_comment=REVS_VEHICLE_COMMENT,
-        custom_data={
-            CUSTOM_SOURCE: "revs250lm 20140222_01_01_03_250lm",
-            CUSTOM_CONVERSION: yaml.safe_dump(
-                {k: info[k] for k in ("clock", "topics")}, sort_keys=False
-            ),
-        },
-        extra_files=files,
+        source_files={license_file.name: license_file},
         overwrite=overwrite,
     )

@@ -14,36 +14,31 @@ their heading change from the gyro.
 from __future__ import annotations
 
 import argparse
-import json
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from tire_estimation.evaluation.sim_runs import (
+    add_seed_args,
+    run_seeds,
+    simulated_radius_run,
+    write_rows,
+)
+
 
 def run_one(scenario: str, seed: int, minutes: float, locked: bool) -> dict[str, Any]:
     """One drive: final errors, the rear axle's verdict, the gyro-heading samples."""
-    from tire_estimation.core.pipeline import EstimationPipeline, PipelineConfig
-    from tire_estimation.core.radius.config import RadiusEstimatorConfig
-    from tire_estimation.evaluation.runner import RadiusRecorder
-    from tire_estimation.sim import SensorConfig, simulate
-    from tire_estimation.sources import sim_samples
-
-    sim = simulate(
-        scenario, seed=seed, minutes=minutes, sensors=SensorConfig(wheel_speed_rear_locked=locked)
+    sim, pipeline, run = simulated_radius_run(
+        scenario,
+        seed,
+        minutes,
+        {"locked_axle_gyro_heading": True},
+        {"wheel_speed_rear_locked": locked},
     )
     nominal = sim.vehicle.nominal_tire_radius_m
-    rec = RadiusRecorder()
-    pipeline = EstimationPipeline(
-        PipelineConfig(
-            seed=seed, radius=RadiusEstimatorConfig(seed=seed, locked_axle_gyro_heading=True)
-        ),
-        sim.vehicle,
-        observers=[rec],
-    )
-    pipeline.push_ordered(sim_samples(sim, tire_forces=False))
-    trace = rec.finish(pipeline).arrays()
+    trace = run.arrays()
     assert pipeline.radius is not None and pipeline.axles is not None
     true = sim.truth.wheel_radius_m[-1, 2:] - nominal
     est = trace["radius_error_m"][-1]
@@ -62,18 +57,12 @@ def run_one(scenario: str, seed: int, minutes: float, locked: bool) -> dict[str,
 def main(argv: Sequence[str] | None = None) -> int:
     """Command line: run the seeds, print each run and a summary, write ``--out`` (JSON)."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--scenario", default="robustness")
-    parser.add_argument("--minutes", type=float, default=10.0)
-    parser.add_argument("--seeds", type=int, default=20)
-    parser.add_argument("--first-seed", type=int, default=0)
+    add_seed_args(parser, "robustness", 10.0)
     parser.add_argument("--out", type=Path, default=None, help="JSON file for every run")
     args = parser.parse_args(argv)
-    rows = []
-    for seed in range(args.first_seed, args.first_seed + args.seeds):
-        for locked in (False, True):
-            row = run_one(args.scenario, seed, args.minutes, locked)
-            rows.append(row)
-            print(json.dumps(row), flush=True)
+    rows = run_seeds(
+        args, lambda seed: [run_one(args.scenario, seed, args.minutes, lk) for lk in (False, True)]
+    )
     for locked in (False, True):
         sel = [r for r in rows if r["locked"] is locked]
         rel = np.abs([r["common_error_rel"] for r in sel]) * 100.0
@@ -84,8 +73,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             f"{sum(r['split_observable'] is True for r in sel)}; gyro heading used on "
             f"{sum(r['gyro_heading_samples'] > 0 for r in sel)}"
         )
-    if args.out is not None:
-        args.out.write_text(json.dumps(rows, indent=1))
+    write_rows(args.out, rows)
     return 0
 
 

@@ -15,13 +15,18 @@ the rear radii, ``mean over time and wheels of ((estimate - truth) / std)^2`` af
 from __future__ import annotations
 
 import argparse
-import json
 from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
 
-from tire_estimation.evaluation.sim_runs import key_values, simulated_radius_run
+from tire_estimation.evaluation.sim_runs import (
+    add_key_value_arg,
+    add_seed_args,
+    key_values,
+    run_seeds,
+    simulated_radius_run,
+)
 
 
 def run_one(
@@ -66,32 +71,20 @@ def run_one(
 def main(argv: Sequence[str] | None = None) -> int:
     """Command line: run the seeds, print each run and a summary."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--scenario", default="robustness")
-    parser.add_argument("--minutes", type=float, default=10.0)
+    add_seed_args(parser, "robustness", 10.0)
     parser.add_argument("--skip-min", type=float, default=3.0)
-    parser.add_argument("--seeds", type=int, default=20)
-    parser.add_argument("--first-seed", type=int, default=0)
-    parser.add_argument(
-        "--set",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="radius estimator setting (JSON value)",
-    )
-    parser.add_argument(
-        "--sensor",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="SensorConfig field of the simulated drives (JSON value)",
+    add_key_value_arg(parser, "--set", "radius estimator setting (JSON value)")
+    add_key_value_arg(
+        parser, "--sensor", "SensorConfig field of the simulated drives (JSON value)"
     )
     args = parser.parse_args(argv)
     overrides, sensors = key_values(args.set), key_values(args.sensor)
-    rows = []
-    for seed in range(args.first_seed, args.first_seed + args.seeds):
-        row = run_one(seed, args.minutes, overrides, sensors, args.scenario, args.skip_min)
-        rows.append(row)
-        print(json.dumps(row), flush=True)
+    rows = run_seeds(
+        args,
+        lambda seed: [
+            run_one(seed, args.minutes, overrides, sensors, args.scenario, args.skip_min)
+        ],
+    )
     nees = np.array([r["nees"] for r in rows if r["nees"] is not None])
     nis = np.array([r["mean_nis"] for r in rows if r["mean_nis"] is not None])
     print(

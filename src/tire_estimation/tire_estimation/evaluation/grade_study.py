@@ -12,12 +12,13 @@ relative to the nominal radius; then the count within ``--target-pct``.
 from __future__ import annotations
 
 import argparse
-import json
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from tire_estimation.evaluation.sim_runs import add_seed_args, run_seeds, write_rows
 
 #: the configurations compared: name -> radius configuration overrides
 CONFIGS: dict[str, dict[str, float]] = {
@@ -59,20 +60,16 @@ def run_seed(
 def main(argv: Sequence[str] | None = None) -> int:
     """Command line: run the seeds, print each run and a summary, write ``--out`` (JSON)."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--scenario", default="robustness")
-    parser.add_argument("--minutes", type=float, default=10.0)
-    parser.add_argument("--seeds", type=int, default=20)
-    parser.add_argument("--first-seed", type=int, default=0)
+    add_seed_args(parser, "robustness", 10.0)
     parser.add_argument("--amplitude", type=float, default=0.045, help="grade amplitude, rad")
     parser.add_argument("--wavelength", type=float, default=2000.0, help="hill wavelength, m")
     parser.add_argument("--target-pct", type=float, default=0.05)
     parser.add_argument("--out", type=Path, default=None, help="JSON file for every run")
     args = parser.parse_args(argv)
-    rows: list[dict[str, Any]] = []
-    for seed in range(args.first_seed, args.first_seed + args.seeds):
-        for row in run_seed(args.scenario, seed, args.minutes, args.amplitude, args.wavelength):
-            rows.append(row)
-            print(json.dumps(row), flush=True)
+    rows = run_seeds(
+        args,
+        lambda seed: run_seed(args.scenario, seed, args.minutes, args.amplitude, args.wavelength),
+    )
     for name in CONFIGS:
         sel = [r for r in rows if r["config"] == name]
         worst = np.abs([r["error_pct"] for r in sel]).max(axis=1)
@@ -83,8 +80,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             f"mean error {err[:, 0].mean():+.3f} / {err[:, 1].mean():+.3f} mm, RMS "
             f"{np.sqrt(np.mean(err**2)):.3f} mm"
         )
-    if args.out is not None:
-        args.out.write_text(json.dumps(rows, indent=1))
+    write_rows(args.out, rows)
     return 0
 
 

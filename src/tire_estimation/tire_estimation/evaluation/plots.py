@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import matplotlib
 
@@ -13,6 +15,22 @@ from numpy.typing import NDArray
 from scipy import stats
 
 F64 = NDArray[np.float64]
+
+
+def save_figure(fig: Any, path: Path) -> None:
+    """Lay out ``fig``, write it to ``path`` (PNG, 110 dpi) and close it."""
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def _mark_events(
+    ax: Any, events_s: Sequence[tuple[float, str]] | None, color: str, ls: str
+) -> None:
+    """A vertical line and its label at the top of ``ax`` for each ``(t_s, label)``."""
+    for t_ev, label in events_s or []:
+        ax.axvline(t_ev, color=color, ls=ls, lw=0.8)
+        ax.text(t_ev, ax.get_ylim()[1], f" {label}", color=color, va="top", fontsize=8)
 
 
 def plot_radius_errors(
@@ -42,18 +60,14 @@ def plot_radius_errors(
         if truth is not None and w in truth[1]:
             j = truth[1].index(w)
             ax.step(truth[0], 1e3 * truth[2][:, j], where="post", color="k", lw=1.2, label="truth")
-        for t_ev, label in events_s or []:
-            ax.axvline(t_ev, color="C3", ls="--", lw=0.8)
-            ax.text(t_ev, ax.get_ylim()[1], f" {label}", color="C3", va="top", fontsize=8)
+        _mark_events(ax, events_s, "C3", "--")
         ax.set_ylabel(f"{w}\nradius error [mm]")
         ax.grid(alpha=0.3)
         if i == 0:
             ax.legend(loc="best", fontsize=8, ncol=4)
     axes[-1, 0].set_xlabel("time since bag start [s]")
     fig.suptitle("Effective rolling-radius error (estimate minus nominal)")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)
 
 
 def plot_trajectory(
@@ -73,9 +87,7 @@ def plot_trajectory(
     ax.grid(alpha=0.3)
     ax.legend(loc="best")
     ax.set_title("Trajectory in the local ENU frame")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)
 
 
 def plot_innovations(
@@ -102,9 +114,7 @@ def plot_innovations(
     ax.grid(alpha=0.3)
     ax.legend(loc="upper right", fontsize=8)
     fig.suptitle("GNSS innovations")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)
 
 
 def plot_lateral_state(
@@ -141,9 +151,7 @@ def plot_lateral_state(
     for ax in axes:
         ax.grid(True, alpha=0.3)
         ax.legend(loc="upper right", fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)
 
 
 def plot_stiffness(path: Path, t_s: F64, names: tuple[str, ...], stiffness: F64, std: F64) -> None:
@@ -161,9 +169,7 @@ def plot_stiffness(path: Path, t_s: F64, names: tuple[str, ...], stiffness: F64,
         ax.grid(True, alpha=0.3)
         ax.legend(loc="upper right", fontsize=8)
     axes[-1, 0].set_xlabel("time from start of bag [s]")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)
 
 
 def plot_detection(
@@ -189,15 +195,11 @@ def plot_detection(
         for wheel, t_alarm in alarms_s:
             if wheel in (w, "all"):
                 ax.axvline(t_alarm, color="C3", lw=1.5, label=f"alarm ({wheel})")
-        for t_ev, label in events_s or []:
-            ax.axvline(t_ev, color="k", ls=":", lw=0.8)
-            ax.text(t_ev, ax.get_ylim()[1], f" {label}", color="k", va="top", fontsize=8)
+        _mark_events(ax, events_s, "k", ":")
         ax.set_ylabel(f"{w}\n[mm]")
         ax.grid(alpha=0.3)
         if i == 0:
             ax.legend(loc="upper left", fontsize=8, ncol=4)
     axes[-1, 0].set_xlabel("time since bag start [s]")
     fig.suptitle("Deflation detector: CUSUM of the radius decrease against its threshold")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)

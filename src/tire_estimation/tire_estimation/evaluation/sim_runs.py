@@ -1,9 +1,12 @@
-"""A simulated drive through the radius MPF: the shared start of the radius studies."""
+"""Simulated drives through the radius MPF: the shared start and seed loop of the radius
+studies (``axle_study``, ``grade_study``, ``slow_study``, ``consistency_study``)."""
 
 from __future__ import annotations
 
+import argparse
 import json
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
 from typing import Any
 
 
@@ -41,3 +44,35 @@ def key_values(items: Sequence[str]) -> dict[str, Any]:
         key, _, value = item.partition("=")
         out[key] = json.loads(value) if value not in ("true", "false") else value == "true"
     return out
+
+
+def add_seed_args(parser: argparse.ArgumentParser, scenario: str, minutes: float) -> None:
+    """``--scenario``, ``--minutes``, ``--seeds`` (default 20) and ``--first-seed`` (0)."""
+    parser.add_argument("--scenario", default=scenario)
+    parser.add_argument("--minutes", type=float, default=minutes)
+    parser.add_argument("--seeds", type=int, default=20)
+    parser.add_argument("--first-seed", type=int, default=0)
+
+
+def add_key_value_arg(parser: argparse.ArgumentParser, flag: str, help_text: str) -> None:
+    """A repeatable ``flag KEY=VALUE`` option (read with :func:`key_values`)."""
+    parser.add_argument(flag, action="append", default=[], metavar="KEY=VALUE", help=help_text)
+
+
+def run_seeds(
+    args: argparse.Namespace, run: Callable[[int], Sequence[dict[str, Any]]]
+) -> list[dict[str, Any]]:
+    """The rows of ``run(seed)`` for the ``args.seeds`` seeds from ``args.first_seed``, each
+    printed as one JSON line as it comes."""
+    rows: list[dict[str, Any]] = []
+    for seed in range(args.first_seed, args.first_seed + args.seeds):
+        for row in run(seed):
+            rows.append(row)
+            print(json.dumps(row), flush=True)
+    return rows
+
+
+def write_rows(path: Path | None, rows: Sequence[dict[str, Any]]) -> None:
+    """Every run as JSON in ``path`` (nothing when ``None``)."""
+    if path is not None:
+        path.write_text(json.dumps(rows, indent=1))

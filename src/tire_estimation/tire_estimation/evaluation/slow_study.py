@@ -13,13 +13,18 @@ seconds learned.
 from __future__ import annotations
 
 import argparse
-import json
 from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
 
-from tire_estimation.evaluation.sim_runs import key_values, simulated_radius_run
+from tire_estimation.evaluation.sim_runs import (
+    add_key_value_arg,
+    add_seed_args,
+    key_values,
+    run_seeds,
+    simulated_radius_run,
+)
 
 #: RTK-grade GNSS for the simulator: ~2 cm horizontal per axis, 10 Hz, Doppler velocity on.
 RTK_SENSORS: dict[str, Any] = {
@@ -59,10 +64,7 @@ def run_one(
 def main(argv: Sequence[str] | None = None) -> int:
     """Command line: run the seeds, print each run and a summary."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--scenario", default="slow")
-    parser.add_argument("--minutes", type=float, default=5.0)
-    parser.add_argument("--seeds", type=int, default=20)
-    parser.add_argument("--first-seed", type=int, default=0)
+    add_seed_args(parser, "slow", 5.0)
     parser.add_argument(
         "--gnss",
         choices=("rtk", "default"),
@@ -70,21 +72,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         help="RTK-grade fixes (RTK_SENSORS) or the simulator's default GNSS",
     )
     parser.add_argument("--tolerance-pct", type=float, default=0.05)
-    parser.add_argument(
-        "--set",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="radius estimator setting (JSON value)",
-    )
+    add_key_value_arg(parser, "--set", "radius estimator setting (JSON value)")
     args = parser.parse_args(argv)
     overrides = key_values(args.set)
-    rows = []
-    for seed in range(args.first_seed, args.first_seed + args.seeds):
-        sensors = RTK_SENSORS if args.gnss == "rtk" else {}
-        row = run_one(seed, args.minutes, overrides, args.scenario, sensors)
-        rows.append(row)
-        print(json.dumps(row), flush=True)
+    sensors = RTK_SENSORS if args.gnss == "rtk" else {}
+    rows = run_seeds(
+        args, lambda seed: [run_one(seed, args.minutes, overrides, args.scenario, sensors)]
+    )
     rel = np.abs([r["error_rel_pct"] for r in rows])
     z = np.abs([r["z"] for r in rows])
     ok = int(np.all(rel <= args.tolerance_pct, axis=1).sum())

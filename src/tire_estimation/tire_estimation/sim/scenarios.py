@@ -204,42 +204,55 @@ def _highway_profile(
     return speed, _curvature_from_lateral(a_lat, speed), v0
 
 
+@dataclass
+class _SpeedKnots:
+    """Knots ``(t, v)`` of a piecewise-linear speed reference, appended piece by piece from
+    the time ``t_s`` and the speed ``speed_m_s`` reached so far."""
+
+    t: list[float]
+    v: list[float]
+    t_s: float
+    speed_m_s: float = 0.0
+    #: shortest speed change, s
+    min_change_s: float = 0.0
+
+    def knot(self) -> None:
+        """A knot at the current time and speed."""
+        self.t.append(self.t_s)
+        self.v.append(self.speed_m_s)
+
+    def go(self, v_new: float, acc: float) -> None:
+        """Change the speed to ``v_new`` at ``acc`` (m/s^2)."""
+        self.t_s += max(abs(v_new - self.speed_m_s) / acc, self.min_change_s)
+        self.speed_m_s = v_new
+        self.knot()
+
+    def hold(self, seconds: float) -> None:
+        """Keep the speed for ``seconds``."""
+        self.t_s += seconds
+        self.knot()
+
+
 def _city_profile(
     rng: np.random.Generator, duration_s: float, t: F64, dt_s: float
 ) -> tuple[F64, F64]:
     """Speed reference and curvature of city driving: stops, junction turns, roundabouts."""
-    vt, vv = [0.0], [0.0]
+    ref = _SpeedKnots([0.0], [0.0], 2.0)
+    ref.knot()
+    go, hold = ref.go, ref.hold
     at, av = [0.0], [0.0]
-    tk, v = 2.0, 0.0
-    vt.append(tk)
-    vv.append(v)
-
-    def go(v_new: float, acc: float) -> None:
-        nonlocal tk, v
-        tk += abs(v_new - v) / acc
-        v = v_new
-        vt.append(tk)
-        vv.append(v)
-
-    def hold(seconds: float) -> None:
-        nonlocal tk
-        tk += seconds
-        vt.append(tk)
-        vv.append(v)
 
     def lateral(pattern: Sequence[tuple[float, float]]) -> None:
         # pattern: (duration, a_lat at the end of the piece); speed held meanwhile
-        nonlocal tk
-        at.append(tk)
+        at.append(ref.t_s)
         av.append(0.0)
         for d, a in pattern:
-            tk += d
-            at.append(tk)
+            ref.t_s += d
+            at.append(ref.t_s)
             av.append(a)
-        vt.append(tk)
-        vv.append(v)
+        ref.knot()
 
-    while tk < duration_s:
+    while ref.t_s < duration_s:
         kind = rng.choice(["cruise", "stop", "turn", "roundabout"], p=[0.35, 0.25, 0.25, 0.15])
         if kind == "cruise":
             go(float(rng.uniform(30.0, 50.0)) * KMH, float(rng.uniform(0.8, 1.6)))
@@ -252,18 +265,18 @@ def _city_profile(
             go(float(rng.uniform(14.0, 20.0)) * KMH, 1.5)
             a = float(rng.uniform(1.5, 2.5)) * float(rng.choice([-1.0, 1.0]))
             # heading change = integral(a / v dt) = pi/2 over the hold plus half the ramps
-            hold_s = max(0.5, math.pi / 2 * v / abs(a) - 1.0)
+            hold_s = max(0.5, math.pi / 2 * ref.speed_m_s / abs(a) - 1.0)
             lateral([(1.0, a), (hold_s, a), (1.0, 0.0)])
             go(float(rng.uniform(30.0, 45.0)) * KMH, 1.3)
         else:
             go(float(rng.uniform(20.0, 25.0)) * KMH, 1.5)
             a = float(rng.uniform(1.5, 2.2))
             angle = float(rng.uniform(0.5, 1.5)) * math.pi  # around the central island
-            hold_s = max(0.5, angle * v / a - 1.0)
+            hold_s = max(0.5, angle * ref.speed_m_s / a - 1.0)
             lateral([(0.8, -1.0), (0.8, 0.0), (1.0, a), (hold_s, a), (1.0, 0.0), (0.8, -1.0)])
             lateral([(0.8, 0.0)])
             go(float(rng.uniform(30.0, 45.0)) * KMH, 1.3)
-    speed = np.maximum(_smooth(np.interp(t, vt, vv), int(1.5 / dt_s)), 0.0)
+    speed = np.maximum(_smooth(np.interp(t, ref.t, ref.v), int(1.5 / dt_s)), 0.0)
     a_lat = _smooth(np.interp(t, at, av), int(1.0 / dt_s))
     a_lat = a_lat + _lateral_noise(rng, t, 0.1, 1.5) * np.minimum(speed / 5.0, 1.0)
     return speed, _curvature_from_lateral(a_lat, speed)
@@ -276,25 +289,12 @@ def _slow_profile(
     runs at 3-8 m/s, creeping at 1-2.5 m/s, tight turns of 5-12 m radius at 2-4 m/s through a
     quarter to a half circle, stops. The curvature is set directly (not from a lateral
     acceleration), so it holds at any speed."""
-    vt, vv = [0.0, 1.0], [0.0, 0.0]
+    ref = _SpeedKnots([0.0, 1.0], [0.0, 0.0], 1.0, min_change_s=0.5)
+    go, hold = ref.go, ref.hold
     kt, kv = [0.0], [0.0]
-    tk, v = 1.0, 0.0
-
-    def go(v_new: float, acc: float) -> None:
-        nonlocal tk, v
-        tk += max(abs(v_new - v) / acc, 0.5)
-        v = v_new
-        vt.append(tk)
-        vv.append(v)
-
-    def hold(seconds: float) -> None:
-        nonlocal tk
-        tk += seconds
-        vt.append(tk)
-        vv.append(v)
 
     go(float(rng.uniform(3.0, 6.0)), 0.8)
-    while tk < duration_s:
+    while ref.t_s < duration_s:
         kind = rng.choice(["straight", "creep", "turn", "stop"], p=[0.3, 0.15, 0.4, 0.15])
         if kind == "straight":
             go(float(rng.uniform(3.0, 8.0)), float(rng.uniform(0.5, 1.0)))
@@ -308,15 +308,15 @@ def _slow_profile(
             kappa = float(rng.choice([-1.0, 1.0])) / radius
             angle = float(rng.uniform(0.5, 1.0)) * math.pi
             # heading change = v * integral(kappa dt): the hold plus half of the two 1-s ramps
-            hold_s = max(0.5, angle * radius / v - 1.0)
-            kt.extend([tk, tk + 1.0, tk + 1.0 + hold_s, tk + 2.0 + hold_s])
+            hold_s = max(0.5, angle * radius / ref.speed_m_s - 1.0)
+            kt.extend([ref.t_s, ref.t_s + 1.0, ref.t_s + 1.0 + hold_s, ref.t_s + 2.0 + hold_s])
             kv.extend([0.0, kappa, kappa, 0.0])
             hold(2.0 + hold_s)
         else:
             go(0.0, float(rng.uniform(0.8, 1.5)))
             hold(float(rng.uniform(2.0, 8.0)))
             go(float(rng.uniform(2.0, 5.0)), 0.8)
-    speed = np.maximum(_smooth(np.interp(t, vt, vv), int(1.0 / dt_s)), 0.0)
+    speed = np.maximum(_smooth(np.interp(t, ref.t, ref.v), int(1.0 / dt_s)), 0.0)
     kappa_ref = _smooth(np.interp(t, kt, kv), int(0.5 / dt_s))
     return speed, kappa_ref
 
