@@ -569,7 +569,6 @@ class EceCampaignPlan:
     diffusion_start_min: float | None = None
     detector_calibration_s: float = 1200.0
     wheels: str = "rear"
-    non_increasing: bool = False
     braking_source: str = "estimate"
     first_seed: int = 1000
     estimator: dict[str, Any] = field(default_factory=dict)
@@ -618,11 +617,8 @@ class EceCampaignPlan:
         return float(min(self.detector_calibration_s, limit))
 
 
-def _estimator_overrides(plan: EceCampaignPlan, calibration_s: float) -> dict[str, Any]:
+def _estimator_overrides(plan: EceCampaignPlan) -> dict[str, Any]:
     est: dict[str, Any] = {"wheels": plan.wheels}
-    if plan.non_increasing:
-        est["non_increasing_after_calibration"] = True
-        est["calibration_time_s"] = calibration_s
     est.update(plan.estimator)
     return est
 
@@ -690,7 +686,7 @@ def ece_r64_cases(plan: EceCampaignPlan) -> list[CaseSpec]:
                 event_s=ev,
                 deadline_s=STEP_DEADLINE_S,
                 detector_calibration_s=cal,
-                estimator=_estimator_overrides(plan, cal),
+                estimator=_estimator_overrides(plan),
                 braking_source=plan.braking_source,
             )
         )
@@ -711,7 +707,7 @@ def ece_r64_cases(plan: EceCampaignPlan) -> list[CaseSpec]:
                 sensors={**GNSS_LEVELS[gnss], **ROAD_LEVELS[road], **plan.sensors},
                 labels={"tyre": f"{sens:g}", "gnss": gnss, "road": road},
                 detector_calibration_s=cal,
-                estimator=_estimator_overrides(plan, cal),
+                estimator=_estimator_overrides(plan),
                 braking_source=plan.braking_source,
             )
         )
@@ -750,7 +746,7 @@ def ece_r64_cases(plan: EceCampaignPlan) -> list[CaseSpec]:
                 event_s=start_s,
                 deadline_s=DIFFUSION_DEADLINE_S,
                 detector_calibration_s=cal,
-                estimator=_estimator_overrides(plan, cal),
+                estimator=_estimator_overrides(plan),
                 braking_source=plan.braking_source,
             )
         )
@@ -1498,7 +1494,6 @@ def _cmd_ece_r64(args: argparse.Namespace) -> int:
         diffusion_start_min=args.diffusion_start_min,
         detector_calibration_s=60.0 * args.calibration_min,
         wheels=args.wheels,
-        non_increasing=args.non_increasing,
         braking_source=args.braking,
         first_seed=args.first_seed,
         estimator=_estimator_options(args.estimator),
@@ -1606,11 +1601,6 @@ def add_campaign_parser(subparsers: Any) -> argparse.ArgumentParser:
         "before the event",
     )
     ece.add_argument("--wheels", choices=("rear", "all"), default="rear")
-    ece.add_argument(
-        "--non-increasing",
-        action="store_true",
-        help="restrict the MPF radii to non-increasing after the calibration (paper IV-B)",
-    )
     ece.add_argument("--braking", choices=("estimate", "truth"), default="estimate")
     ece.add_argument(
         "--tyres",
