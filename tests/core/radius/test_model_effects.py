@@ -185,3 +185,22 @@ def test_rear_brake_slip_without_imu_uses_the_wheel_deceleration() -> None:
     assert out.rear_brake_decel_m_s2 == pytest.approx(2.78, abs=0.02)
     kappa = -K_BRAKE * out.rear_brake_decel_m_s2
     assert out.speed_m_s == pytest.approx(15.0 / (1.0 + kappa), rel=1e-9)
+
+
+def test_every_effect_is_a_config_switch_that_is_off_by_default() -> None:
+    """One object per effect: its field is a ``RadiusEstimatorConfig`` field, 0 by default and
+    checked against the object's limits; names and fields are unique."""
+    from tire_estimation.core.radius.config import RadiusEstimatorConfig
+    from tire_estimation.core.radius.effects import EFFECTS
+
+    cfg = RadiusEstimatorConfig()
+    assert len({e.name for e in EFFECTS}) == len({e.config_field for e in EFFECTS}) == 9
+    for e in EFFECTS:
+        assert e.value(cfg) == 0.0 and 0.0 in e.grid
+        hi = e.limits[1]
+        with pytest.raises(ConfigError, match=e.config_field):
+            RadiusEstimatorConfig(**{e.config_field: hi + 1.0})
+        assert e.overrides(0.1)[e.config_field] == 0.1
+        # exactly one kind of correction
+        kinds = (e.fix_delay_sign or e.velocity_delay_sign, e.antenna_axis is not None)
+        assert sum(map(bool, (*kinds, e.wheel_speeds is not None))) == 1

@@ -27,7 +27,7 @@ IMU_TIMEOUT_S = 0.5
 ACCEL_FILTER_TIME_CONSTANT_S = 0.3
 
 #: below this speed, while the radii are not learned, the heading is propagated from the steer
-#: angle (eq. 31a) instead of the wheel-speed difference, m/s (Lundquist et al. 2014, Sec. IV)
+#: angle (eq. 31a) instead of the wheel-speed difference, m/s (the value of Lundquist et al.)
 STEERING_HEADING_SPEED_M_S = 11.0
 
 

@@ -29,8 +29,8 @@ F64 = NDArray[np.float64]
 #: probability of 1e-20)
 GNSS_MAX_REJECTIONS = 5
 
-#: a fix arriving more than this after the last accepted one re-initializes the pose, s (the
-#: dead-reckoned heading error after half a minute without GNSS exceeds the initialization's)
+#: a fix arriving more than this after the last accepted one re-initializes the pose, s: after
+#: half a minute of dead reckoning the pose is taken afresh from two fixes rather than trusted
 GNSS_MAX_GAP_S = 30.0
 
 #: std of each horizontal velocity component used when a GNSS velocity has no covariance, m/s

@@ -37,9 +37,9 @@ _R = TypeVar("_R")
 
 F64 = NDArray[np.float64]
 
-#: prior expected fast radius variation sqrt(E[Sigma]) of the NiW prior (eq. 22c), m: the
-#: per-sample scatter of the radius error that wheel-speed quantization and road roughness
-#: give at 100 Hz; the learned value replaces it within seconds of driving
+#: prior expected fast radius variation sqrt(E[Sigma]) of the NiW prior (eq. 22c), m: 1 mm,
+#: a third of the default prior std of the mean; with the weak :data:`PRIOR_DOF` the learned
+#: value soon replaces it
 PRIOR_RADIUS_NOISE_STD_M = 0.001
 
 #: prior inverse-Wishart degrees of freedom nu_0 (eq. 22c, > d + 1 = 3): a weak prior, worth a
@@ -212,6 +212,7 @@ class RadiusMPF(MarginalGnssBias):
         self._flush()
         self._stats = self._wrap(stats)
 
+    @_mutates
     def init_pose(self, mean: F64, cov: F64) -> None:
         """Draw the particle poses from ``N(mean, cov)`` (3,), (3, 3); uniform weights.
 
