@@ -300,8 +300,8 @@ def test_assess_adds_the_likelihood_ratio_to_the_consistency_verdict(
 def test_rank_effects_scores_against_the_current_value_of_an_effect() -> None:
     """An effect the base model already has at ``current``: that point of the profile is the
     base NLL (added to the grid, not re-run), the score is measured from it, not from 0. An
-    effect profiled with other settings (``PROFILE_SETTINGS``: the velocity latency opens the
-    velocity's acceleration gate) re-runs its base point instead."""
+    effect profiled with other settings (``Effect.profile_settings``: the velocity latency
+    opens the velocity's acceleration gate) re-runs its base point instead."""
 
     def profile(v: float) -> float:
         return 0.9 + 5.0 * (v - 0.13) ** 2  # minimum at 0.13
@@ -563,6 +563,6 @@ def test_explain_says_why_in_words() -> None:
     assert "fixes lag the wheel odometry" in lines[0] and "12.0" in lines[0]
     assert "mean NIS 3.50, at most 2.10 expected" in lines[1]
     assert "correlated" in lines[2] and "1e-06" in lines[2]
-    assert set(rs.EFFECT_WORDS) == {e.name for e in rs.EFFECTS}
+    assert all(e.words for e in rs.EFFECTS) and set(rs.DEFAULT_GRIDS) == set(rs.BY_NAME)
     report["suspected_effects"] = [{"effect": "road_grade", "score": 1.0}]
     assert rs.explain(report)[0].startswith("no known effect is significant; the closest is")

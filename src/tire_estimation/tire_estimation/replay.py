@@ -822,7 +822,7 @@ def _close_loop(
         if not significant:
             break
         top = significant[0]
-        field = residuals.CONFIG_FIELDS[top["effect"]]
+        field = residuals.BY_NAME[top["effect"]].config_field
         added.append(
             {**{k: top[k] for k in ("effect", "score", "estimate", "unit")}, "field": field}
         )
@@ -882,9 +882,8 @@ def _assess_effects(
     if not trace.vel_t_ns:
         # the velocity latency is a candidate only when the run used the GNSS velocity
         grids.pop("gnss_velocity_latency")
-    values = cfg.to_dict()
     # the value each candidate has in the configured model (its grid point of the base runs)
-    current = {eff: float(values[field]) for eff, field in residuals.CONFIG_FIELDS.items()}
+    current = {e.name: e.value(cfg) for e in residuals.EFFECTS}
     report = residuals.assess(base, rerun, grids, current=current)
     report["tests"]["rank_seeds"] = seeds
     return report

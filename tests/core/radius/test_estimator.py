@@ -9,6 +9,7 @@ from tests.core.radius.test_mpf import R_NOM, TRACK, TRUE_REAR_ERR, WHEELBASE, m
 from tire_estimation.core.geodesy import LocalTangentPlane
 from tire_estimation.core.radius.config import RadiusEstimatorConfig
 from tire_estimation.core.radius.estimator import RadiusEstimator
+from tire_estimation.core.radius.gnss import GNSS_MAX_REJECTIONS
 from tire_estimation.core.radius.model import RadiusMotionModel
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.errors import ConfigError
@@ -219,14 +220,15 @@ def test_bad_inputs_are_dropped_counted_and_estimates_stay_finite():
 
 def test_gnss_relocation_recovers_after_repeated_rejections():
     drive = make_drive(duration_s=90.0, gnss_rate_hz=1.0, seed=7)
-    cfg = RadiusEstimatorConfig(n_particles=200, gnss_max_rejections=3)
+    cfg = RadiusEstimatorConfig(n_particles=200)
     est = RadiusEstimator(cfg, VEH, np.random.default_rng(7))
     feed(est, drive, 0, 4000)
     drive2 = dict(drive)
     drive2["gnss"] = drive["gnss"] + np.array([800.0, -300.0])  # genuine relocation
     ups = feed(est, drive2, 4000, 9001)
-    assert [u.accepted for u in ups[:3]] == [False, False, False]
-    assert est.stats["gnss_outlier"] == 3
+    # GNSS_MAX_REJECTIONS consecutive outliers re-initialize the pose
+    assert [u.accepted for u in ups[:GNSS_MAX_REJECTIONS]] == [False] * GNSS_MAX_REJECTIONS
+    assert est.stats["gnss_outlier"] == GNSS_MAX_REJECTIONS
     e = est.estimate()
     assert e.state == "running", e.state_reason
     assert (
@@ -261,7 +263,7 @@ def test_gates_pause_below_min_speed_and_when_braking():
 
 
 def test_heading_from_wheel_speeds_while_learning_below_steering_heading_speed():
-    """Below ``steering_heading_speed_m_s`` the steer angle (eq. 31a) moves the heading only
+    """Below ``STEERING_HEADING_SPEED_M_S`` the steer angle (eq. 31a) moves the heading only
     while the radii are paused; while they are learned, equal rear wheel speeds mean straight
     ahead whatever the steer angle says."""
     m_ws = lambda v: np.full(4, v / R_NOM)  # noqa: E731
@@ -294,9 +296,10 @@ def test_heading_from_wheel_speeds_while_learning_below_steering_heading_speed()
 def test_config_validation_names_the_field():
     for kwargs, name in [
         ({"n_particles": 0}, "n_particles"),
-        ({"resampler": "magic"}, "resampler"),
         ({"forgetting_factor": 1.5}, "forgetting_factor"),
-        ({"prior_dof": 2.0}, "prior_dof"),
+        ({"gnss_bias_fraction": 0.95}, "gnss_bias_fraction"),
+        ({"gnss_latency_s": 1.5}, "gnss_latency_s"),
+        ({"locked_axle_gyro_heading": 1}, "locked_axle_gyro_heading"),
         ({"gnss_default_std_m": -1.0}, "gnss_default_std_m"),
         ({"wheels": "front"}, "wheels"),
         ({"min_speed_m_s": float("nan")}, "min_speed_m_s"),

@@ -11,6 +11,7 @@ import pytest
 
 from tire_estimation.core.geodesy import LocalTangentPlane
 from tire_estimation.core.radius.config import RadiusEstimatorConfig
+from tire_estimation.core.radius.effects import REAR_BRAKE_SLIP_ONSET_M_S2
 from tire_estimation.core.radius.estimator import RadiusEstimator
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.errors import ConfigError
@@ -35,10 +36,9 @@ def _estimator(**cfg: float) -> RadiusEstimator:
     [
         ("radius_load_coefficient_m_per_n", 2e-4),
         ("road_grade_correction_gain", -0.1),
-        ("road_grade_window_m", 10.0),
         ("rear_brake_slip_s2_per_m", -1e-3),
         ("rear_brake_slip_s2_per_m", 0.1),
-        ("rear_brake_slip_onset_m_s2", -0.1),
+        ("gnss_velocity_latency_s", 2.0),
     ],
 )
 def test_effect_switches_are_validated(field: str, value: float) -> None:
@@ -92,10 +92,10 @@ def test_grade_is_estimated_from_altitude_and_corrects_the_distance() -> None:
 def test_sliding_line_slope_matches_least_squares():
     """The O(1) grade fit equals a least-squares line over the points in the window, far from
     the origin and across rebuilds and the point cap."""
-    from tire_estimation.core.radius.estimator import _SlidingLine
+    from tire_estimation.core.radius.road_grade import SlidingLine
 
     rng = np.random.default_rng(8)
-    fit = _SlidingLine(max_points=300)
+    fit = SlidingLine(max_points=300)
     s = 4.0e5  # 400 km into a drive
     for k in range(3000):
         s += rng.uniform(0.0, 3.0)
@@ -131,7 +131,7 @@ def _sim_rear_slip(fx: float, onset: float) -> float:
 def _braked(fx: float, **cfg: float) -> tuple[RadiusEstimator, float]:
     """20 m/s, IMU specific force ``fx``, rear wheels turning at v (1 + kappa) / r."""
     est = _estimator(**cfg)
-    kappa = _sim_rear_slip(fx, est.config.rear_brake_slip_onset_m_s2)
+    kappa = _sim_rear_slip(fx, REAR_BRAKE_SLIP_ONSET_M_S2)
     est.on_imu(0, [0.0, 0.0, 0.0], [fx, 0.0, 9.81])
     est.on_wheel_speeds(1_000_000, [OMEGA, OMEGA, OMEGA * (1 + kappa), OMEGA * (1 + kappa)])
     return est, kappa
@@ -185,3 +185,22 @@ def test_rear_brake_slip_without_imu_uses_the_wheel_deceleration() -> None:
     assert out.rear_brake_decel_m_s2 == pytest.approx(2.78, abs=0.02)
     kappa = -K_BRAKE * out.rear_brake_decel_m_s2
     assert out.speed_m_s == pytest.approx(15.0 / (1.0 + kappa), rel=1e-9)
+
+
+def test_every_effect_is_a_config_switch_that_is_off_by_default() -> None:
+    """One object per effect: its field is a ``RadiusEstimatorConfig`` field, 0 by default and
+    checked against the object's limits; names and fields are unique."""
+    from tire_estimation.core.radius.config import RadiusEstimatorConfig
+    from tire_estimation.core.radius.effects import EFFECTS
+
+    cfg = RadiusEstimatorConfig()
+    assert len({e.name for e in EFFECTS}) == len({e.config_field for e in EFFECTS}) == 9
+    for e in EFFECTS:
+        assert e.value(cfg) == 0.0 and 0.0 in e.grid
+        hi = e.limits[1]
+        with pytest.raises(ConfigError, match=e.config_field):
+            RadiusEstimatorConfig(**{e.config_field: hi + 1.0})
+        assert e.overrides(0.1)[e.config_field] == 0.1
+        # exactly one kind of correction
+        kinds = (e.fix_delay_sign or e.velocity_delay_sign, e.antenna_axis is not None)
+        assert sum(map(bool, (*kinds, e.wheel_speeds is not None))) == 1

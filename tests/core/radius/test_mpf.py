@@ -115,7 +115,6 @@ def run_mpf(drive, n=500, seed=0, **kw):
         "prior_noise_std_m": 1e-3,
         "prior_dof": 10.0,
         "forgetting_factor": 0.9998,
-        "resampler": "systematic",
         "resample_threshold": 0.5,
         "position_noise_m_sqrt_s": 0.01,
         "yaw_noise_rad_sqrt_s": 0.002,
@@ -170,8 +169,6 @@ def test_mpf_without_gnss_cannot_learn_and_stays_at_prior():
         1e-3,
         10.0,
         0.9998,
-        "systematic",
-        0.5,
         0.0,
         0.0,
         np.random.default_rng(2),
@@ -196,8 +193,6 @@ def test_paused_prediction_leaves_statistics_untouched():
         1e-3,
         10.0,
         0.999,
-        "systematic",
-        0.5,
         0.0,
         0.0,
         np.random.default_rng(3),
@@ -218,7 +213,7 @@ def _bare_mpf(n, lam, seed, prior_dof=10.0, gamma_std=(3e-3, 1e-3)):
     m = RadiusMotionModel(R_NOM, TRACK, WHEELBASE)
     return RadiusMPF(
         m, n, np.array([1e-3, -5e-4]), gamma_std[0], gamma_std[1], prior_dof, lam,
-        "systematic", 0.5, 0.0, 0.0, np.random.default_rng(seed),
+        0.0, 0.0, np.random.default_rng(seed),
     )  # fmt: skip
 
 
@@ -287,7 +282,7 @@ def test_queued_predictions_equal_immediate_ones_when_paused():
 def _bias_mpf(n: int, bias_std: float, tau: float) -> RadiusMPF:
     model = RadiusMotionModel(R_NOM, TRACK, WHEELBASE)
     f = RadiusMPF(
-        model, n, np.zeros(2), 1e-3, 1e-3, 10.0, 0.9998, "systematic", 0.5, 0.0, 0.0,
+        model, n, np.zeros(2), 1e-3, 1e-3, 10.0, 0.9998, 0.0, 0.0,
         np.random.default_rng(0), gnss_bias_std_m=bias_std, gnss_bias_time_constant_s=tau,
     )  # fmt: skip
     f.init_pose(np.zeros(3), np.diag([1e-14, 1e-14, 1e-14]))
@@ -342,7 +337,7 @@ def test_gnss_bias_fraction_takes_the_error_size_from_each_fix():
     r = np.diag([2.5, 4.0])  # lambda_min 2.5: f = 0.4 gives sigma_b^2 = 1.0
     fixed = _bias_mpf(3, 1.0, 60.0)
     frac = RadiusMPF(
-        model, 3, np.zeros(2), 1e-3, 1e-3, 10.0, 0.9998, "systematic", 0.5, 0.0, 0.0,
+        model, 3, np.zeros(2), 1e-3, 1e-3, 10.0, 0.9998, 0.0, 0.0,
         np.random.default_rng(0), gnss_bias_time_constant_s=60.0, gnss_bias_fraction=0.4,
     )  # fmt: skip
     assert frac.bias_on and frac.bias_var == 0.0
@@ -373,13 +368,13 @@ def test_gnss_bias_fraction_takes_the_error_size_from_each_fix():
 def test_gnss_bias_std_overrides_the_fraction():
     model = RadiusMotionModel(R_NOM, TRACK, WHEELBASE)
     f = RadiusMPF(
-        model, 3, np.zeros(2), 1e-3, 1e-3, 10.0, 0.9998, "systematic", 0.5, 0.0, 0.0,
+        model, 3, np.zeros(2), 1e-3, 1e-3, 10.0, 0.9998, 0.0, 0.0,
         np.random.default_rng(0), gnss_bias_std_m=0.5, gnss_bias_fraction=0.8,
     )  # fmt: skip
     f.observe_fix_cov(np.eye(2) * 9.0)
     assert f.bias_var == pytest.approx(0.25)
     off = RadiusMPF(
-        model, 3, np.zeros(2), 1e-3, 1e-3, 10.0, 0.9998, "systematic", 0.5, 0.0, 0.0,
+        model, 3, np.zeros(2), 1e-3, 1e-3, 10.0, 0.9998, 0.0, 0.0,
         np.random.default_rng(0), gnss_bias_fraction=0.0,
     )  # fmt: skip
     off.observe_fix_cov(np.eye(2) * 9.0)

@@ -68,7 +68,6 @@ cannot enter its model
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -76,6 +75,8 @@ from numpy.typing import NDArray
 from scipy.special import chdtri
 
 from tire_estimation.core.geodesy import LocalTangentPlane
+from tire_estimation.core.radius import effects as radius_effects
+from tire_estimation.core.radius.effects import BY_NAME, Effect
 from tire_estimation.core.radius.model import RL, RR
 from tire_estimation.evaluation.metrics import innovation_tests, ljung_box
 from tire_estimation.sim.streams import GnssStream, WheelSpeedStream
@@ -90,67 +91,9 @@ SCORE_THRESHOLD = 4.0
 DECIMATION_S = 1.0
 
 
-@dataclass(frozen=True)
-class Effect:
-    """One candidate effect: its signature and how to read its size from a regression."""
-
-    name: str
-    unit: str
-    regressor: str
-    description: str
-
-
-EFFECTS: tuple[Effect, ...] = (
-    Effect(
-        "gnss_latency",
-        "s",
-        "longitudinal_acceleration",
-        "along-track innovation = -speed x latency",
-    ),
-    Effect(
-        "wheel_speed_time_offset",
-        "s",
-        "longitudinal_acceleration",
-        "along-track innovation = +speed x offset",
-    ),
-    Effect("gnss_lever_arm", "m", "heading", "ENU innovation = R(heading) lever arm"),
-    Effect(
-        "gnss_lever_arm_y",
-        "m",
-        "yaw_rate",
-        "along-track drift = -yaw rate x lateral antenna offset",
-    ),
-    Effect(
-        "radius_speed_dependence",
-        "m/(m/s)^2",
-        "speed^2",
-        "along-track drift growing with speed^2 beyond speed",
-    ),
-    Effect(
-        "radius_load_dependence",
-        "m/N",
-        "speed*lateral_acceleration",
-        "cross-track drift to the inside of curves (yaw-rate error ~ v a_y)",
-    ),
-    Effect(
-        "road_grade",
-        "1",
-        "speed*(1-cos(grade))",
-        "along-track drift = -v (1 - cos grade) (slope distance vs horizontal)",
-    ),
-    Effect(
-        "rear_brake_slip",
-        "s^2/m",
-        "speed*brake_decel",
-        "along-track drift = +v k b (braked rear wheels turn slower)",
-    ),
-    Effect(
-        "gnss_velocity_latency",
-        "s",
-        "longitudinal_acceleration",
-        "along-track velocity innovation = -acceleration x velocity latency",
-    ),
-)
+#: the candidate effects: every switchable effect of the estimator (its config field, scan grid,
+#: regressor and words are the :class:`~tire_estimation.core.radius.effects.Effect`'s own)
+EFFECTS: tuple[Effect, ...] = radius_effects.EFFECTS
 
 
 def _smooth_derivative(t_s: F64, x: F64, window_s: float = 1.0) -> F64:
@@ -390,20 +333,6 @@ def _untested(base: dict[str, Any]) -> dict[str, Any]:
     return {"consistent": consistent, "tests": tests, "suspected_effects": []}
 
 
-#: What each effect looks like to a user, for :func:`explain`.
-EFFECT_WORDS: dict[str, str] = {
-    "gnss_latency": "the fixes lag the wheel odometry (GNSS latency)",
-    "wheel_speed_time_offset": "the wheel speeds lag the fixes (wheel-speed time offset)",
-    "gnss_lever_arm": "the GNSS antenna is not where vehicle.yaml puts it (lever arm)",
-    "gnss_lever_arm_y": "the GNSS antenna sits off the centre line (lateral lever arm)",
-    "radius_speed_dependence": "the tyres grow with speed (speed-dependent radius)",
-    "radius_load_dependence": "the loaded tyres roll smaller in curves (load-dependent radius)",
-    "road_grade": "the road is not flat (grades)",
-    "rear_brake_slip": "the rear wheels slip when braking (brake slip)",
-    "gnss_velocity_latency": "the receiver's velocity lags the wheel speeds (velocity latency)",
-}
-
-
 def explain(report: Mapping[str, Any]) -> list[str]:
     """The verdict of an :func:`analyze` (or :func:`assess`) report in plain words: one line
     per failed test, the most likely effect first; ``[]`` when the run is consistent."""
@@ -412,7 +341,7 @@ def explain(report: Mapping[str, Any]) -> list[str]:
     tests = report.get("tests", {})
     lines: list[str] = []
     for eff in report.get("suspected_effects", []):
-        words = EFFECT_WORDS.get(eff["effect"], eff["effect"])
+        words = BY_NAME[eff["effect"]].words if eff["effect"] in BY_NAME else eff["effect"]
         if eff["score"] >= SCORE_THRESHOLD:
             lines.append(
                 f"the residuals follow a pattern of {words}: score {eff['score']:.1f} "
@@ -454,7 +383,7 @@ def explain(report: Mapping[str, Any]) -> list[str]:
 def _effect(
     name: str, score: float, estimate: float | None, extra: dict[str, float] | None = None
 ) -> dict[str, Any]:
-    eff = next(e for e in EFFECTS if e.name == name)
+    eff = BY_NAME[name]
     out: dict[str, Any] = {
         "effect": name,
         "score": float(score),
@@ -716,48 +645,14 @@ def chi2_mean_bounds(n: int, dof: int = 2, p: float = 0.95) -> tuple[float, floa
     return float(lo), float(hi)
 
 
-#: ``RadiusEstimatorConfig`` field that switches each effect on in the model (the lever arm is
-#: scanned along ``base_link`` x, added to ``VehicleParams.gnss_antenna_position_m``).
-CONFIG_FIELDS: dict[str, str] = {
-    "gnss_latency": "gnss_latency_s",
-    "wheel_speed_time_offset": "wheel_speed_time_offset_s",
-    "gnss_lever_arm": "gnss_antenna_offset_x_m",
-    "gnss_lever_arm_y": "gnss_antenna_offset_y_m",
-    "radius_speed_dependence": "radius_speed_coefficient_m_per_m2_s2",
-    "radius_load_dependence": "radius_load_coefficient_m_per_n",
-    "road_grade": "road_grade_correction_gain",
-    "rear_brake_slip": "rear_brake_slip_s2_per_m",
-    "gnss_velocity_latency": "gnss_velocity_latency_s",
-}
-
-#: Settings a candidate's profile runs with besides its own field (base point included): the
-#: velocity latency shows only while the wheels accelerate, which the estimator's velocity
-#: gate (``gnss_velocity_max_accel_m_s2``) otherwise leaves out.
-PROFILE_SETTINGS: dict[str, dict[str, float]] = {
-    "gnss_velocity_latency": {"gnss_velocity_max_accel_m_s2": 100.0},
-}
-
-
 def effect_overrides(effect: str, value: float) -> dict[str, float]:
-    """Configuration fields of a re-run with ``effect`` at ``value`` (:data:`CONFIG_FIELDS`
-    plus :data:`PROFILE_SETTINGS`)."""
-    return {CONFIG_FIELDS[effect]: value, **PROFILE_SETTINGS.get(effect, {})}
+    """Configuration fields of a re-run with ``effect`` at ``value`` (its config field plus its
+    profile settings, :meth:`Effect.overrides`)."""
+    return BY_NAME[effect].overrides(value)
 
 
-#: Scan grids of the effects that the estimator can switch on (0 = not modelled).
-DEFAULT_GRIDS: dict[str, tuple[float, ...]] = {
-    "gnss_latency": (0.0, 0.1, 0.2, 0.4),
-    "wheel_speed_time_offset": (0.0, 0.1, 0.2, 0.4),
-    "gnss_lever_arm": (-1.0, 0.0, 1.0, 2.0, 4.0),
-    "gnss_lever_arm_y": (-1.0, -0.5, 0.0, 0.5, 1.0),
-    "radius_speed_dependence": (0.0, 2e-6, 4e-6, 6e-6, 8e-6),
-    "radius_load_dependence": (-4e-6, -2e-6, -1e-6, 0.0, 1e-6),
-    "road_grade": (0.0, 0.5, 1.0, 1.5),
-    # physical value of the simulator's default vehicle: 3.5e-3 s^2/m
-    "rear_brake_slip": (0.0, 2e-3, 4e-3, 6e-3),
-    # scanned only when the run used the GNSS velocity (replay's rank_effects)
-    "gnss_velocity_latency": (0.0, 0.1, 0.2, 0.3),
-}
+#: scan grid of every effect (0 = not modelled), in the order of :data:`EFFECTS`
+DEFAULT_GRIDS: dict[str, tuple[float, ...]] = {e.name: e.grid for e in EFFECTS}
 
 
 def rank_effects(
@@ -771,8 +666,8 @@ def rank_effects(
     ``rerun(effect, value)`` runs the estimator with ``effect`` switched on at ``value`` (the
     fields of :func:`effect_overrides`) and returns its trace. ``current`` holds the value each
     effect has in the base model (default 0, i.e. not modelled); it is added to the effect's
-    grid and its NLL is ``baseline_nll``, except for an effect with :data:`PROFILE_SETTINGS`,
-    whose base point is re-run with them.
+    grid and its NLL is ``baseline_nll``, except for an effect with profile settings, whose
+    base point is re-run with them.
     For each effect the mean innovation NLL is profiled over its grid (:func:`profile_scan`);
     ``score = 2 n (NLL(current) - NLL(estimate))`` with ``n`` the number of decimated (about
     independent) fixes: a likelihood-ratio statistic, about chi-square(1) when the current
@@ -793,7 +688,7 @@ def rank_effects(
         def objective(
             v: float, effect: str = effect, traces: dict[float, Any] = traces, base: float = base
         ) -> float:
-            if v == base and baseline_nll is not None and effect not in PROFILE_SETTINGS:
+            if v == base and baseline_nll is not None and not BY_NAME[effect].profile_settings:
                 return baseline_nll
             f, tr = nll(effect, v)
             traces[v] = tr

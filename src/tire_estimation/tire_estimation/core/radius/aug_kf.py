@@ -14,13 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from tire_estimation.core.radius.model import (
-    RL,
-    RR,
-    RadiusMotionModel,
-    gnss_bias_var,
-    gnss_white_cov,
-)
+from tire_estimation.core.radius.gnss_bias import GnssErrorSize
+from tire_estimation.core.radius.model import RL, RR, RadiusMotionModel, gnss_white_cov
 
 F64 = NDArray[np.float64]
 
@@ -34,7 +29,7 @@ class AugKfUpdate:
     nis: float
 
 
-class AugKf:
+class AugKf(GnssErrorSize):
     """Extended Kalman filter of eq. (10)-(11).
 
     Args:
@@ -67,11 +62,9 @@ class AugKf:
         gnss_bias_fraction: float = 0.0,
     ) -> None:
         self.model = model
-        self.bias_var = float(gnss_bias_std_m) ** 2
-        self.bias_fraction = 0.0 if self.bias_var > 0.0 else float(gnss_bias_fraction)
-        self.bias_tau_s = float(gnss_bias_time_constant_s)
+        bias_on = self._bias_size(gnss_bias_std_m, gnss_bias_time_constant_s, gnss_bias_fraction)
         #: state size: 5, or 7 with the GNSS bias
-        self.nx = 7 if self.bias_var > 0.0 or self.bias_fraction > 0.0 else 5
+        self.nx = 7 if bias_on else 5
         self.x = np.zeros(self.nx)
         self.p = np.eye(self.nx)
         if self.nx == 7:
@@ -96,12 +89,6 @@ class AugKf:
         self.p[3:5, :] = 0.0
         self.p[:, 3:5] = 0.0
         self.p[3:5, 3:5] = np.eye(2) * self._prior[1] ** 2
-
-    def observe_fix_cov(self, r_m2: F64) -> None:
-        """As :meth:`RadiusMPF.observe_fix_cov`: with ``gnss_bias_fraction`` the Gauss-Markov
-        error's variance follows each fix's (2, 2) covariance."""
-        if self.bias_fraction > 0.0:
-            self.bias_var = gnss_bias_var(r_m2, self.bias_fraction)
 
     def init_pose(self, mean: F64, cov: F64) -> None:
         """Set the pose ``[east, north, yaw]`` (3,) and its covariance (3, 3); keep the radii."""

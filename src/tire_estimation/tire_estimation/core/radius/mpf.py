@@ -20,7 +20,6 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
 from typing import Any, TypeVar
 
 import numpy as np
@@ -29,75 +28,31 @@ from numpy.typing import NDArray
 from tire_estimation.core import niw
 from tire_estimation.core.kernel_random import kernel_state
 from tire_estimation.core.radius import kernels as radius_kernels
-from tire_estimation.core.radius.model import (
-    RL,
-    RR,
-    RadiusMotionModel,
-    gnss_bias_var,
-    gnss_white_cov,
-)
-from tire_estimation.core.resampling import RESAMPLERS, ess
+from tire_estimation.core.radius.gnss_bias import MarginalGnssBias
+from tire_estimation.core.radius.model import RL, RR, RadiusMotionModel
+from tire_estimation.core.radius.mpf_outcomes import FixPrediction, MpfEstimate, VelocityUpdate
+from tire_estimation.core.resampling import ess, systematic
 
 _R = TypeVar("_R")
 
 F64 = NDArray[np.float64]
 
+#: prior expected fast radius variation sqrt(E[Sigma]) of the NiW prior (eq. 22c), m: 1 mm,
+#: a third of the default prior std of the mean; with the weak :data:`PRIOR_DOF` the learned
+#: value soon replaces it
+PRIOR_RADIUS_NOISE_STD_M = 0.001
 
-@dataclass(frozen=True)
-class FixPrediction:
-    """Predicted GNSS antenna position of the particle cloud.
+#: prior inverse-Wishart degrees of freedom nu_0 (eq. 22c, > d + 1 = 3): a weak prior, worth a
+#: few samples
+PRIOR_DOF = 10.0
 
-    Attributes:
-        h: per-particle predicted antenna position (east, north), (2, N), m.
-        innovation_m: measurement minus the weighted mean prediction, (2,), m.
-        innovation_cov_m2: weighted cloud covariance of ``h`` plus ``R``, (2, 2), m^2.
-        nis: normalized innovation squared, ``innovation' S^-1 innovation``.
-    """
+#: resample when N_eff / N falls below this (Table I line 16)
+RESAMPLE_THRESHOLD = 0.5
 
-    h: F64
-    innovation_m: F64
-    innovation_cov_m2: F64
-    nis: float
-    #: covariance each particle's likelihood uses: ``R``, or with the GNSS bias ``P_b + R_w``
-    likelihood_cov_m2: F64 | None = None
-
-
-@dataclass(frozen=True)
-class VelocityUpdate:
-    """Outcome of a GNSS velocity update (:meth:`RadiusMPF.update_velocity`).
-
-    Attributes:
-        innovation_m_s: measured minus the weighted mean predicted velocity (east, north), m/s.
-        innovation_cov_m2_s2: cloud spread of the prediction plus the noise (2, 2), m^2/s^2.
-        nis: normalized innovation squared.
-        log_likelihood: log of the weighted mean likelihood (``-inf`` when not applied).
-        accepted: the weights were updated (false: gated out).
-    """
-
-    innovation_m_s: F64
-    innovation_cov_m2_s2: F64
-    nis: float
-    log_likelihood: float
-    accepted: bool
-
-
-@dataclass(frozen=True)
-class MpfEstimate:
-    """Weighted summary of the MPF.
-
-    Attributes:
-        pose: ``[east_m, north_m, yaw_rad]`` weighted mean (circular mean for the yaw), (3,).
-        pose_cov: covariance of the pose, (3, 3).
-        radius: MMSE of the NiW statistics (eq. 30), see :class:`niw.NiwEstimate`.
-        n_eff: effective sample size.
-        resample_count: resamplings since construction.
-    """
-
-    pose: F64
-    pose_cov: F64
-    radius: niw.NiwEstimate
-    n_eff: float
-    resample_count: int
+#: Liu & West (2001) shrinkage ``a`` of the NiW means at each resampling (beyond the paper):
+#: keeps the mean and covariance of the cloud of means and refreshes the duplicates with a
+#: kernel of ``1 - a^2`` = 4 % of that covariance
+KERNEL_SHRINKAGE = 0.98
 
 
 def _mutates(method: Callable[..., _R]) -> Callable[..., _R]:
@@ -111,7 +66,7 @@ def _mutates(method: Callable[..., _R]) -> Callable[..., _R]:
     return wrapper
 
 
-class RadiusMPF:
+class RadiusMPF(MarginalGnssBias):
     """MPF over the pose with NiW-marginalized rear radius errors (``d = 2``).
 
     Args:
@@ -122,16 +77,15 @@ class RadiusMPF:
         prior_noise_std_m: prior sqrt(E[Sigma]) (per wheel), m.
         prior_dof: nu_0 (> 3).
         forgetting_factor: lambda of eq. (24).
-        resampler: key of :data:`resampling.RESAMPLERS`.
-        resample_threshold: resample when ``N_eff < threshold * N``.
         position_noise_m_sqrt_s: additive pose random walk on east/north (applied at each fix
             with the variance accumulated since the last fix), m/sqrt(s).
         yaw_noise_rad_sqrt_s: same for the heading, rad/sqrt(s).
         mean_random_walk_m_sqrt_s: random walk of each particle's NiW mean, applied with the pose
             noise (beyond the paper), m/sqrt(s).
         kernel_shrinkage: Liu-West shrinkage ``a`` of the NiW means at resampling (beyond the
-            paper); 0 disables.
+            paper, :data:`KERNEL_SHRINKAGE`); 0 disables.
         rng: random generator (all draws).
+        resample_threshold: resample (systematic) when ``N_eff < threshold * N``.
         block_size: at most this many queued predictions are processed as one block.
         gnss_bias_std_m: stationary std of a Gauss-Markov GNSS position error per axis (beyond
             the paper), m; 0: see ``gnss_bias_fraction``. See :meth:`_bias_predict`.
@@ -151,8 +105,6 @@ class RadiusMPF:
         prior_noise_std_m: float,
         prior_dof: float,
         forgetting_factor: float,
-        resampler: str,
-        resample_threshold: float,
         position_noise_m_sqrt_s: float,
         yaw_noise_rad_sqrt_s: float,
         rng: np.random.Generator,
@@ -162,12 +114,12 @@ class RadiusMPF:
         gnss_bias_std_m: float = 0.0,
         gnss_bias_time_constant_s: float = 120.0,
         gnss_bias_fraction: float = 0.0,
+        resample_threshold: float = RESAMPLE_THRESHOLD,
     ) -> None:
         self.model = model
         self.n = int(n_particles)
         self.rng = rng
         self.lam = float(forgetting_factor)
-        self.resample_fn = RESAMPLERS[resampler]
         self.resample_threshold = float(resample_threshold)
         self.pos_q = float(position_noise_m_sqrt_s) ** 2
         self.yaw_q = float(yaw_noise_rad_sqrt_s) ** 2
@@ -196,16 +148,8 @@ class RadiusMPF:
         self._stats = self._wrap(niw.init_stats(n, *self._prior))
         #: queued predictions (dt_s, w_rl, w_rr, learn, steer or NaN), see :meth:`_flush`
         self._pending: list[tuple[float, float, float, float, float]] = []
-        # Gauss-Markov GNSS error (beyond the paper), marginalized: per-particle means (2, N)
-        # and one covariance (2, 2) shared by all particles (same linear model and R for all)
-        self.bias_var = float(gnss_bias_std_m) ** 2
-        self.bias_fraction = 0.0 if self.bias_var > 0.0 else float(gnss_bias_fraction)
-        #: the GNSS error model is on (a fixed size, or a share of each fix's covariance)
-        self.bias_on = self.bias_var > 0.0 or self.bias_fraction > 0.0
-        self.bias_tau_s = float(gnss_bias_time_constant_s)
-        self.bias_dt_s = 0.0
-        self._bias = np.zeros((d, n))
-        self._bias_p = np.eye(d) * self.bias_var
+        # Gauss-Markov GNSS error (beyond the paper), marginalized
+        self._bias_init(n, gnss_bias_std_m, gnss_bias_time_constant_s, gnss_bias_fraction)
 
     # ------------------------------------------------------------------ state access
     # Reading any of these first processes the queued predictions.
@@ -268,15 +212,6 @@ class RadiusMPF:
         self._flush()
         self._stats = self._wrap(stats)
 
-    def observe_fix_cov(self, r_m2: F64) -> None:
-        """Take the Gauss-Markov error's variance from a fix's (2, 2) covariance when it is
-        configured as a share of it (``sigma_b^2 = f lambda_min(R)``, :func:`gnss_bias_var`);
-        called for every fix before :meth:`init_pose` or :meth:`predict_fix`. The new variance
-        sets the stationary level of the time update that follows (a receiver whose reported
-        accuracy changes moves the modelled error's level with it)."""
-        if self.bias_fraction > 0.0:
-            self.bias_var = gnss_bias_var(r_m2, self.bias_fraction)
-
     @_mutates
     def init_pose(self, mean: F64, cov: F64) -> None:
         """Draw the particle poses from ``N(mean, cov)`` (3,), (3, 3); uniform weights.
@@ -293,10 +228,7 @@ class RadiusMPF:
         self._speed[:] = 0.0
         self.weights[:] = 1.0 / self.n
         self.jitter_dt_s = 0.0
-        # the fix the pose was initialized from holds the current GNSS error
-        self._bias[:] = 0.0
-        self._bias_p = np.eye(self.D) * self.bias_var
-        self.bias_dt_s = 0.0
+        self._bias_restart()
 
     # ------------------------------------------------------------------ prediction
     def predict(
@@ -452,62 +384,6 @@ class RadiusMPF:
             h=h, innovation_m=innov, innovation_cov_m2=s_mat, nis=nis, likelihood_cov_m2=lik_cov
         )
 
-    def _bias_phi(self) -> float:
-        """``phi = exp(-dt / tau)`` over the time since the last fix (and restart the clock)."""
-        dt = self.bias_dt_s
-        self.bias_dt_s = 0.0
-        return math.exp(-dt / self.bias_tau_s) if dt > 0.0 else 1.0
-
-    def _bias_predict(self, phi: float, r_m2: F64) -> F64:
-        """GNSS fix model with a first-order Gauss-Markov error ``b`` (beyond the paper):
-        ``y = h(x) + b + v``, ``b_k = phi b_{k-1} + u``, ``phi = exp(-dt / tau)``,
-        ``u ~ N(0, sigma_b^2 (1 - phi^2) I)``, ``v ~ N(0, R_w)``. ``b`` enters linearly with the
-        same ``H = I`` and ``R_w`` for every particle, so it is marginalized with one Kalman
-        filter per particle whose covariance ``P`` is shared (Schoen, Gustafsson & Nordlund,
-        IEEE TSP 2005, the marginalized PF with a linear substructure). The fix covariance is
-        taken as the total error: ``R_w = R - c I``, ``c = min(sigma_b^2, 0.9 lambda_min(R))``.
-
-        The means' time update ``b_i = phi b_i`` and ``h_i + b_i`` run in
-        :func:`radius_kernels.fix_predict`; here the shared covariance's time update
-        ``P = phi^2 P + sigma_b^2 (1 - phi^2) I``. Returns ``P + R_w`` (2, 2), the covariance of
-        each particle's likelihood.
-        """
-        p = self._bias_p
-        q = self.bias_var * (1.0 - phi * phi)
-        phi2 = phi * phi
-        p00 = phi2 * float(p[0, 0]) + q
-        p01 = phi2 * float(p[0, 1])
-        p11 = phi2 * float(p[1, 1]) + q
-        self._bias_p = np.array([[p00, p01], [p01, p11]])
-        r_white = gnss_white_cov(r_m2, self.bias_var)
-        return self._bias_p + r_white
-
-    def _bias_update(self, y_m: F64, pred: FixPrediction) -> None:
-        """Measurement update of every particle's bias filter (before any resampling):
-        ``K = P S^-1``, ``b_i += K (y - h_i - b_i)``, ``P = P - K P``, ``S = P + R_w``
-        (closed-form 2x2 inverse; the means in :func:`radius_kernels.bias_correct`)."""
-        if not self.bias_on or pred.likelihood_cov_m2 is None:
-            return
-        p = self._bias_p
-        sm = pred.likelihood_cov_m2
-        s00, s01, s11 = float(sm[0, 0]), float(sm[0, 1]), float(sm[1, 1])
-        det = s00 * s11 - s01 * s01
-        i00, i01, i11 = s11 / det, -s01 / det, s00 / det
-        p00, p01, p11 = float(p[0, 0]), float(p[0, 1]), float(p[1, 1])
-        # K = P S^-1 (P and S symmetric; K in general not)
-        k00 = p00 * i00 + p01 * i01
-        k01 = p00 * i01 + p01 * i11
-        k10 = p01 * i00 + p11 * i01
-        k11 = p01 * i01 + p11 * i11
-        radius_kernels.bias_correct(
-            self._bias, pred.h, float(y_m[0]), float(y_m[1]), k00, k01, k10, k11
-        )
-        # P = P - K P (= P - P S^-1 P, symmetric)
-        n00 = p00 - (k00 * p00 + k01 * p01)
-        n01 = p01 - (k00 * p01 + k01 * p11)
-        n11 = p11 - (k10 * p01 + k11 * p11)
-        self._bias_p = np.array([[n00, n01], [n01, n11]])
-
     @_mutates
     def update(self, y_m: F64, r_m2: F64, pred: FixPrediction) -> float:
         """Weight update with the GNSS likelihood (eq. 18, Table I line 12), normalize (line 15)
@@ -607,7 +483,7 @@ class RadiusMPF:
             mbar = self._mu @ w
             dev = self._mu - mbar[:, None]
             v_cloud = (dev * w) @ dev.T
-        idx = self.resample_fn(w, self.rng)
+        idx = systematic(w, self.rng)
         for a in (self._east, self._north, self._yaw, self._speed):
             a[:] = a[idx]
         if self.bias_on:
@@ -640,19 +516,8 @@ class RadiusMPF:
         self._east += shift[0]
         self._north += shift[1]
         if self.bias_on:
-            # the bias filters take their share of the mean innovation (pose and bias
-            # uncorrelated): b += P S^-1 innovation, P -= P S^-1 P
-            p = self._bias_p
-            self._bias += (p @ s_inv @ pred.innovation_m)[:, None]
-            self._bias_p = p - p @ s_inv @ p
+            self._bias_anchor(s_inv, pred.innovation_m)
 
-    @_mutates
-    def clip_mean(self, upper_m: F64) -> None:
-        """Project each particle's NiW mean onto ``mu <= upper_m`` (2,) (non-increasing radii)."""
-        self._flush()
-        np.minimum(self._mu, np.asarray(upper_m, dtype=float)[:, None], out=self._mu)
-
-    # ------------------------------------------------------------------ estimates
     def estimate(self) -> MpfEstimate:
         """Weighted pose mean/covariance and the NiW MMSE (eq. 30, Table I lines 17-18)."""
         self._flush()

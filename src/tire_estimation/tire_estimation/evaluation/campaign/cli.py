@@ -175,7 +175,6 @@ def _cmd_ece_r64(args: argparse.Namespace) -> int:
         diffusion_start_min=args.diffusion_start_min,
         detector_calibration_s=60.0 * args.calibration_min,
         wheels=args.wheels,
-        non_increasing=args.non_increasing,
         braking_source=args.braking,
         first_seed=args.first_seed,
         estimator=_estimator_options(args.estimator),
@@ -283,11 +282,6 @@ def add_campaign_parser(subparsers: Any) -> argparse.ArgumentParser:
         "before the event",
     )
     ece.add_argument("--wheels", choices=("rear", "all"), default="rear")
-    ece.add_argument(
-        "--non-increasing",
-        action="store_true",
-        help="restrict the MPF radii to non-increasing after the calibration (paper IV-B)",
-    )
     ece.add_argument("--braking", choices=("estimate", "truth"), default="estimate")
     ece.add_argument(
         "--tyres",

@@ -156,7 +156,6 @@ class EceCampaignPlan:
     diffusion_start_min: float | None = None
     detector_calibration_s: float = 1200.0
     wheels: str = "rear"
-    non_increasing: bool = False
     braking_source: str = "estimate"
     first_seed: int = 1000
     estimator: dict[str, Any] = field(default_factory=dict)
@@ -207,12 +206,8 @@ class EceCampaignPlan:
 
 def _planned_case(plan: EceCampaignPlan, calibration_s: float, **fields: Any) -> CaseSpec:
     """A case of ``plan`` with the detector calibration time ``calibration_s``: the plan's
-    estimator overrides (``wheels``; the non-increasing restriction after the same calibration
-    time) and braking source."""
+    estimator overrides (``wheels`` and the ``estimator`` options) and braking source."""
     est: dict[str, Any] = {"wheels": plan.wheels}
-    if plan.non_increasing:
-        est["non_increasing_after_calibration"] = True
-        est["calibration_time_s"] = calibration_s
     est.update(plan.estimator)
     return CaseSpec(
         **fields,

@@ -1,0 +1,260 @@
+"""Outputs of the radius estimator: the current estimate and the persisted learned state
+(part of :class:`~.estimator.RadiusEstimator`)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from tire_estimation.core import niw
+from tire_estimation.core.radius.inputs import finite_or_zero, sanitize
+from tire_estimation.core.wheels import FRONT_WHEELS, REAR_WHEELS
+from tire_estimation.errors import InputError
+
+if TYPE_CHECKING:
+    from tire_estimation.core.radius.aug_kf import AugKf
+    from tire_estimation.core.radius.config import RadiusEstimatorConfig
+    from tire_estimation.core.radius.mpf import MpfEstimate, RadiusMPF
+    from tire_estimation.core.radius.road_grade import RoadGradeFit
+    from tire_estimation.core.vehicle import VehicleParams
+
+F64 = NDArray[np.float64]
+
+STATE_DICT_VERSION = 1
+
+
+@dataclass(frozen=True)
+class BaselineEstimate:
+    """AUG-KF estimate (same meaning as in :class:`RadiusEstimate`)."""
+
+    radius_error_m: F64
+    radius_error_std_m: F64
+    pose: F64
+    pose_cov: F64
+
+
+@dataclass(frozen=True)
+class RadiusEstimate:
+    """Current estimate.
+
+    Attributes:
+        t_ns: stamp of the latest wheel-speed sample used.
+        wheels: wheel names covered, in the order of the arrays below.
+        radius_error_m: MMSE radius error (effective minus nominal radius) per wheel, m.
+        radius_error_std_m: posterior std of the radius error per wheel, m.
+        radius_noise_std_m: sqrt of the diagonal of the MMSE NiW covariance (fast variation), m.
+        active: per wheel, the estimate is being updated now (not paused).
+        pose: ``[east_m, north_m, yaw_rad]`` of ``base_link`` in the local ENU frame.
+        pose_cov: (3, 3) covariance of the pose.
+        speed_m_s: estimated speed of ``base_link``.
+        yaw_rate_rad_s: estimated yaw rate.
+        n_eff: effective sample size of the MPF.
+        resample_count: resamplings so far.
+        state: ``initializing``, ``running`` or ``paused``.
+        state_reason: why (e.g. ``low speed``, ``braking``, ``waiting for GNSS``).
+        baseline: AUG-KF estimate when ``run_aug_kf`` (else None).
+        road_grade_rad: online road-grade estimate (GNSS altitude over the wheel-travelled
+            distance, positive uphill), rad; 0 until a window of fixes is available.
+        rear_brake_decel_m_s2: braking deceleration ``b = max(0, -f_x - a_0)``: the one of the
+            latest wheel-speed sample when the rear brake slip is on, else computed at the pose
+            time for the residual signature, m/s^2.
+    """
+
+    t_ns: int
+    wheels: tuple[str, ...]
+    radius_error_m: F64
+    radius_error_std_m: F64
+    radius_noise_std_m: F64
+    active: tuple[bool, ...]
+    pose: F64
+    pose_cov: F64
+    speed_m_s: float
+    yaw_rate_rad_s: float
+    n_eff: float
+    resample_count: int
+    state: str
+    state_reason: str
+    baseline: BaselineEstimate | None = None
+    road_grade_rad: float = 0.0
+    rear_brake_decel_m_s2: float = 0.0
+
+
+#: wheel samples kept to align a GNSS velocity with the wheel speeds (2.56 s at 100 Hz)
+SPEED_HISTORY = 256
+
+#: at most this many GNSS altitudes are kept for the grade fit (100 s at 10 Hz)
+GRADE_MAX_POINTS = 1000
+
+
+class Reporting:
+    """The output part of :class:`~.estimator.RadiusEstimator`."""
+
+    config: RadiusEstimatorConfig
+    vehicle: VehicleParams
+    rng: np.random.Generator
+    mpf: RadiusMPF
+    kf: AugKf | None
+    grade: RoadGradeFit
+    brake_decel_m_s2: float
+    _cache: MpfEstimate
+    _front: niw.NiwStats
+    _active: bool
+    _reason: str
+    _pose_ok: bool
+    _prev_ws: F64 | None
+    _t_pose_ns: int | None
+
+    def estimate(self) -> RadiusEstimate:
+        """Current estimate (always finite). Reading it changes nothing in the filter (the MPF's
+        queued predictions are not processed for it: :meth:`RadiusMPF.peek`)."""
+        # the estimate computed after the last fix is still valid if nothing changed since
+        fresh = getattr(self, "_cache_version", -1) == self.mpf.version
+        est = self._cache if fresh else self.mpf.peek()
+        rad = est.radius
+        wheels: tuple[str, ...] = REAR_WHEELS
+        mean = rad.mean
+        mc, nc = rad.mean_cov, rad.noise_cov
+        std = np.array(
+            [math.sqrt(max(float(mc[0, 0]), 0.0)), math.sqrt(max(float(mc[1, 1]), 0.0))]
+        )
+        noise = np.array(
+            [math.sqrt(max(float(nc[0, 0]), 0.0)), math.sqrt(max(float(nc[1, 1]), 0.0))]
+        )
+        active = (self._active, self._active)
+        if self.config.wheels == "all":
+            fe = niw.mmse(self._front, np.ones(1))
+            wheels = FRONT_WHEELS + REAR_WHEELS
+            mean = np.concatenate([fe.mean, mean])
+            fstd = np.sqrt(np.maximum(np.diag(fe.mean_cov), 0.0) + np.mean(std**2))
+            std = np.concatenate([fstd, std])
+            noise = np.concatenate([np.sqrt(np.maximum(np.diag(fe.noise_cov), 0.0)), noise])
+            active = (self._active,) * 4
+        ws = self._prev_ws if self._prev_ws is not None else np.zeros(4)
+        # eq. (6) with the MMSE mean radius errors (the cache set above)
+        v, yr = self._speed_yaw_rate(ws)
+        if self._pose_ok:
+            state = "running" if self._active else "paused"
+            pose, pose_cov = est.pose, est.pose_cov
+        else:
+            state = "initializing"
+            pose, pose_cov = np.zeros(3), np.diag([1e6, 1e6, math.pi**2])
+        baseline = None
+        if self.kf is not None:
+            baseline = BaselineEstimate(
+                radius_error_m=self.kf.x[3:5].copy(),
+                radius_error_std_m=np.sqrt(np.maximum(np.diag(self.kf.p)[3:5], 0.0)),
+                pose=self.kf.x[:3].copy(),
+                pose_cov=self.kf.p[:3, :3].copy(),
+            )
+        out = RadiusEstimate(
+            t_ns=int(self._t_pose_ns or 0),
+            wheels=tuple(wheels),
+            radius_error_m=sanitize(mean),
+            radius_error_std_m=sanitize(std, 1.0),
+            radius_noise_std_m=sanitize(noise, 1.0),
+            active=tuple(bool(a) for a in active),
+            pose=sanitize(pose),
+            pose_cov=sanitize(pose_cov, 1e6),
+            speed_m_s=finite_or_zero(v),
+            yaw_rate_rad_s=finite_or_zero(yr),
+            n_eff=finite_or_zero(est.n_eff),
+            resample_count=est.resample_count,
+            state=state,
+            state_reason=self._reason,
+            baseline=baseline,
+            road_grade_rad=self.grade.grade_rad,
+            rear_brake_decel_m_s2=(
+                self.brake_decel_m_s2
+                if self.config.rear_brake_slip_s2_per_m
+                else self.braking_decel_at(int(self._t_pose_ns or 0))
+            ),
+        )
+        return out
+
+    def state_dict(self) -> dict[str, Any]:
+        """Learned radius statistics (JSON-serializable): per estimated axle the NiW MMSE mean,
+        mean covariance, noise covariance and dof, plus the vehicle name and wheel order."""
+        rad = self.mpf.estimate().radius
+        out: dict[str, Any] = {
+            "version": STATE_DICT_VERSION,
+            "vehicle": self.vehicle.name,
+            "rear": {
+                "wheels": list(REAR_WHEELS),
+                "mean_m": rad.mean.tolist(),
+                "mean_cov_m2": rad.mean_cov.tolist(),
+                "noise_cov_m2": rad.noise_cov.tolist(),
+                "dof": float(self.mpf.stats.dof),
+            },
+        }
+        if self.config.wheels == "all":
+            fe = niw.mmse(self._front, np.ones(1))
+            out["front"] = {
+                "wheels": list(FRONT_WHEELS),
+                "mean_m": fe.mean.tolist(),
+                "mean_cov_m2": fe.mean_cov.tolist(),
+                "noise_cov_m2": fe.noise_cov.tolist(),
+                "dof": float(fe.dof),
+            }
+        if self.kf is not None:
+            out["aug_kf"] = {
+                "mean_m": self.kf.x[3:5].tolist(),
+                "cov_m2": self.kf.p[3:5, 3:5].tolist(),
+            }
+        return out
+
+    def load_state_dict(self, d: Mapping[str, Any]) -> None:
+        """Restore :meth:`state_dict` output; raises InputError (kind ``state``) when it does not
+        belong to this vehicle or is malformed."""
+        try:
+            if d.get("vehicle") != self.vehicle.name:
+                raise InputError("state", f"state of vehicle {d.get('vehicle')!r}")
+            rear = d["rear"]
+            n = self.mpf.n
+            # half of the uncertainty of the mean in gamma, half as spread of the particle means
+            stats = niw.stats_from_moments(
+                n,
+                np.asarray(rear["mean_m"], dtype=float).reshape(2),
+                0.5 * np.asarray(rear["mean_cov_m2"], dtype=float).reshape(2, 2),
+                np.asarray(rear["noise_cov_m2"], dtype=float).reshape(2, 2),
+                float(rear["dof"]),
+            )
+            if (
+                not all(
+                    np.all(np.isfinite(a))
+                    for a in (stats.mean, stats.scale, stats.gamma, stats.dof)
+                )
+                or float(rear["dof"]) <= 3.0
+            ):
+                raise InputError("state", "non-finite or invalid rear statistics")
+            # spread the particle means over the restored uncertainty of the mean
+            cov = np.asarray(rear["mean_cov_m2"], dtype=float).reshape(2, 2)
+            chol = np.linalg.cholesky(0.25 * (cov + cov.T) + 1e-18 * np.eye(2))
+            z = self.rng.standard_normal((n, 2))
+            z -= z.mean(axis=0)
+            stats.mean += z @ chol.T
+            front = None
+            if "front" in d and self.config.wheels == "all":
+                f = d["front"]
+                front = niw.stats_from_moments(
+                    1,
+                    np.asarray(f["mean_m"], dtype=float).reshape(2),
+                    np.asarray(f["mean_cov_m2"], dtype=float).reshape(2, 2),
+                    np.asarray(f["noise_cov_m2"], dtype=float).reshape(2, 2),
+                    float(f["dof"]),
+                )
+        except InputError:
+            raise
+        except (KeyError, TypeError, ValueError, np.linalg.LinAlgError) as exc:
+            raise InputError("state", f"malformed radius state: {exc}") from exc
+        self.mpf.set_stats(stats)
+        if front is not None:
+            self._front = front
+        if self.kf is not None and "aug_kf" in d:
+            self.kf.x[3:5] = np.asarray(d["aug_kf"]["mean_m"], dtype=float).reshape(2)
+            self.kf.p[3:5, 3:5] = np.asarray(d["aug_kf"]["cov_m2"], dtype=float).reshape(2, 2)
+        self._set_cache(self.mpf.estimate())
