@@ -5,13 +5,16 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 from tire_estimation.core.pipeline import PublishPeriods
 from tire_estimation.core.validation import (
-    require_choice,
-    require_finite,
-    require_non_negative,
-    require_positive,
+    FINITE,
+    NON_NEGATIVE,
+    POSITIVE,
+    Rule,
+    check_rules,
+    one_of,
 )
 from tire_estimation.errors import ConfigError
 
@@ -68,17 +71,21 @@ class EstimatorNodeOptions:
     sensor_qos: str = "sensor_data"
     reorder_delay_s: float = 0.05
 
+    RULES: ClassVar[dict[str, Rule]] = {
+        "persistence_period_s": FINITE,
+        "reorder_delay_s": NON_NEGATIVE,
+        "odometry_publish_period_s": NON_NEGATIVE,
+        "radii_publish_period_s": POSITIVE,
+        "lateral_publish_period_s": NON_NEGATIVE,
+        "stiffness_publish_period_s": NON_NEGATIVE,
+        "diagnostics_period_s": POSITIVE,
+        "sensor_qos": one_of(SENSOR_QOS),
+    }
+
     def __post_init__(self) -> None:
         if not self.tire_set_id:
             raise ConfigError("tire_set_id", self.tire_set_id, "must not be empty")
-        require_finite("persistence_period_s", self.persistence_period_s)
-        require_non_negative("reorder_delay_s", self.reorder_delay_s)
-        require_non_negative("odometry_publish_period_s", self.odometry_publish_period_s)
-        require_positive("radii_publish_period_s", self.radii_publish_period_s)
-        require_non_negative("lateral_publish_period_s", self.lateral_publish_period_s)
-        require_non_negative("stiffness_publish_period_s", self.stiffness_publish_period_s)
-        require_positive("diagnostics_period_s", self.diagnostics_period_s)
-        require_choice("sensor_qos", self.sensor_qos, SENSOR_QOS)
+        check_rules(self, self.RULES)
 
 
 def periods_of(options: EstimatorNodeOptions) -> PublishPeriods:
@@ -122,14 +129,18 @@ class DetectorNodeOptions:
     braking_window_s: float = 0.5
     odometry_timeout_s: float = 1.0
 
+    RULES: ClassVar[dict[str, Rule]] = {
+        "persistence_period_s": FINITE,
+        "diagnostics_period_s": POSITIVE,
+        "braking_decel_m_s2": POSITIVE,
+        "braking_window_s": POSITIVE,
+        "odometry_timeout_s": POSITIVE,
+    }
+
     def __post_init__(self) -> None:
         if not self.tire_set_id:
             raise ConfigError("tire_set_id", self.tire_set_id, "must not be empty")
-        require_finite("persistence_period_s", self.persistence_period_s)
-        require_positive("diagnostics_period_s", self.diagnostics_period_s)
-        require_positive("braking_decel_m_s2", self.braking_decel_m_s2)
-        require_positive("braking_window_s", self.braking_window_s)
-        require_positive("odometry_timeout_s", self.odometry_timeout_s)
+        check_rules(self, self.RULES)
 
 
 @dataclass(frozen=True)

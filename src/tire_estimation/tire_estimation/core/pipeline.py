@@ -29,7 +29,7 @@ import math
 from collections import Counter
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Any, ClassVar, Protocol
 
 import numpy as np
 
@@ -54,7 +54,13 @@ from tire_estimation.core.samples import (
 )
 from tire_estimation.core.stiffness.config import StiffnessEstimatorConfig
 from tire_estimation.core.stiffness.estimator import StiffnessEstimate, StiffnessEstimator
-from tire_estimation.core.validation import require_non_negative, require_positive
+from tire_estimation.core.validation import (
+    NON_NEGATIVE,
+    Rule,
+    check_rules,
+    require_non_negative,
+    require_positive,
+)
 from tire_estimation.core.vehicle import VehicleParams
 
 #: seed-sequence key of the stiffness MPF's generator: ``default_rng([seed, key])``
@@ -117,9 +123,13 @@ class PipelineConfig:
     max_hold_s: float = 0.5
     reorder_delay_s: float = 0.05
 
+    RULES: ClassVar[dict[str, Rule]] = {
+        "max_hold_s": NON_NEGATIVE,
+        "reorder_delay_s": NON_NEGATIVE,
+    }
+
     def __post_init__(self) -> None:
-        require_non_negative("max_hold_s", self.max_hold_s)
-        require_non_negative("reorder_delay_s", self.reorder_delay_s)
+        check_rules(self, self.RULES)
 
 
 @dataclass(frozen=True, slots=True)

@@ -72,10 +72,10 @@ def require_choice(
 class Rule:
     """What a configuration field must hold; a config class lists one per field in ``RULES``.
 
-    ``kind`` is ``finite``, ``positive`` (> 0), ``non_negative`` (>= 0), ``range`` (a number in
-    ``[low, high]``), ``int_range`` (an integer in ``[low, high]``) or ``choice`` (one of
-    ``choices``). The node's parameter descriptors and the generated parameter file read the
-    same rules, so the range a user sees is the one that is checked.
+    ``kind`` is ``bool``, ``finite``, ``positive`` (> 0), ``non_negative`` (>= 0), ``range``
+    (a number in ``[low, high]``), ``int_range`` (an integer in ``[low, high]``) or ``choice``
+    (one of ``choices``). The node's parameter descriptors and the generated parameter file
+    read the same rules, so the range a user sees is the one that is checked.
     """
 
     kind: str
@@ -87,6 +87,9 @@ class Rule:
         """Raise ``error`` naming ``field`` and ``value`` unless ``value`` obeys the rule."""
         if self.kind == "finite":
             require_finite(field, value, error)
+        elif self.kind == "bool":
+            if not isinstance(value, bool):
+                raise error(field, value, "must be a bool")
         elif self.kind == "positive":
             require_positive(field, value, error)
         elif self.kind == "non_negative":
@@ -104,6 +107,8 @@ class Rule:
         """The rule as a user reads it: ``in [0, 1]``, ``> 0``, ``one of (a, b)``."""
         if self.kind == "finite":
             return "finite"
+        if self.kind == "bool":
+            return "true or false"
         if self.kind == "positive":
             return "> 0"
         if self.kind == "non_negative":
@@ -113,6 +118,7 @@ class Rule:
         return "one of (" + ", ".join(self.choices or ()) + ")"
 
 
+BOOL = Rule("bool")
 FINITE = Rule("finite")
 POSITIVE = Rule("positive")
 NON_NEGATIVE = Rule("non_negative")

@@ -46,7 +46,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -72,7 +72,10 @@ from tire_estimation.core.stiffness.model import (
     stiffness_bounds,
 )
 from tire_estimation.core.validation import (
-    require_int_range,
+    Rule,
+    check_rules,
+    in_range,
+    int_in_range,
     require_non_negative,
     require_positive,
     require_range,
@@ -121,10 +124,14 @@ class AugPfConfig(BaselineConfig):
     state_jitter_vy_m_s_sqrt_s: float = 0.02
     state_jitter_yaw_rate_rad_s_sqrt_s: float = 0.002
 
+    RULES: ClassVar[dict[str, Rule]] = {
+        "n_particles": int_in_range(1, 1_000_000),
+        "resample_threshold": in_range(0.0, 1.0),
+    }
+
     def __post_init__(self) -> None:
         super().__post_init__()
-        require_int_range("n_particles", self.n_particles, 1, 1_000_000)
-        require_range("resample_threshold", self.resample_threshold, 0.0, 1.0)
+        check_rules(self, self.RULES)
         _require_walks(self, "state_jitter", require_non_negative)
 
 
@@ -175,9 +182,13 @@ class RlsConfig(BaselineConfig):
     process_vy_m_s_sqrt_s: float = 0.02
     process_yaw_rate_rad_s_sqrt_s: float = 0.002
 
+    RULES: ClassVar[dict[str, Rule]] = {
+        "forgetting": in_range(0.5, 1.0),
+    }
+
     def __post_init__(self) -> None:
         super().__post_init__()
-        require_range("forgetting", self.forgetting, 0.5, 1.0)
+        check_rules(self, self.RULES)
         if self.kf_stiffness not in ("estimate", "nominal"):
             raise ConfigError("kf_stiffness", self.kf_stiffness, "must be 'estimate' or 'nominal'")
         if not isinstance(self.kf_measures_accel, bool):

@@ -4,11 +4,14 @@ docstring of :mod:`.detector`)."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 from tire_estimation.core.validation import (
-    require_non_negative,
-    require_positive,
-    require_range,
+    NON_NEGATIVE,
+    POSITIVE,
+    Rule,
+    check_rules,
+    in_range,
 )
 from tire_estimation.errors import ConfigError
 
@@ -103,38 +106,42 @@ class DeflationDetectorConfig:
     common_lowpass_time_constant_s: float = field(default=600.0, metadata={"unit": "s"})
     common_calibration_average_s: float = field(default=900.0, metadata={"unit": "s"})
 
+    RULES: ClassVar[dict[str, Rule]] = {
+        "drift_m": in_range(0.0, 0.05),
+        "threshold_m": in_range(1e-9, 10.0),
+        "reference_sample_period_s": POSITIVE,
+        "lowpass_time_constant_s": NON_NEGATIVE,
+        "rate_limit_m_s": NON_NEGATIVE,
+        "adaptive_reference_std_m": in_range(1e-9, 0.1),
+        "adaptive_max_factor": in_range(1.0, 1e6),
+        "min_speed_m_s": NON_NEGATIVE,
+        "max_speed_m_s": POSITIVE,
+        "calibration_time_s": NON_NEGATIVE,
+        "calibration_average_s": NON_NEGATIVE,
+        "stale_timeout_s": POSITIVE,
+        "max_sample_gap_s": POSITIVE,
+        "warn_fraction": in_range(0.0, 1.0),
+        "common_mode_fraction": in_range(0.0, 1.0),
+        "common_drift_m": in_range(0.0, 0.05),
+        "common_threshold_m": in_range(1e-9, 10.0),
+        "common_lowpass_time_constant_s": NON_NEGATIVE,
+        "common_calibration_average_s": NON_NEGATIVE,
+    }
+
     def __post_init__(self) -> None:
-        require_range("drift_m", self.drift_m, 0.0, 0.05)
-        require_range("threshold_m", self.threshold_m, 1e-9, 10.0)
-        require_positive("reference_sample_period_s", self.reference_sample_period_s)
-        require_non_negative("lowpass_time_constant_s", self.lowpass_time_constant_s)
-        require_non_negative("rate_limit_m_s", self.rate_limit_m_s)
+        check_rules(self, self.RULES)
         for name in ("adaptive_threshold", "exclude_braking", "common_channel"):
             if not isinstance(getattr(self, name), bool):
                 raise ConfigError(name, getattr(self, name), "must be a bool")
-        require_range("adaptive_reference_std_m", self.adaptive_reference_std_m, 1e-9, 0.1)
-        require_range("adaptive_max_factor", self.adaptive_max_factor, 1.0, 1e6)
-        require_non_negative("min_speed_m_s", self.min_speed_m_s)
-        require_positive("max_speed_m_s", self.max_speed_m_s)
         if self.max_speed_m_s <= self.min_speed_m_s:
             raise ConfigError(
                 "max_speed_m_s",
                 self.max_speed_m_s,
                 f"must be > min_speed_m_s={self.min_speed_m_s}",
             )
-        require_non_negative("calibration_time_s", self.calibration_time_s)
-        require_non_negative("calibration_average_s", self.calibration_average_s)
         if self.calibration_average_s > self.calibration_time_s:
             raise ConfigError(
                 "calibration_average_s",
                 self.calibration_average_s,
                 f"must be <= calibration_time_s={self.calibration_time_s}",
             )
-        require_positive("stale_timeout_s", self.stale_timeout_s)
-        require_positive("max_sample_gap_s", self.max_sample_gap_s)
-        require_range("warn_fraction", self.warn_fraction, 0.0, 1.0)
-        require_range("common_mode_fraction", self.common_mode_fraction, 0.0, 1.0)
-        require_range("common_drift_m", self.common_drift_m, 0.0, 0.05)
-        require_range("common_threshold_m", self.common_threshold_m, 1e-9, 10.0)
-        require_non_negative("common_lowpass_time_constant_s", self.common_lowpass_time_constant_s)
-        require_non_negative("common_calibration_average_s", self.common_calibration_average_s)

@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 from collections import Counter
 from dataclasses import dataclass
+from typing import ClassVar
 
 from tire_estimation.core.deflation.config import DeflationDetectorConfig
 from tire_estimation.core.deflation.detector import DeflationDetector
@@ -20,7 +21,7 @@ from tire_estimation.core.deflation.status import (
     DeflationStatusData,
     RadiusErrors,
 )
-from tire_estimation.core.validation import require_positive
+from tire_estimation.core.validation import POSITIVE, Rule, check_rules
 from tire_estimation.errors import InputError
 
 
@@ -40,10 +41,14 @@ class MonitorConfig:
     braking_window_s: float = 0.5
     odometry_timeout_s: float = 1.0
 
+    RULES: ClassVar[dict[str, Rule]] = {
+        "braking_decel_m_s2": POSITIVE,
+        "braking_window_s": POSITIVE,
+        "odometry_timeout_s": POSITIVE,
+    }
+
     def __post_init__(self) -> None:
-        require_positive("braking_decel_m_s2", self.braking_decel_m_s2)
-        require_positive("braking_window_s", self.braking_window_s)
-        require_positive("odometry_timeout_s", self.odometry_timeout_s)
+        check_rules(self, self.RULES)
 
 
 @dataclass(frozen=True)

@@ -35,7 +35,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -57,7 +57,12 @@ from tire_estimation.core.lateral.tyre_force_filter import (
     axle_force_deviation,
 )
 from tire_estimation.core.lateral.virtual_tyre import MagicFormulaTyre, virtual_load
-from tire_estimation.core.validation import require_positive, require_range
+from tire_estimation.core.validation import (
+    Rule,
+    check_rules,
+    in_range,
+    require_positive,
+)
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.errors import ConfigError, InputError
 
@@ -139,6 +144,10 @@ class TyreForceKFConfig:
     input_timeout_s: float = 0.5
     speed_variance_m2_s2: float = 0.01
 
+    RULES: ClassVar[dict[str, Rule]] = {
+        "min_speed_m_s": in_range(0.5, 100.0),
+    }
+
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):
             if f.name == "min_speed_m_s":
@@ -147,7 +156,7 @@ class TyreForceKFConfig:
             require_positive(f.name, value)
             if value > 1e12:
                 raise ConfigError(f.name, value, "must be <= 1e12")
-        require_range("min_speed_m_s", self.min_speed_m_s, 0.5, 100.0)
+        check_rules(self, self.RULES)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain mapping of every field."""

@@ -9,15 +9,18 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 from tire_estimation.core.radius.effects import EFFECTS
 from tire_estimation.core.validation import (
-    require_choice,
-    require_int_range,
-    require_non_negative,
-    require_positive,
-    require_range,
+    BOOL,
+    NON_NEGATIVE,
+    POSITIVE,
+    Rule,
+    check_rules,
+    in_range,
+    int_in_range,
+    one_of,
 )
 from tire_estimation.errors import ConfigError
 
@@ -201,21 +204,19 @@ class RadiusEstimatorConfig:
     rear_brake_slip_s2_per_m: float = 0.0
     seed: int = 0
 
+    RULES: ClassVar[dict[str, Rule]] = {
+        "n_particles": int_in_range(10, 1_000_000),
+        **{name: in_range(lo, hi) for name, lo, hi in _RANGES},
+        **dict.fromkeys(_NON_NEGATIVE, NON_NEGATIVE),
+        **dict.fromkeys(_POSITIVE, POSITIVE),
+        **dict.fromkeys(_BOOLS, BOOL),
+        "wheels": one_of(WHEEL_MODES),
+        **{effect.config_field: in_range(*effect.limits) for effect in EFFECTS},
+        "seed": int_in_range(0, 2**63 - 1),
+    }
+
     def __post_init__(self) -> None:
-        require_int_range("n_particles", self.n_particles, 10, 1_000_000)
-        for name, lo, hi in _RANGES:
-            require_range(name, getattr(self, name), lo, hi)
-        for name in _NON_NEGATIVE:
-            require_non_negative(name, getattr(self, name))
-        for name in _POSITIVE:
-            require_positive(name, getattr(self, name))
-        for name in _BOOLS:
-            if not isinstance(getattr(self, name), bool):
-                raise ConfigError(name, getattr(self, name), "must be a bool")
-        require_choice("wheels", self.wheels, WHEEL_MODES)
-        for effect in EFFECTS:
-            require_range(effect.config_field, effect.value(self), *effect.limits)
-        require_int_range("seed", self.seed, 0, 2**63 - 1)
+        check_rules(self, self.RULES)
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> RadiusEstimatorConfig:

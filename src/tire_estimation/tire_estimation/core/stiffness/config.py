@@ -3,14 +3,19 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
-from typing import Any, TypeVar
+from typing import Any, ClassVar, TypeVar
 
 from tire_estimation.core.stiffness.model import TYRE_SHAPES
 from tire_estimation.core.validation import (
+    NON_NEGATIVE,
+    POSITIVE,
+    Rule,
+    check_rules,
+    in_range,
+    int_in_range,
+    one_of,
     require_choice,
-    require_int_range,
     require_non_negative,
-    require_positive,
     require_range,
 )
 
@@ -69,13 +74,15 @@ class BaselineConfig:
     cornering_stiffness_front_n_rad: float = 0.0
     cornering_stiffness_rear_n_rad: float = 0.0
 
+    RULES: ClassVar[dict[str, Rule]] = {
+        "initial_stiffness_factor": in_range(0.05, 5.0),
+        "initial_stiffness_std_fraction": in_range(1e-4, 5.0),
+        "accel_noise_std_m_s2": POSITIVE,
+        "gyro_noise_std_rad_s": POSITIVE,
+    }
+
     def __post_init__(self) -> None:
-        require_range("initial_stiffness_factor", self.initial_stiffness_factor, 0.05, 5.0)
-        require_range(
-            "initial_stiffness_std_fraction", self.initial_stiffness_std_fraction, 1e-4, 5.0
-        )
-        require_positive("accel_noise_std_m_s2", self.accel_noise_std_m_s2)
-        require_positive("gyro_noise_std_rad_s", self.gyro_noise_std_rad_s)
+        check_rules(self, self.RULES)
         for name in ("initial_vy_std_m_s", "rolling_resistance_n", "drag_n_s2_m2"):
             require_non_negative(name, getattr(self, name))
         if self.friction_coefficient != 0.0:
@@ -182,15 +189,19 @@ class StiffnessEstimatorConfig(BaselineConfig):
     grid_publish_s: float = 30.0
     speed_noise_std_m_s: float = 0.02
 
+    RULES: ClassVar[dict[str, Rule]] = {
+        "n_particles": int_in_range(1, 1_000_000),
+        "forgetting": in_range(0.5, 1.0),
+        "state_proposal": one_of(STATE_PROPOSALS),
+        "niw_update": one_of(NIW_UPDATES),
+        "first_learning": one_of(FIRST_LEARNING),
+        "grid_handover_s": in_range(0.01, 600.0),
+        "grid_publish_s": in_range(0.0, 1e6),
+        "speed_noise_std_m_s": POSITIVE,
+        "state_jitter_vx_m_s_sqrt_s": NON_NEGATIVE,
+        "stiffness_noise_std_fraction": in_range(1e-5, 5.0),
+    }
+
     def __post_init__(self) -> None:
         super().__post_init__()
-        require_int_range("n_particles", self.n_particles, 1, 1_000_000)
-        require_range("forgetting", self.forgetting, 0.5, 1.0)
-        require_choice("state_proposal", self.state_proposal, STATE_PROPOSALS)
-        require_choice("niw_update", self.niw_update, NIW_UPDATES)
-        require_choice("first_learning", self.first_learning, FIRST_LEARNING)
-        require_range("grid_handover_s", self.grid_handover_s, 0.01, 600.0)
-        require_range("grid_publish_s", self.grid_publish_s, 0.0, 1e6)
-        require_positive("speed_noise_std_m_s", self.speed_noise_std_m_s)
-        require_non_negative("state_jitter_vx_m_s_sqrt_s", self.state_jitter_vx_m_s_sqrt_s)
-        require_range("stiffness_noise_std_fraction", self.stiffness_noise_std_fraction, 1e-5, 5.0)
+        check_rules(self, self.RULES)

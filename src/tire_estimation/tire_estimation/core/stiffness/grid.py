@@ -72,10 +72,12 @@ from tire_estimation.core.stiffness.model import (
     stiffness_bounds,
 )
 from tire_estimation.core.validation import (
-    require_int_range,
+    POSITIVE,
+    Rule,
+    check_rules,
+    in_range,
+    int_in_range,
     require_non_negative,
-    require_positive,
-    require_range,
 )
 
 F64 = NDArray[np.float64]
@@ -154,15 +156,20 @@ class GridConfig(BaselineConfig):
         """The EKFs carry the IMU biases (a non-zero prior std)."""
         return self.accel_bias_std_m_s2 > 0.0 or self.gyro_bias_std_rad_s > 0.0
 
+    RULES: ClassVar[dict[str, Rule]] = {
+        "grid_points": int_in_range(5, 201),
+        "grid_span_sigma": in_range(1.0, 20.0),
+        "regrid_min_cells": in_range(0.1, 100.0),
+        "regrid_edge_mass": in_range(0.0, 1.0),
+        "forgetting": in_range(0.5, 1.0),
+        "learn_hold_s": in_range(0.0, 600.0),
+        "fit_window_s": POSITIVE,
+        "initial_stiffness_std_fraction": POSITIVE,
+    }
+
     def __post_init__(self) -> None:
         super().__post_init__()
-        require_int_range("grid_points", self.grid_points, 5, 201)
-        require_range("grid_span_sigma", self.grid_span_sigma, 1.0, 20.0)
-        require_range("regrid_min_cells", self.regrid_min_cells, 0.1, 100.0)
-        require_range("regrid_edge_mass", self.regrid_edge_mass, 0.0, 1.0)
-        require_range("forgetting", self.forgetting, 0.5, 1.0)
-        require_range("learn_hold_s", self.learn_hold_s, 0.0, 600.0)
-        require_positive("fit_window_s", self.fit_window_s)
+        check_rules(self, self.RULES)
         for name in (
             "state_jitter_vx_m_s_sqrt_s",
             "state_jitter_vy_m_s_sqrt_s",
@@ -170,7 +177,6 @@ class GridConfig(BaselineConfig):
             *self.BIAS_FIELDS,
         ):
             require_non_negative(name, getattr(self, name))
-        require_positive("initial_stiffness_std_fraction", self.initial_stiffness_std_fraction)
 
 
 def lattice(points: int) -> F64:
