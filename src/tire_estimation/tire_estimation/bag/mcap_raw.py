@@ -32,6 +32,8 @@ from lz4.frame import decompress as lz4_decompress  # type: ignore[import-untype
 from numpy.lib.stride_tricks import sliding_window_view
 from numpy.typing import NDArray
 
+from tire_estimation.core.arrays import I64
+
 if sys.version_info >= (3, 14):  # pragma: no cover
     from compression import zstd
 else:
@@ -55,7 +57,6 @@ _U64 = struct.Struct("<Q")
 _CHUNK_HEAD = struct.Struct("<QQQI")
 #: Bytes of a Message record before its data: opcode, length, channel, sequence, two times.
 _MSG_HEAD = 31
-I64 = NDArray[np.int64]
 U8 = NDArray[np.uint8]
 
 

@@ -26,6 +26,7 @@ from tire_estimation.bag.mcap_raw import McapFormatError, RawMessages, assemble,
 from tire_estimation.bag.typestore import bag_typestore
 from tire_estimation.bag.writer import CUSTOM_EVENTS, CUSTOM_VEHICLE, SIM_CONFIG_FILE, VEHICLE_FILE
 from tire_estimation.core import yamlio
+from tire_estimation.core.arrays import F64, I64
 from tire_estimation.core.vehicle import VehicleParams, load_vehicle_yaml
 from tire_estimation.core.wheels import STEERING_JOINT, WHEELS
 from tire_estimation.errors import BagError, VehicleConfigError
@@ -40,8 +41,6 @@ from tire_estimation.sim.streams import (
     WheelSpeedStream,
 )
 
-F64 = NDArray[np.float64]
-I64 = NDArray[np.int64]
 _NS_PER_S = 1_000_000_000
 #: ``sensor_msgs/NavSatStatus.STATUS_NO_FIX``; such fixes are dropped.
 _STATUS_NO_FIX = -1

@@ -72,13 +72,11 @@ from tire_estimation.convert.common import (
     seconds_to_ns,
     write_converted_bag,
 )
+from tire_estimation.core.arrays import F64, I64
 from tire_estimation.core.geodesy import LocalTangentPlane
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.core.wheels import WHEELS
 from tire_estimation.sim.streams import ImuStream
-
-F64 = NDArray[np.float64]
-I64 = NDArray[np.int64]
 
 WHAT = "comma2k19 segment"
 

@@ -13,11 +13,9 @@ from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
 from tire_estimation.bag.writer import TopicSeries, write_contract_bag
+from tire_estimation.core.arrays import F64, I64
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.errors import BagError
-
-F64 = NDArray[np.float64]
-I64 = NDArray[np.int64]
 
 #: Standard gravity, m/s^2 (what a level accelerometer at rest reports on its up axis).
 STANDARD_GRAVITY_M_S2 = 9.80665

@@ -97,13 +97,11 @@ from tire_estimation.convert.common import (
     increasing_rows,
     write_converted_bag,
 )
+from tire_estimation.core.arrays import F64, I64
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.core.wheels import WHEELS
 from tire_estimation.errors import ConfigError
 from tire_estimation.sim.streams import ImuStream
-
-F64 = NDArray[np.float64]
-I64 = NDArray[np.int64]
 
 WHAT = "husky bag"
 BAG_FILE = "test1.bag"

@@ -40,7 +40,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
 from tire_estimation.bag import topics as tp
 from tire_estimation.bag.writer import (
@@ -62,10 +61,9 @@ from tire_estimation.convert.common import (
     write_converted_bag,
     yaw_quaternions_xyzw,
 )
+from tire_estimation.core.arrays import F64
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.sim.streams import ImuStream
-
-F64 = NDArray[np.float64]
 
 WHAT = "revs250lm data"
 #: Project-defined input topic: measured body velocity (TwistWithCovarianceStamped, base_link).

@@ -12,12 +12,11 @@ from dataclasses import dataclass
 
 import numpy as np
 import pymap3d
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
+from tire_estimation.core.arrays import F64
 from tire_estimation.core.validation import require_range
 from tire_estimation.errors import ConfigError
-
-F64 = NDArray[np.float64]
 
 
 @dataclass(frozen=True)

@@ -11,11 +11,9 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
+from tire_estimation.core.arrays import F64
 from tire_estimation.errors import InputError
-
-F64 = NDArray[np.float64]
 
 
 def is_int(x: Any) -> bool:

@@ -34,7 +34,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.special import gammaln
 
-F64 = NDArray[np.float64]
+from tire_estimation.core.arrays import F64
 
 
 @dataclass

@@ -14,7 +14,8 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 
-F64 = NDArray[np.float64]
+from tire_estimation.core.arrays import F64
+
 IDX = NDArray[np.intp]
 
 

@@ -27,9 +27,8 @@ from typing import ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
+from tire_estimation.core.arrays import F64
 from tire_estimation.errors import InputError
-
-F64 = NDArray[np.float64]
 
 #: largest wheel angular speed accepted, rad/s (about 1300 km/h on a 0.35 m tyre)
 MAX_WHEEL_SPEED_RAD_S = 1000.0

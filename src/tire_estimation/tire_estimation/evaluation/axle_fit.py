@@ -22,18 +22,16 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 from scipy.optimize import least_squares
 from scipy.signal import savgol_filter
 
+from tire_estimation.core.arrays import F64
 from tire_estimation.core.stiffness.model import (
     SingleTrackParams,
     lateral_slip_function,
     slip_angles,
 )
 from tire_estimation.core.vehicle import VehicleParams
-
-F64 = NDArray[np.float64]
 
 
 @dataclass(frozen=True)

@@ -43,6 +43,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from tire_estimation.core.arrays import F64
 from tire_estimation.core.lateral.tyre_force_kf import TyreForceKFConfig
 from tire_estimation.core.pipeline import EstimationPipeline, Output, PipelineConfig
 from tire_estimation.core.samples import Sample, TireForces
@@ -53,8 +54,6 @@ from tire_estimation.sim.dynamics import GRAVITY_M_S2
 from tire_estimation.sim.streams import SimResult
 from tire_estimation.sim.tires import TireModelConfig
 from tire_estimation.sources import stream_samples
-
-F64 = NDArray[np.float64]
 
 #: Key of the third method (the stiffness MPF's lateral state, issue 6 part (c)).
 STIFFNESS_MPF_SLOT = "stiffness_mpf"

@@ -13,7 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.special import chdtrc, chdtri
 
-F64 = NDArray[np.float64]
+from tire_estimation.core.arrays import F64
 
 #: |error| below which a radius estimate counts as converged (issue 3 target), m.
 CONVERGED_M = 0.5e-3

@@ -14,7 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import stats
 
-F64 = NDArray[np.float64]
+from tire_estimation.core.arrays import F64
 
 
 def save_figure(fig: Any, path: Path) -> None:

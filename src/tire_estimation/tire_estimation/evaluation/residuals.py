@@ -74,14 +74,13 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.special import chdtri
 
+from tire_estimation.core.arrays import F64
 from tire_estimation.core.geodesy import LocalTangentPlane
 from tire_estimation.core.radius import effects as radius_effects
 from tire_estimation.core.radius.effects import BY_NAME, Effect
 from tire_estimation.core.radius.model import RL, RR
 from tire_estimation.evaluation.metrics import innovation_tests, ljung_box
 from tire_estimation.sim.streams import GnssStream, WheelSpeedStream
-
-F64 = NDArray[np.float64]
 
 #: |t| of an effect's regression above which the effect is reported (decimated samples).
 SCORE_THRESHOLD = 4.0

@@ -49,9 +49,9 @@ from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
-from numpy.typing import NDArray
 
 from tire_estimation.core import resampling
+from tire_estimation.core.arrays import F64
 from tire_estimation.core.stiffness.filter import (
     JACOBIAN_STEP,
     BaselineConfig,
@@ -83,7 +83,6 @@ from tire_estimation.core.validation import (
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.errors import ConfigError
 
-F64 = NDArray[np.float64]
 #: Central-difference steps in ``w`` (friction-limited tyre only), fraction of ``C_n``.
 W_JACOBIAN_STEP_FRACTION = 1e-4
 _LOG_2PI = math.log(2.0 * math.pi)

@@ -28,8 +28,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
+from tire_estimation.core.arrays import F64
 from tire_estimation.core.stiffness.config import StiffnessEstimatorConfig
 from tire_estimation.core.stiffness.filter import model
 from tire_estimation.core.stiffness.model import SingleTrackParams
@@ -39,8 +39,6 @@ from tire_estimation.core.stiffness.mpf import (
 )
 from tire_estimation.evaluation.stiffness_baselines import model_jacobian
 from tire_estimation.sim.simulator import SimResult
-
-F64 = NDArray[np.float64]
 
 
 @dataclass(frozen=True)

@@ -32,14 +32,12 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
+from tire_estimation.core.arrays import F64
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.sim.config import SensorConfig
 from tire_estimation.sim.scenarios import Plan
 from tire_estimation.sim.tires import MIN_FZ_N, TireModelConfig
-
-F64 = NDArray[np.float64]
 
 #: Standard gravity used by the simulator, m/s^2.
 GRAVITY_M_S2 = 9.81

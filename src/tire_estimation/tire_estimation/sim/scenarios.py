@@ -16,13 +16,12 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
+from tire_estimation.core.arrays import F64
 from tire_estimation.core.wheels import WHEEL_INDEX, WHEELS
 from tire_estimation.errors import ScenarioError
 from tire_estimation.sim.streams import SimEvent
 
-F64 = NDArray[np.float64]
 KMH = 1.0 / 3.6
 
 #: One-line description of every scenario (printed by the command line).

@@ -9,8 +9,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numpy.typing import NDArray
 
+from tire_estimation.core.arrays import F64, I64
 from tire_estimation.core.geodesy import LocalTangentPlane
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.core.wheels import WHEEL_INDEX
@@ -24,9 +24,6 @@ from tire_estimation.sim.streams import (
     TruthStream,
     WheelSpeedStream,
 )
-
-F64 = NDArray[np.float64]
-I64 = NDArray[np.int64]
 
 
 def _stamps(rate_hz: float, t_first_s: float, t_last_s: float) -> tuple[I64, F64]:

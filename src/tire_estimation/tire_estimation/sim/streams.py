@@ -15,10 +15,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from tire_estimation.core.arrays import F64, I64
 from tire_estimation.core.vehicle import VehicleParams
 
-F64 = NDArray[np.float64]
-I64 = NDArray[np.int64]
 BOOL = NDArray[np.bool_]
 
 

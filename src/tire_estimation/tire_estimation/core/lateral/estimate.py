@@ -4,10 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numpy as np
-from numpy.typing import NDArray
-
-F64 = NDArray[np.float64]
+from tire_estimation.core.arrays import F64
 
 #: Source name of the tyre-force Kalman filter (Tuononen 2009).
 TYRE_FORCE_SOURCE = "tyre_force_kf"

@@ -23,8 +23,8 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
+from tire_estimation.core.arrays import F64
 from tire_estimation.core.input_checks import finite_vector, stamp_after
 from tire_estimation.core.lateral.estimate import LateralState
 from tire_estimation.core.lateral.single_track import (
@@ -36,8 +36,6 @@ from tire_estimation.core.lateral.single_track import (
 from tire_estimation.core.validation import require_non_negative, require_positive
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.errors import InputError
-
-F64 = NDArray[np.float64]
 
 
 @dataclass(frozen=True)

@@ -28,11 +28,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
+from tire_estimation.core.arrays import F64
 from tire_estimation.core.vehicle import VehicleParams
-
-F64 = NDArray[np.float64]
 
 
 @dataclass(frozen=True)

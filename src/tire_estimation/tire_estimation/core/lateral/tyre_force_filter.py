@@ -10,11 +10,9 @@ front-end that feeds them is :class:`.tyre_force_kf.TyreForceEstimator`.
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import NDArray
 
+from tire_estimation.core.arrays import F64
 from tire_estimation.errors import ConfigError
-
-F64 = NDArray[np.float64]
 
 # Fig. 7 relay thresholds on the eq. (29) deviation after the low-pass below. The paper gives
 # no numbers; these fit the simulator's tyre sensors (150 N noise per wheel) on the

@@ -38,8 +38,8 @@ from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
-from numpy.typing import NDArray
 
+from tire_estimation.core.arrays import F64
 from tire_estimation.core.input_checks import stamp_after
 from tire_estimation.core.lateral.estimate import TYRE_FORCE_SOURCE as SOURCE
 from tire_estimation.core.lateral.estimate import LateralEstimate
@@ -65,8 +65,6 @@ from tire_estimation.core.validation import (
 )
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.errors import ConfigError, InputError
-
-F64 = NDArray[np.float64]
 
 GRAVITY_M_S2 = 9.81
 

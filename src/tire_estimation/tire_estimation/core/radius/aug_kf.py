@@ -12,12 +12,10 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
+from tire_estimation.core.arrays import F64
 from tire_estimation.core.radius.gnss_bias import GnssErrorSize
 from tire_estimation.core.radius.model import RL, RR, RadiusMotionModel, gnss_white_cov
-
-F64 = NDArray[np.float64]
 
 
 @dataclass(frozen=True)

@@ -24,14 +24,13 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from numpy.typing import NDArray
 
+from tire_estimation.core.arrays import F64
 from tire_estimation.core.radius.model import FL, FR, RL, RR
 
 if TYPE_CHECKING:
     from tire_estimation.core.radius.estimator import RadiusEstimator
 
-F64 = NDArray[np.float64]
 
 #: correction of the wheel speeds (4,): ``(estimator, value, t_ns, ws) -> ws``
 WheelSpeedCorrection = Callable[["RadiusEstimator", float, int, F64], F64]

@@ -22,10 +22,10 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 from scipy.special import chdtri
 
 from tire_estimation.core import niw
+from tire_estimation.core.arrays import F64
 from tire_estimation.core.input_checks import stamp_after
 from tire_estimation.core.radius.aug_kf import AugKf
 from tire_estimation.core.radius.axle_check import AxleCheck
@@ -53,8 +53,6 @@ from tire_estimation.core.radius.road_grade import RoadGradeFit
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.core.wheels import WHEELS
 from tire_estimation.errors import InputError
-
-F64 = NDArray[np.float64]
 
 
 @dataclass

@@ -5,9 +5,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
-from numpy.typing import NDArray
-
+from tire_estimation.core.arrays import F64
 from tire_estimation.core.radius.effects import braking_decel
 from tire_estimation.core.radius.model import RL, RR
 
@@ -16,7 +14,6 @@ if TYPE_CHECKING:
     from tire_estimation.core.radius.config import RadiusEstimatorConfig
     from tire_estimation.core.radius.model import RadiusMotionModel
 
-F64 = NDArray[np.float64]
 
 #: IMU and steering samples older than this are ignored by the gates, s (a few periods of a
 #: 50-100 Hz stream: a stalled stream falls back to the wheel speeds within half a second)

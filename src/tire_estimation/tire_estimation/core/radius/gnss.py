@@ -10,8 +10,8 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from numpy.typing import NDArray
 
+from tire_estimation.core.arrays import F64
 from tire_estimation.core.radius.inputs import finite, is_int
 from tire_estimation.errors import InputError
 
@@ -22,7 +22,6 @@ if TYPE_CHECKING:
     from tire_estimation.core.radius.mpf import RadiusMPF
     from tire_estimation.core.radius.road_grade import RoadGradeFit
 
-F64 = NDArray[np.float64]
 
 #: after this many consecutive rejected fixes the pose is re-initialized from GNSS (a genuine
 #: relocation: at the default gate probability five chance rejections in a row have a

@@ -7,15 +7,13 @@ import math
 from typing import TYPE_CHECKING
 
 import numpy as np
-from numpy.typing import NDArray
 
+from tire_estimation.core.arrays import F64
 from tire_estimation.core.radius import kernels as radius_kernels
 from tire_estimation.core.radius.model import gnss_bias_var, gnss_white_cov
 
 if TYPE_CHECKING:
     from tire_estimation.core.radius.mpf_outcomes import FixPrediction
-
-F64 = NDArray[np.float64]
 
 
 class GnssErrorSize:

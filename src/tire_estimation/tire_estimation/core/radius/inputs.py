@@ -11,12 +11,10 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
+from tire_estimation.core.arrays import F64
 from tire_estimation.core.wheels import WHEEL_INDEX
 from tire_estimation.errors import InputError
-
-F64 = NDArray[np.float64]
 
 _SHORT = {"fl": 0, "fr": 1, "rl": 2, "rr": 3}
 

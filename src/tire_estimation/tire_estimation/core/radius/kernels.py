@@ -27,8 +27,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tire_estimation.core import kernel_random as kr
+from tire_estimation.core.arrays import F64
 
-F64 = NDArray[np.float64]
 U64 = NDArray[np.uint64]
 
 

@@ -14,11 +14,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
+from tire_estimation.core.arrays import F64
 from tire_estimation.core.vehicle import VehicleParams
-
-F64 = NDArray[np.float64]
 
 RL, RR = 2, 3  # rear wheel indices in the fl, fr, rl, rr order
 FL, FR = 0, 1

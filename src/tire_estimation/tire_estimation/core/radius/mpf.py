@@ -23,9 +23,9 @@ from collections.abc import Callable
 from typing import Any, TypeVar
 
 import numpy as np
-from numpy.typing import NDArray
 
 from tire_estimation.core import niw
+from tire_estimation.core.arrays import F64
 from tire_estimation.core.kernel_random import kernel_state
 from tire_estimation.core.radius import kernels as radius_kernels
 from tire_estimation.core.radius.gnss_bias import MarginalGnssBias
@@ -35,7 +35,6 @@ from tire_estimation.core.resampling import ess, systematic
 
 _R = TypeVar("_R")
 
-F64 = NDArray[np.float64]
 
 #: prior expected fast radius variation sqrt(E[Sigma]) of the NiW prior (eq. 22c), m: 1 mm,
 #: a third of the default prior std of the mean; with the weak :data:`PRIOR_DOF` the learned

@@ -9,9 +9,9 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from numpy.typing import NDArray
 
 from tire_estimation.core import niw
+from tire_estimation.core.arrays import F64
 from tire_estimation.core.radius.inputs import finite_or_zero, sanitize
 from tire_estimation.core.wheels import FRONT_WHEELS, REAR_WHEELS
 from tire_estimation.errors import InputError
@@ -23,7 +23,6 @@ if TYPE_CHECKING:
     from tire_estimation.core.radius.road_grade import RoadGradeFit
     from tire_estimation.core.vehicle import VehicleParams
 
-F64 = NDArray[np.float64]
 
 STATE_DICT_VERSION = 1
 

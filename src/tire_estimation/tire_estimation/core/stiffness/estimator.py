@@ -18,9 +18,9 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
 from tire_estimation.core import niw
+from tire_estimation.core.arrays import F64
 from tire_estimation.core.stiffness.config import StiffnessEstimatorConfig
 from tire_estimation.core.stiffness.filter import FilterEstimate, Measurement, StiffnessFilter
 from tire_estimation.core.stiffness.frontend import StiffnessEstimate, StiffnessFrontEnd
@@ -30,7 +30,6 @@ from tire_estimation.core.stiffness.mpf import StiffnessMpf
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.errors import InputError
 
-F64 = NDArray[np.float64]
 STATE_DICT_VERSION = 1
 #: ``first_learning`` = ``grid``: the hand-over happens, and the grid stays published after it,
 #: only while the grid's mean normalized innovation squared (``GridEkf.nis_mean``, 3

@@ -21,8 +21,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
+from tire_estimation.core.arrays import F64
 from tire_estimation.core.stiffness.config import BaselineConfig
 from tire_estimation.core.stiffness.model import (
     SingleTrackParams,
@@ -30,7 +30,6 @@ from tire_estimation.core.stiffness.model import (
     saturation_slip_at,
 )
 
-F64 = NDArray[np.float64]
 #: Central-difference steps of the numeric Jacobians in [vX m/s, vY m/s, r rad/s].
 JACOBIAN_STEP = np.array([1e-3, 1e-3, 1e-4])
 

@@ -31,8 +31,8 @@ from dataclasses import dataclass
 from typing import Any, Generic, TypeAlias, TypeVar
 
 import numpy as np
-from numpy.typing import NDArray
 
+from tire_estimation.core.arrays import F64
 from tire_estimation.core.input_checks import finite_vector, stamp_after
 from tire_estimation.core.stiffness.filter import (
     BaselineConfig,
@@ -44,7 +44,6 @@ from tire_estimation.core.stiffness.model import NAMES, SingleTrackParams
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.errors import InputError
 
-F64 = NDArray[np.float64]
 F = TypeVar("F", bound=StiffnessFilter)
 #: the settings the front-end reads (Algorithm 1's extend them)
 FrontEndConfig: TypeAlias = BaselineConfig

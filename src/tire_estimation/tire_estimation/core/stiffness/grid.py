@@ -53,9 +53,9 @@ from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
-from numpy.typing import NDArray
 
 from tire_estimation.core import resampling
+from tire_estimation.core.arrays import F64
 from tire_estimation.core.stiffness.filter import (
     JACOBIAN_STEP,
     BaselineConfig,
@@ -80,7 +80,6 @@ from tire_estimation.core.validation import (
     require_non_negative,
 )
 
-F64 = NDArray[np.float64]
 _LOG_2PI = math.log(2.0 * math.pi)
 
 

@@ -52,9 +52,9 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from tire_estimation.core.arrays import F64
 from tire_estimation.core.stiffness import mat3
 
-F64 = NDArray[np.float64]
 IDX = NDArray[np.intp]
 #: a 3x3 matrix as a row-major 9-tuple (kept in registers by the compiler), a 3-vector as a 3-tuple
 M3 = tuple[float, float, float, float, float, float, float, float, float]

@@ -14,9 +14,9 @@ from __future__ import annotations
 from typing import TypeVar
 
 import numpy as np
-from numpy.typing import NDArray
 
-F64 = NDArray[np.float64]
+from tire_estimation.core.arrays import F64
+
 T = TypeVar("T", float, F64)
 
 

@@ -30,11 +30,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
+from tire_estimation.core.arrays import F64
 from tire_estimation.core.vehicle import VehicleParams
-
-F64 = NDArray[np.float64]
 
 #: Standard gravity, m/s^2.
 GRAVITY_M_S2 = 9.81

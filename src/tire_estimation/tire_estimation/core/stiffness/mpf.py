@@ -52,6 +52,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tire_estimation.core import niw, resampling
+from tire_estimation.core.arrays import F64
 from tire_estimation.core.stiffness import kernels as stiffness_kernels
 from tire_estimation.core.stiffness import mat3
 from tire_estimation.core.stiffness.config import StiffnessEstimatorConfig
@@ -79,8 +80,6 @@ from tire_estimation.core.stiffness.student_t import (
     niw_mean_gains,
     sample_student_t,
 )
-
-F64 = NDArray[np.float64]
 
 #: Algorithm 1 lines 8-10: resample (systematic) when N_eff <= this share of N (the usual
 #: choice; Doucet & Johansen 2009).

@@ -39,11 +39,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
 from tire_estimation.core import niw
-
-F64 = NDArray[np.float64]
+from tire_estimation.core.arrays import F64
 
 
 @dataclass(frozen=True)

@@ -17,9 +17,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tire_estimation.core import niw
+from tire_estimation.core.arrays import F64
 from tire_estimation.core.stiffness import mat3
 
-F64 = NDArray[np.float64]
 #: Dimension of w (eq. 8) and of the measurement (n_e, eq. 12).
 NW = 3
 NE = 3

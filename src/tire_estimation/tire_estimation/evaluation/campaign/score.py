@@ -10,14 +10,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from tire_estimation.core.arrays import F64
 from tire_estimation.evaluation.campaign.spec import (
     TARGET_ABSOLUTE_M,
     TARGET_RELATIVE_M,
     CaseSpec,
 )
 from tire_estimation.evaluation.campaign.trace import CaseRun
-
-F64 = NDArray[np.float64]
 
 
 def true_error(run: CaseRun, wheels: Sequence[str]) -> F64:
