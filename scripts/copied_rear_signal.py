@@ -2,9 +2,10 @@
 
 Simulates ``city`` (seed 0, 5 min), replaces the rear-right wheel speed by the rear-left one (a
 wiring fault, or a vehicle that reports one rear speed twice) and runs the radius MPF with its
-defaults and with ``locked_axle_gyro_heading``. Prints each run's rear estimates and the error
-of their mean against the rear-left tyre's true radius (with the copied signal both rear
-estimates should be the rear-left radius), and the same for the unmodified drive.
+defaults (on an axle whose wheels turn alike it takes the heading change from the gyro). Prints
+the rear estimates and the error of their mean against the rear-left tyre's true radius (with
+the copied signal both rear estimates should be the rear-left radius), the rear axle's verdict,
+and the same for the unmodified drive.
 
     python scripts/copied_rear_signal.py
 """
@@ -13,8 +14,9 @@ from __future__ import annotations
 
 import dataclasses
 
+from tire_estimation.core.pipeline import EstimationPipeline, PipelineConfig
 from tire_estimation.core.radius.config import RadiusEstimatorConfig
-from tire_estimation.evaluation.runner import run_radius
+from tire_estimation.evaluation.runner import RadiusRecorder
 from tire_estimation.sim import simulate
 from tire_estimation.sources import sim_samples
 
@@ -33,15 +35,18 @@ def main() -> None:
         ("unmodified", sim, float(true_mm.mean())),
         ("copied", sim_copied, float(true_mm[0])),
     ):
-        for gyro in (False, True):
-            cfg = RadiusEstimatorConfig(locked_axle_gyro_heading=gyro)
-            trace = run_radius(cfg, sim.vehicle, sim_samples(drive, tire_forces=False)).arrays()
-            est_mm = trace["radius_error_m"][-1] * 1e3
-            print(
-                f"{name:10s} {'gyro heading' if gyro else 'defaults':12s} rear "
-                f"{est_mm[0]:+.3f} / {est_mm[1]:+.3f} mm, common error "
-                f"{est_mm.mean() - ref_mm:+.3f} mm"
-            )
+        recorder = RadiusRecorder()
+        pipeline = EstimationPipeline(
+            PipelineConfig(radius=RadiusEstimatorConfig()), sim.vehicle, observers=[recorder]
+        )
+        pipeline.push_ordered(sim_samples(drive, tire_forces=False))
+        trace = recorder.finish(pipeline).arrays()
+        est_mm = trace["radius_error_m"][-1] * 1e3
+        assert pipeline.axles is not None
+        print(
+            f"{name:10s} rear {est_mm[0]:+.3f} / {est_mm[1]:+.3f} mm, common error "
+            f"{est_mm.mean() - ref_mm:+.3f} mm; rear axle: {pipeline.axles.status('rear').reason}"
+        )
 
 
 if __name__ == "__main__":

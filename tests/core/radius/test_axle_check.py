@@ -35,7 +35,7 @@ def _locked(sim: SimResult) -> SimResult:
 
 
 def _pipeline(sim: SimResult) -> EstimationPipeline:
-    cfg = RadiusEstimatorConfig(n_particles=50, locked_axle_gyro_heading=True)
+    cfg = RadiusEstimatorConfig(n_particles=50)
     p = EstimationPipeline(PipelineConfig(radius=cfg), sim.vehicle)
     p.push_all(sim_samples(sim, tire_forces=False))
     return p

@@ -299,7 +299,6 @@ def test_config_validation_names_the_field():
         ({"forgetting_factor": 1.5}, "forgetting_factor"),
         ({"gnss_bias_fraction": 0.95}, "gnss_bias_fraction"),
         ({"gnss_latency_s": 1.5}, "gnss_latency_s"),
-        ({"locked_axle_gyro_heading": 1}, "locked_axle_gyro_heading"),
         ({"gnss_default_std_m": -1.0}, "gnss_default_std_m"),
         ({"wheels": "front"}, "wheels"),
         ({"min_speed_m_s": float("nan")}, "min_speed_m_s"),

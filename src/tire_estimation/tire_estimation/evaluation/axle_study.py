@@ -2,8 +2,8 @@
 
 Each seed simulates the same drive twice, with free rear wheels and with a spool
 (``SensorConfig.wheel_speed_rear_locked``: both rear wheels turn at the mean of their
-free-rolling speeds), and runs the radius MPF with its defaults and
-``locked_axle_gyro_heading`` on through the pipeline. Printed per run: the final error of
+free-rolling speeds), and runs the radius MPF with its defaults through the pipeline (on a
+locked axle it takes the heading change from the gyro). Printed per run: the final error of
 each rear radius and of their mean (the common radius) against the truth, relative to the
 nominal radius, the rear axle's verdict and slope, and how many wheel-speed samples took
 their heading change from the gyro.
@@ -34,7 +34,7 @@ def run_one(scenario: str, seed: int, minutes: float, locked: bool) -> dict[str,
         scenario,
         seed,
         minutes,
-        {"locked_axle_gyro_heading": True},
+        {},
         {"wheel_speed_rear_locked": locked},
     )
     nominal = sim.vehicle.nominal_tire_radius_m

@@ -58,10 +58,10 @@ log-likelihood ``sum_k 0.5 (NIS_k + log det S_k)`` (prediction-error decompositi
 is consistent when the residual tests pass and no switchable effect improves the likelihood
 significantly (likelihood-ratio score below :data:`SCORE_THRESHOLD`).
 
-Gyro bias is not in this library: with its defaults the radius estimator does not use the gyro
-for the heading (the IMU feeds its acceleration gates, the load transfer and the axle check;
-the heading only with the opt-in ``locked_axle_gyro_heading`` on a locked axle), so a gyro bias
-cannot enter its model
+Gyro bias is not in this library: on a drive with free axles the radius estimator does not use
+the gyro for the heading (the IMU feeds its acceleration gates, the load transfer and the axle
+check; the heading only while the check finds the rear axle locked), so a gyro bias cannot
+enter its model
 (``tests/evaluation/test_residuals.py::test_gyro_bias_is_not_attributed``).
 """
 

@@ -51,7 +51,7 @@ _POSITIVE = (
     "max_abs_ay_m_s2",
     "braking_decel_m_s2",
 )
-_BOOLS = ("gnss_velocity_enabled", "run_aug_kf", "locked_axle_gyro_heading")
+_BOOLS = ("gnss_velocity_enabled", "run_aug_kf")
 
 
 @dataclass(frozen=True)
@@ -146,11 +146,6 @@ class RadiusEstimatorConfig:
             wheel speed ``omega`` is scaled by ``1 + c dFz / r_nominal`` before use, so the
             estimated radius errors are those at static load. In [-1e-4, 1e-4]; default 0 (off);
             about -5e-7 follows from Pacejka's effective-rolling-radius parameters.
-        locked_axle_gyro_heading: while the rear axle's two wheels turn alike in the turns
-            (a locked axle or spool, ``axle_check.py``), take the heading change from the
-            gyro and learn the axle's common radius. Default false: on 20 simulated spool
-            drives it keeps the common radius within 0.1 %, but on 1 of 12 drives of the ECE
-            R-64 medium campaign (free axles) the check locked falsely and the run changed.
         road_grade_correction_gain: switch of the road-grade correction (the wheels roll along
             the slope, GNSS measures the horizontal displacement): the grade ``theta`` is
             estimated online from the GNSS altitude against the wheel-travelled distance and
@@ -199,7 +194,6 @@ class RadiusEstimatorConfig:
     gnss_antenna_offset_y_m: float = 0.0
     radius_speed_coefficient_m_per_m2_s2: float = 0.0
     radius_load_coefficient_m_per_n: float = 0.0
-    locked_axle_gyro_heading: bool = False
     road_grade_correction_gain: float = 0.0
     rear_brake_slip_s2_per_m: float = 0.0
     seed: int = 0

@@ -301,7 +301,9 @@ class RadiusEstimator(GnssHandling, Reporting, Gates):
                 return
             t_ns = int(t_ns)
         self.axles.on_wheel_speeds(t_ns, ws)
-        if self.config.locked_axle_gyro_heading and self.axles.locked("rear"):
+        if self.axles.locked("rear"):
+            # the rear wheels cannot be told apart (eq. 6b gives no heading change): the
+            # heading change from the gyro, the axle's common radius from the mean speed
             ws = self._rear_heading_from_gyro(t_ns, ws)
         for correct, value in self._rolling:
             ws = correct(self, value, t_ns, ws)
