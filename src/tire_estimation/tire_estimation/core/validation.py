@@ -140,8 +140,12 @@ def one_of(choices: Iterable[str]) -> Rule:
 
 
 def check_rules(
-    config: object, rules: Mapping[str, Rule], error: type[ConfigError] = ConfigError
+    config: object,
+    rules: Mapping[str, Rule],
+    error: type[ConfigError] = ConfigError,
+    prefix: str = "",
 ) -> None:
-    """Check every field of ``config`` named in ``rules`` (in the order of ``rules``)."""
+    """Check every field of ``config`` named in ``rules`` (in the order of ``rules``); errors
+    name the field as ``prefix + name``."""
     for name, rule in rules.items():
-        rule.check(name, getattr(config, name), error)
+        rule.check(prefix + name, getattr(config, name), error)
