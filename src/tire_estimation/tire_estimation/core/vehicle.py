@@ -22,6 +22,7 @@ from tire_estimation.core.validation import (
     in_range,
     require_choice,
     require_finite,
+    require_known_keys,
 )
 from tire_estimation.errors import VehicleConfigError
 
@@ -129,12 +130,7 @@ class VehicleParams:
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> VehicleParams:
         """Build from a mapping (the ``vehicle`` section of vehicle.yaml); unknown keys fail."""
-        if not isinstance(data, Mapping):
-            raise VehicleConfigError("vehicle", data, "must be a mapping")
-        names = {f.name for f in dataclasses.fields(cls)}
-        unknown = sorted(set(data) - names)
-        if unknown:
-            raise VehicleConfigError(f"vehicle.{unknown[0]}", data[unknown[0]], "unknown key")
+        data = require_known_keys(cls, data, "vehicle", VehicleConfigError, prefix="vehicle.")
         kwargs: dict[str, Any] = {}
         for key, value in data.items():
             if key in ("gnss_antenna_position_m", "imu_position_m"):

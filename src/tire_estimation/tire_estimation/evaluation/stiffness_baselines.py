@@ -58,7 +58,6 @@ from tire_estimation.core.stiffness.filter import (
     Measurement,
     StiffnessFilter,
     friction_saturation,
-    imu_noise_cov,
     model,
 )
 from tire_estimation.core.stiffness.frontend import StiffnessFrontEnd
@@ -242,13 +241,9 @@ class AugPf(StiffnessFilter):
     def __init__(
         self, config: AugPfConfig, params: SingleTrackParams, rng: np.random.Generator
     ) -> None:
-        self.config = config
-        self.params = params
+        self._set_model(config, params)
         self.rng = rng
         self.n = config.n_particles
-        self.nominal = np.asarray(params.nominal, dtype=float)
-        self.lower, self.upper = stiffness_bounds(self.nominal)
-        self.r_cov = imu_noise_cov(config)
         self.jitter = np.array(
             [
                 config.state_jitter_vx_m_s_sqrt_s,
@@ -351,11 +346,7 @@ class AugEkf(StiffnessFilter):
     """
 
     def __init__(self, config: EkfConfig, params: SingleTrackParams) -> None:
-        self.config = config
-        self.params = params
-        self.nominal = np.asarray(params.nominal, dtype=float)
-        self.lower, self.upper = stiffness_bounds(self.nominal)
-        self.r_cov = imu_noise_cov(config)
+        self._set_model(config, params)
         self.q_state = np.array(
             [
                 config.process_vx_m_s_sqrt_s,

@@ -62,14 +62,12 @@ from tire_estimation.core.stiffness.filter import (
     FilterEstimate,
     Measurement,
     StiffnessFilter,
-    imu_noise_cov,
     model,
 )
 from tire_estimation.core.stiffness.model import (
     WHEEL_SPEED_NOISE_STD_M_S,
     SingleTrackParams,
     measurement_cov,
-    stiffness_bounds,
 )
 from tire_estimation.core.validation import (
     NON_NEGATIVE,
@@ -210,11 +208,7 @@ class GridEkf(StiffnessFilter):
     """
 
     def __init__(self, config: GridConfig, params: SingleTrackParams) -> None:
-        self.config = config
-        self.params = params
-        self.nominal = np.asarray(params.nominal, dtype=float)
-        self.lower, self.upper = stiffness_bounds(self.nominal)
-        self.r_cov = imu_noise_cov(config)
+        self._set_model(config, params)
         c = config
         jitter = [
             c.state_jitter_vx_m_s_sqrt_s,
