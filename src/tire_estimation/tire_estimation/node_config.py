@@ -7,6 +7,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import ClassVar
 
+from tire_estimation.core.deflation.monitor import MonitorConfig
 from tire_estimation.core.pipeline import PublishPeriods
 from tire_estimation.core.validation import (
     FINITE,
@@ -22,7 +23,25 @@ SENSOR_QOS = ("sensor_data", "reliable")
 
 
 @dataclass(frozen=True)
-class EstimatorNodeOptions:
+class PersistentNodeOptions:
+    """What every node that saves its state to a file takes: the vehicle, the tire set and
+    the file (the subclasses document the fields and set the file's default)."""
+
+    vehicle_file: str = ""
+    tire_set_id: str = "default"
+    persistence_file: str = ""
+    persistence_period_s: float = 60.0
+
+    RULES: ClassVar[dict[str, Rule]] = {"persistence_period_s": FINITE}
+
+    def __post_init__(self) -> None:
+        if not self.tire_set_id:
+            raise ConfigError("tire_set_id", self.tire_set_id, "must not be empty")
+        check_rules(self, self.RULES)
+
+
+@dataclass(frozen=True)
+class EstimatorNodeOptions(PersistentNodeOptions):
     """ROS-side options of ``estimator_node``.
 
     Attributes:
@@ -57,10 +76,7 @@ class EstimatorNodeOptions:
             Default 0.05.
     """
 
-    vehicle_file: str = ""
-    tire_set_id: str = "default"
     persistence_file: str = "~/.ros/tire_estimation/learned_radii.json"
-    persistence_period_s: float = 60.0
     odometry_publish_period_s: float = 0.02
     radii_publish_period_s: float = 0.1
     lateral_publish_period_s: float = 0.02
@@ -72,7 +88,7 @@ class EstimatorNodeOptions:
     reorder_delay_s: float = 0.05
 
     RULES: ClassVar[dict[str, Rule]] = {
-        "persistence_period_s": FINITE,
+        **PersistentNodeOptions.RULES,
         "reorder_delay_s": NON_NEGATIVE,
         "odometry_publish_period_s": NON_NEGATIVE,
         "radii_publish_period_s": POSITIVE,
@@ -81,11 +97,6 @@ class EstimatorNodeOptions:
         "diagnostics_period_s": POSITIVE,
         "sensor_qos": one_of(SENSOR_QOS),
     }
-
-    def __post_init__(self) -> None:
-        if not self.tire_set_id:
-            raise ConfigError("tire_set_id", self.tire_set_id, "must not be empty")
-        check_rules(self, self.RULES)
 
 
 def periods_of(options: EstimatorNodeOptions) -> PublishPeriods:
@@ -99,8 +110,8 @@ def periods_of(options: EstimatorNodeOptions) -> PublishPeriods:
 
 
 @dataclass(frozen=True)
-class DetectorNodeOptions:
-    """ROS-side options of ``detector_node`` (the CUSUM itself:
+class DetectorNodeOptions(MonitorConfig, PersistentNodeOptions):
+    """ROS-side options of ``detector_node``, the monitor's among them (the CUSUM itself:
     :class:`~tire_estimation.core.deflation.config.DeflationDetectorConfig`).
 
     Attributes:
@@ -120,27 +131,17 @@ class DetectorNodeOptions:
             Default 1.
     """
 
-    vehicle_file: str = ""
-    tire_set_id: str = "default"
     persistence_file: str = "~/.ros/tire_estimation/deflation_detector.json"
-    persistence_period_s: float = 60.0
     diagnostics_period_s: float = 1.0
-    braking_decel_m_s2: float = 1.0
-    braking_window_s: float = 0.5
-    odometry_timeout_s: float = 1.0
 
     RULES: ClassVar[dict[str, Rule]] = {
-        "persistence_period_s": FINITE,
+        **PersistentNodeOptions.RULES,
         "diagnostics_period_s": POSITIVE,
-        "braking_decel_m_s2": POSITIVE,
-        "braking_window_s": POSITIVE,
-        "odometry_timeout_s": POSITIVE,
+        **MonitorConfig.RULES,
     }
 
     def __post_init__(self) -> None:
-        if not self.tire_set_id:
-            raise ConfigError("tire_set_id", self.tire_set_id, "must not be empty")
-        check_rules(self, self.RULES)
+        PersistentNodeOptions.__post_init__(self)
 
 
 @dataclass(frozen=True)

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Any
 
 from tire_estimation.errors import ConfigError
@@ -139,9 +139,31 @@ def one_of(choices: Iterable[str]) -> Rule:
     return Rule("choice", choices=tuple(choices))
 
 
+def require_known_keys(
+    cls: type,
+    data: object,
+    section: str,
+    error: type[ConfigError] = ConfigError,
+    prefix: str = "",
+) -> Mapping[str, Any]:
+    """``data`` if it is a mapping whose keys are all fields of dataclass ``cls``; else
+    ``error`` naming ``section`` (not a mapping) or ``prefix`` + the first unknown key."""
+    if not isinstance(data, Mapping):
+        raise error(section, data, "must be a mapping")
+    names = {f.name for f in fields(cls)}
+    unknown = sorted(set(data) - names)
+    if unknown:
+        raise error(prefix + unknown[0], data[unknown[0]], "unknown key")
+    return data
+
+
 def check_rules(
-    config: object, rules: Mapping[str, Rule], error: type[ConfigError] = ConfigError
+    config: object,
+    rules: Mapping[str, Rule],
+    error: type[ConfigError] = ConfigError,
+    prefix: str = "",
 ) -> None:
-    """Check every field of ``config`` named in ``rules`` (in the order of ``rules``)."""
+    """Check every field of ``config`` named in ``rules`` (in the order of ``rules``); errors
+    name the field as ``prefix + name``."""
     for name, rule in rules.items():
-        rule.check(name, getattr(config, name), error)
+        rule.check(prefix + name, getattr(config, name), error)

@@ -11,12 +11,19 @@ import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import yaml
 
 from tire_estimation.core import yamlio
-from tire_estimation.core.validation import require_choice, require_finite, require_range
+from tire_estimation.core.validation import (
+    Rule,
+    check_rules,
+    in_range,
+    require_choice,
+    require_finite,
+    require_known_keys,
+)
 from tire_estimation.errors import VehicleConfigError
 
 DRIVES = ("front", "rear", "all")
@@ -66,26 +73,27 @@ class VehicleParams:
     longitudinal_stiffness_front_n: float = 150_000.0
     longitudinal_stiffness_rear_n: float = 150_000.0
 
+    RULES: ClassVar[dict[str, Rule]] = {
+        "nominal_tire_radius_m": in_range(0.1, 1.5),
+        "track_width_m": in_range(0.3, 3.5),
+        "wheelbase_m": in_range(0.3, 8.0),
+        "cg_to_front_axle_m": in_range(0.0, 8.0),
+        "cg_to_rear_axle_m": in_range(0.0, 8.0),
+        "cg_height_m": in_range(0.0, 3.0),
+        "mass_kg": in_range(10.0, 60_000.0),
+        "yaw_inertia_kg_m2": in_range(0.1, 1e6),
+        "steering_ratio": in_range(1.0, 50.0),
+        "cornering_stiffness_front_n_rad": in_range(1.0, 1e7),
+        "cornering_stiffness_rear_n_rad": in_range(1.0, 1e7),
+        "longitudinal_stiffness_front_n": in_range(1.0, 1e7),
+        "longitudinal_stiffness_rear_n": in_range(1.0, 1e7),
+    }
+
     def __post_init__(self) -> None:
         err = VehicleConfigError
         if not isinstance(self.name, str) or not self.name:
             raise err("vehicle.name", self.name, "must be a non-empty string")
-        require_range("vehicle.nominal_tire_radius_m", self.nominal_tire_radius_m, 0.1, 1.5, err)
-        require_range("vehicle.track_width_m", self.track_width_m, 0.3, 3.5, err)
-        require_range("vehicle.wheelbase_m", self.wheelbase_m, 0.3, 8.0, err)
-        require_range("vehicle.cg_to_front_axle_m", self.cg_to_front_axle_m, 0.0, 8.0, err)
-        require_range("vehicle.cg_to_rear_axle_m", self.cg_to_rear_axle_m, 0.0, 8.0, err)
-        require_range("vehicle.cg_height_m", self.cg_height_m, 0.0, 3.0, err)
-        require_range("vehicle.mass_kg", self.mass_kg, 10.0, 60_000.0, err)
-        require_range("vehicle.yaw_inertia_kg_m2", self.yaw_inertia_kg_m2, 0.1, 1e6, err)
-        require_range("vehicle.steering_ratio", self.steering_ratio, 1.0, 50.0, err)
-        for field in (
-            "cornering_stiffness_front_n_rad",
-            "cornering_stiffness_rear_n_rad",
-            "longitudinal_stiffness_front_n",
-            "longitudinal_stiffness_rear_n",
-        ):
-            require_range(f"vehicle.{field}", getattr(self, field), 1.0, 1e7, err)
+        check_rules(self, self.RULES, err, prefix="vehicle.")
         lf_lr = self.cg_to_front_axle_m + self.cg_to_rear_axle_m
         if abs(lf_lr - self.wheelbase_m) > 0.02:
             raise err(
@@ -122,12 +130,7 @@ class VehicleParams:
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> VehicleParams:
         """Build from a mapping (the ``vehicle`` section of vehicle.yaml); unknown keys fail."""
-        if not isinstance(data, Mapping):
-            raise VehicleConfigError("vehicle", data, "must be a mapping")
-        names = {f.name for f in dataclasses.fields(cls)}
-        unknown = sorted(set(data) - names)
-        if unknown:
-            raise VehicleConfigError(f"vehicle.{unknown[0]}", data[unknown[0]], "unknown key")
+        data = require_known_keys(cls, data, "vehicle", VehicleConfigError, prefix="vehicle.")
         kwargs: dict[str, Any] = {}
         for key, value in data.items():
             if key in ("gnss_antenna_position_m", "imu_position_m"):

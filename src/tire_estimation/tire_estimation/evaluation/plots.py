@@ -61,13 +61,8 @@ def plot_radius_errors(
             j = truth[1].index(w)
             ax.step(truth[0], 1e3 * truth[2][:, j], where="post", color="k", lw=1.2, label="truth")
         _mark_events(ax, events_s, "C3", "--")
-        ax.set_ylabel(f"{w}\nradius error [mm]")
-        ax.grid(alpha=0.3)
-        if i == 0:
-            ax.legend(loc="best", fontsize=8, ncol=4)
-    axes[-1, 0].set_xlabel("time since bag start [s]")
-    fig.suptitle("Effective rolling-radius error (estimate minus nominal)")
-    save_figure(fig, path)
+        _label_wheel_axis(ax, f"{w}\nradius error [mm]", i == 0, "best")
+    _save_wheel_figure(fig, axes, "Effective rolling-radius error (estimate minus nominal)", path)
 
 
 def plot_trajectory(
@@ -196,10 +191,22 @@ def plot_detection(
             if wheel in (w, "all"):
                 ax.axvline(t_alarm, color="C3", lw=1.5, label=f"alarm ({wheel})")
         _mark_events(ax, events_s, "k", ":")
-        ax.set_ylabel(f"{w}\n[mm]")
-        ax.grid(alpha=0.3)
-        if i == 0:
-            ax.legend(loc="upper left", fontsize=8, ncol=4)
+        _label_wheel_axis(ax, f"{w}\n[mm]", i == 0, "upper left")
+    _save_wheel_figure(
+        fig, axes, "Deflation detector: CUSUM of the radius decrease against its threshold", path
+    )
+
+
+def _label_wheel_axis(ax: Any, ylabel: str, legend: bool, legend_loc: str) -> None:
+    """Y label and grid of one wheel's panel; the legend on the first panel only."""
+    ax.set_ylabel(ylabel)
+    ax.grid(alpha=0.3)
+    if legend:
+        ax.legend(loc=legend_loc, fontsize=8, ncol=4)
+
+
+def _save_wheel_figure(fig: Any, axes: Any, title: str, path: Path) -> None:
+    """Time axis label under the last wheel panel, the title, and the PNG."""
     axes[-1, 0].set_xlabel("time since bag start [s]")
-    fig.suptitle("Deflation detector: CUSUM of the radius decrease against its threshold")
+    fig.suptitle(title)
     save_figure(fig, path)

@@ -44,9 +44,8 @@ stiffness estimate (particle spread, ``sqrt(diag P)``), not the std of the stiff
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import ClassVar
 
 import numpy as np
 
@@ -59,7 +58,6 @@ from tire_estimation.core.stiffness.filter import (
     Measurement,
     StiffnessFilter,
     friction_saturation,
-    imu_noise_cov,
     model,
 )
 from tire_estimation.core.stiffness.frontend import StiffnessFrontEnd
@@ -72,16 +70,15 @@ from tire_estimation.core.stiffness.model import (
     stiffness_bounds,
 )
 from tire_estimation.core.validation import (
+    BOOL,
+    NON_NEGATIVE,
+    POSITIVE,
     Rule,
-    check_rules,
     in_range,
     int_in_range,
-    require_non_negative,
-    require_positive,
-    require_range,
+    one_of,
 )
 from tire_estimation.core.vehicle import VehicleParams
-from tire_estimation.errors import ConfigError
 
 #: Central-difference steps in ``w`` (friction-limited tyre only), fraction of ``C_n``.
 W_JACOBIAN_STEP_FRACTION = 1e-4
@@ -89,14 +86,15 @@ _LOG_2PI = math.log(2.0 * math.pi)
 
 
 # ---------------------------------------------------------------------------- configuration
-def _require_walks(config: Any, prefix: str, check: Callable[[str, float], None]) -> None:
-    """The stiffness random walk within [0, 5] of nominal per sqrt(s), and ``check`` on the
-    state noises ``{prefix}_vx_m_s_sqrt_s``, ``_vy_m_s_sqrt_s`` and ``_yaw_rate_rad_s_sqrt_s``."""
-    walk = config.stiffness_walk_std_fraction_sqrt_s
-    require_range("stiffness_walk_std_fraction_sqrt_s", walk, 0.0, 5.0)
-    for state in ("vx_m_s_sqrt_s", "vy_m_s_sqrt_s", "yaw_rate_rad_s_sqrt_s"):
-        name = f"{prefix}_{state}"
-        check(name, getattr(config, name))
+def _walk_rules(prefix: str, state_rule: Rule) -> dict[str, Rule]:
+    """The stiffness random walk within [0, 5] of nominal per sqrt(s), and ``state_rule`` on
+    the state noises ``{prefix}_vx_m_s_sqrt_s``, ``_vy_m_s_sqrt_s`` and
+    ``_yaw_rate_rad_s_sqrt_s``."""
+    states = ("vx_m_s_sqrt_s", "vy_m_s_sqrt_s", "yaw_rate_rad_s_sqrt_s")
+    return {
+        "stiffness_walk_std_fraction_sqrt_s": in_range(0.0, 5.0),
+        **{f"{prefix}_{state}": state_rule for state in states},
+    }
 
 
 @dataclass(frozen=True)
@@ -124,14 +122,11 @@ class AugPfConfig(BaselineConfig):
     state_jitter_yaw_rate_rad_s_sqrt_s: float = 0.002
 
     RULES: ClassVar[dict[str, Rule]] = {
+        **BaselineConfig.RULES,
         "n_particles": int_in_range(1, 1_000_000),
         "resample_threshold": in_range(0.0, 1.0),
+        **_walk_rules("state_jitter", NON_NEGATIVE),
     }
-
-    def __post_init__(self) -> None:
-        super().__post_init__()
-        check_rules(self, self.RULES)
-        _require_walks(self, "state_jitter", require_non_negative)
 
 
 @dataclass(frozen=True)
@@ -152,9 +147,10 @@ class EkfConfig(BaselineConfig):
     process_vy_m_s_sqrt_s: float = 0.02
     process_yaw_rate_rad_s_sqrt_s: float = 0.002
 
-    def __post_init__(self) -> None:
-        super().__post_init__()
-        _require_walks(self, "process", require_positive)
+    RULES: ClassVar[dict[str, Rule]] = {
+        **BaselineConfig.RULES,
+        **_walk_rules("process", POSITIVE),
+    }
 
 
 @dataclass(frozen=True)
@@ -182,18 +178,13 @@ class RlsConfig(BaselineConfig):
     process_yaw_rate_rad_s_sqrt_s: float = 0.002
 
     RULES: ClassVar[dict[str, Rule]] = {
+        **BaselineConfig.RULES,
         "forgetting": in_range(0.5, 1.0),
+        "kf_stiffness": one_of(("estimate", "nominal")),
+        "kf_measures_accel": BOOL,
+        "process_vy_m_s_sqrt_s": POSITIVE,
+        "process_yaw_rate_rad_s_sqrt_s": POSITIVE,
     }
-
-    def __post_init__(self) -> None:
-        super().__post_init__()
-        check_rules(self, self.RULES)
-        if self.kf_stiffness not in ("estimate", "nominal"):
-            raise ConfigError("kf_stiffness", self.kf_stiffness, "must be 'estimate' or 'nominal'")
-        if not isinstance(self.kf_measures_accel, bool):
-            raise ConfigError("kf_measures_accel", self.kf_measures_accel, "must be a bool")
-        for name in ("process_vy_m_s_sqrt_s", "process_yaw_rate_rad_s_sqrt_s"):
-            require_positive(name, getattr(self, name))
 
 
 # ---------------------------------------------------------------------------- model helpers
@@ -250,13 +241,9 @@ class AugPf(StiffnessFilter):
     def __init__(
         self, config: AugPfConfig, params: SingleTrackParams, rng: np.random.Generator
     ) -> None:
-        self.config = config
-        self.params = params
+        self._set_model(config, params)
         self.rng = rng
         self.n = config.n_particles
-        self.nominal = np.asarray(params.nominal, dtype=float)
-        self.lower, self.upper = stiffness_bounds(self.nominal)
-        self.r_cov = imu_noise_cov(config)
         self.jitter = np.array(
             [
                 config.state_jitter_vx_m_s_sqrt_s,
@@ -359,11 +346,7 @@ class AugEkf(StiffnessFilter):
     """
 
     def __init__(self, config: EkfConfig, params: SingleTrackParams) -> None:
-        self.config = config
-        self.params = params
-        self.nominal = np.asarray(params.nominal, dtype=float)
-        self.lower, self.upper = stiffness_bounds(self.nominal)
-        self.r_cov = imu_noise_cov(config)
+        self._set_model(config, params)
         self.q_state = np.array(
             [
                 config.process_vx_m_s_sqrt_s,

@@ -26,7 +26,7 @@ from rclpy.node import Node
 from std_srvs.srv import Trigger
 
 from tire_estimation.core.deflation.config import DeflationDetectorConfig
-from tire_estimation.core.deflation.monitor import DeflationMonitor, MonitorConfig
+from tire_estimation.core.deflation.monitor import DeflationMonitor
 from tire_estimation.core.deflation.status import DeflationStatusData, RadiusErrors
 from tire_estimation.core.vehicle import load_vehicle_yaml
 from tire_estimation.errors import InputError, TireEstimationError
@@ -56,14 +56,7 @@ class DetectorNode(Node):
             DeflationDetectorConfig, DETECTOR_PREFIX, self._values(self._specs)
         )
         options = build_config(DetectorNodeOptions, "", self._values(self._node_specs))
-        self.monitor = DeflationMonitor(
-            self.config,
-            MonitorConfig(
-                braking_decel_m_s2=options.braking_decel_m_s2,
-                braking_window_s=options.braking_window_s,
-                odometry_timeout_s=options.odometry_timeout_s,
-            ),
-        )
+        self.monitor = DeflationMonitor(self.config, options)
         self.detector = self.monitor.detector
         self.received: Counter[str] = Counter()
         self.dropped: Counter[str] = Counter()

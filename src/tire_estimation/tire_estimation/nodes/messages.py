@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from typing import TypeVar
 
 import numpy as np
 from nav_msgs.msg import Odometry
@@ -29,12 +30,19 @@ _PLANAR = (0, 1, 5)
 #: (planar, non-holonomic), roll/pitch rates unknown, yaw rate (0.01 rad/s)^2
 _TWIST_COV = np.diag([0.01, 0.01, 0.01, 1e6, 1e6, 1e-4]).reshape(36)
 
+M = TypeVar("M")
+
+
+def _stamped(msg: M, t_ns: int, frame_id: str) -> M:
+    """``msg`` with its header's stamp ``t_ns`` and ``frame_id``."""
+    ns_to_stamp(t_ns, msg.header.stamp)
+    msg.header.frame_id = frame_id
+    return msg
+
 
 def odometry_msg(est: RadiusEstimate, t_ns: int) -> Odometry:
     """Pose of base_link in ``map`` (planar: z, roll, pitch unknown), twist in base_link."""
-    msg = Odometry()
-    ns_to_stamp(t_ns, msg.header.stamp)
-    msg.header.frame_id = "map"
+    msg = _stamped(Odometry(), t_ns, "map")
     msg.child_frame_id = "base_link"
     east, north, yaw = (float(v) for v in est.pose)
     msg.pose.pose.position.x = east
@@ -54,9 +62,7 @@ def odometry_msg(est: RadiusEstimate, t_ns: int) -> Odometry:
 
 def radii_msg(est: RadiusEstimate, t_ns: int, nominal_radius_m: float) -> TireRadii:
     """Per-wheel radius error (estimate minus nominal) with its std."""
-    msg = TireRadii()
-    ns_to_stamp(t_ns, msg.header.stamp)
-    msg.header.frame_id = "base_link"
+    msg = _stamped(TireRadii(), t_ns, "base_link")
     msg.nominal_radius_m = float(nominal_radius_m)
     msg.wheel_names = list(est.wheels)
     msg.radius_error_m = [float(v) for v in est.radius_error_m]
@@ -71,9 +77,7 @@ def radii_msg(est: RadiusEstimate, t_ns: int, nominal_radius_m: float) -> TireRa
 
 def stiffness_msg(est: StiffnessEstimate, t_ns: int) -> TireStiffness:
     """Learned axle stiffness, its std, the nominal values and the IMU biases."""
-    msg = TireStiffness()
-    ns_to_stamp(t_ns, msg.header.stamp)
-    msg.header.frame_id = "base_link"
+    msg = _stamped(TireStiffness(), t_ns, "base_link")
     msg.names = list(est.names)
     msg.stiffness = [float(v) for v in est.stiffness]
     msg.stiffness_std = [float(v) for v in est.stiffness_std]
@@ -88,9 +92,7 @@ def stiffness_msg(est: StiffnessEstimate, t_ns: int) -> TireStiffness:
 
 def lateral_msg(est: LateralEstimate, t_ns: int) -> LateralState:
     """Lateral state of base_link; ``source`` names the estimator."""
-    msg = LateralState()
-    ns_to_stamp(t_ns, msg.header.stamp)
-    msg.header.frame_id = "base_link"
+    msg = _stamped(LateralState(), t_ns, "base_link")
     msg.source = str(est.source)
     msg.longitudinal_velocity_m_s = float(est.vx_m_s)
     msg.lateral_velocity_m_s = float(est.vy_m_s)

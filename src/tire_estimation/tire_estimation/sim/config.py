@@ -27,12 +27,16 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 from tire_estimation.core.validation import (
+    BOOL,
+    NON_NEGATIVE,
+    Rule,
+    check_rules,
+    in_range,
+    int_in_range,
     require_finite,
-    require_int_range,
-    require_non_negative,
     require_range,
 )
 from tire_estimation.core.wheels import WHEELS
@@ -117,13 +121,50 @@ class SensorConfig:
     road_grade_amplitude_rad: float = 0.0
     road_grade_wavelength_m: float = 1000.0
 
+    RULES: ClassVar[dict[str, Rule]] = {
+        "wheel_speed_rate_hz": in_range(10.0, 1000.0),
+        "wheel_speed_teeth": int_in_range(4, 1000),
+        "wheel_speed_timer_resolution_s": in_range(0.0, 1e-3),
+        "wheel_speed_timeout_s": in_range(0.0, 10.0),
+        "wheel_speed_time_offset_s": in_range(-1.0, 1.0),
+        "wheel_speed_rear_locked": BOOL,
+        "steering_rate_hz": in_range(1.0, 1000.0),
+        "steering_noise_std_rad": in_range(0.0, 0.1),
+        "steering_resolution_rad": in_range(0.0, 0.1),
+        "steering_offset_rad": in_range(-0.2, 0.2),
+        "imu_rate_hz": in_range(1.0, 2000.0),
+        "gyro_noise_std_rad_s": in_range(0.0, 1.0),
+        "gyro_bias_initial_std_rad_s": in_range(0.0, 1.0),
+        "gyro_bias_random_walk_rad_s_sqrt_s": in_range(0.0, 1.0),
+        "accel_noise_std_m_s2": in_range(0.0, 10.0),
+        "accel_bias_initial_std_m_s2": in_range(0.0, 10.0),
+        "accel_bias_random_walk_m_s2_sqrt_s": in_range(0.0, 10.0),
+        "gnss_rate_hz": in_range(0.1, 100.0),
+        "gnss_white_std_m": in_range(0.0, 100.0),
+        "gnss_white_vertical_std_m": in_range(0.0, 100.0),
+        "gnss_gm_std_m": in_range(0.0, 100.0),
+        "gnss_gm_vertical_std_m": in_range(0.0, 100.0),
+        "gnss_gm_tau_s": in_range(0.01, 1e5),
+        "gnss_covariance_scale": in_range(0.01, 100.0),
+        "gnss_velocity_enabled": BOOL,
+        "gnss_velocity_noise_std_m_s": in_range(0.0, 10.0),
+        "gnss_velocity_vertical_noise_std_m_s": in_range(0.0, 10.0),
+        "gnss_latency_s": in_range(0.0, 2.0),
+        "gnss_velocity_latency_s": in_range(0.0, 2.0),
+        "tire_force_enabled": BOOL,
+        "tire_force_rate_hz": in_range(1.0, 2000.0),
+        "tire_force_noise_fx_n": NON_NEGATIVE,
+        "tire_force_noise_fy_n": NON_NEGATIVE,
+        "tire_force_noise_fz_n": NON_NEGATIVE,
+        "radius_speed_coefficient_m_per_m2_s2": in_range(-1e-4, 1e-4),
+        "radius_load_coefficient_m_per_n": in_range(-1e-4, 1e-4),
+        "road_grade_amplitude_rad": in_range(0.0, 0.3),
+        "road_grade_wavelength_m": in_range(10.0, 1e6),
+    }
+
     def __post_init__(self) -> None:
         p = "sensors."
-        require_range(p + "wheel_speed_rate_hz", self.wheel_speed_rate_hz, 10.0, 1000.0)
-        require_int_range(p + "wheel_speed_teeth", self.wheel_speed_teeth, 4, 1000)
-        require_range(
-            p + "wheel_speed_timer_resolution_s", self.wheel_speed_timer_resolution_s, 0.0, 1e-3
-        )
+        check_rules(self, self.RULES, prefix=p)
         pitch = 2.0 * math.pi / self.wheel_speed_teeth
         require_range(
             p + "wheel_speed_tooth_pitch_error_std_rad",
@@ -131,73 +172,13 @@ class SensorConfig:
             0.0,
             0.1 * pitch,
         )
-        require_range(p + "wheel_speed_timeout_s", self.wheel_speed_timeout_s, 0.0, 10.0)
-        require_range(p + "wheel_speed_time_offset_s", self.wheel_speed_time_offset_s, -1.0, 1.0)
-        require_range(p + "steering_rate_hz", self.steering_rate_hz, 1.0, 1000.0)
-        require_range(p + "steering_noise_std_rad", self.steering_noise_std_rad, 0.0, 0.1)
-        require_range(p + "steering_resolution_rad", self.steering_resolution_rad, 0.0, 0.1)
-        require_range(p + "steering_offset_rad", self.steering_offset_rad, -0.2, 0.2)
-        require_range(p + "imu_rate_hz", self.imu_rate_hz, 1.0, 2000.0)
-        for name in (
-            "gyro_noise_std_rad_s",
-            "gyro_bias_initial_std_rad_s",
-            "gyro_bias_random_walk_rad_s_sqrt_s",
-        ):
-            require_range(p + name, getattr(self, name), 0.0, 1.0)
         _require_vector3(p + "gyro_bias_rad_s", self.gyro_bias_rad_s, 1.0)
-        for name in (
-            "accel_noise_std_m_s2",
-            "accel_bias_initial_std_m_s2",
-            "accel_bias_random_walk_m_s2_sqrt_s",
-        ):
-            require_range(p + name, getattr(self, name), 0.0, 10.0)
-        require_range(p + "gnss_rate_hz", self.gnss_rate_hz, 0.1, 100.0)
-        for name in (
-            "gnss_white_std_m",
-            "gnss_white_vertical_std_m",
-            "gnss_gm_std_m",
-            "gnss_gm_vertical_std_m",
-        ):
-            require_range(p + name, getattr(self, name), 0.0, 100.0)
-        require_range(p + "gnss_gm_tau_s", self.gnss_gm_tau_s, 0.01, 1e5)
-        require_range(p + "gnss_covariance_scale", self.gnss_covariance_scale, 0.01, 100.0)
-        _require_bool(p + "gnss_velocity_enabled", self.gnss_velocity_enabled)
-        _require_bool(p + "wheel_speed_rear_locked", self.wheel_speed_rear_locked)
-        require_range(
-            p + "gnss_velocity_noise_std_m_s", self.gnss_velocity_noise_std_m_s, 0.0, 10.0
-        )
-        require_range(
-            p + "gnss_velocity_vertical_noise_std_m_s",
-            self.gnss_velocity_vertical_noise_std_m_s,
-            0.0,
-            10.0,
-        )
-        require_range(p + "gnss_latency_s", self.gnss_latency_s, 0.0, 2.0)
-        require_range(p + "gnss_velocity_latency_s", self.gnss_velocity_latency_s, 0.0, 2.0)
-        _require_bool(p + "tire_force_enabled", self.tire_force_enabled)
-        require_range(p + "tire_force_rate_hz", self.tire_force_rate_hz, 1.0, 2000.0)
         if not isinstance(self.tire_force_wheels, tuple) or any(
             w not in WHEELS for w in self.tire_force_wheels
         ):
             raise ConfigError(
                 p + "tire_force_wheels", self.tire_force_wheels, f"must be a tuple of {WHEELS}"
             )
-        for name in ("tire_force_noise_fx_n", "tire_force_noise_fy_n", "tire_force_noise_fz_n"):
-            require_non_negative(p + name, getattr(self, name))
-        require_range(
-            p + "radius_speed_coefficient_m_per_m2_s2",
-            self.radius_speed_coefficient_m_per_m2_s2,
-            -1e-4,
-            1e-4,
-        )
-        require_range(
-            p + "radius_load_coefficient_m_per_n",
-            self.radius_load_coefficient_m_per_n,
-            -1e-4,
-            1e-4,
-        )
-        require_range(p + "road_grade_amplitude_rad", self.road_grade_amplitude_rad, 0.0, 0.3)
-        require_range(p + "road_grade_wavelength_m", self.road_grade_wavelength_m, 10.0, 1e6)
 
     @property
     def gnss_total_std_m(self) -> float:
@@ -215,11 +196,6 @@ class SensorConfig:
         out["gyro_bias_rad_s"] = [float(v) for v in self.gyro_bias_rad_s]
         out["tire_force_wheels"] = list(self.tire_force_wheels)
         return out
-
-
-def _require_bool(field: str, value: object) -> None:
-    if not isinstance(value, bool):
-        raise ConfigError(field, value, "must be true or false")
 
 
 def _require_vector3(field: str, value: object, limit: float) -> None:

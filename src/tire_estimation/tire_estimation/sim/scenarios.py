@@ -444,12 +444,19 @@ def _square(t: F64, period_s: float) -> F64:
     return np.where((t % period_s) < 0.5 * period_s, 1.0, -1.0)
 
 
+def _constant_speed_plan(
+    duration_s: float, dt_s: float, speed_m_s: float, opts: Mapping[str, Any]
+) -> tuple[F64, Plan]:
+    """Time grid and base plan of a drive at the constant reference speed ``speed_m_s``."""
+    n, t = _grid(duration_s, dt_s)
+    return t, _base_plan(t, dt_s, np.full(n, speed_m_s), opts)
+
+
 def _build_stiffness_step(
     opts: dict[str, Any], duration_s: float, rng: np.random.Generator, dt_s: float
 ) -> Plan:
-    n, t = _grid(duration_s, dt_s)
     v0 = _number(opts, "speed_m_s", 5.0, 60.0)
-    plan = _base_plan(t, dt_s, np.full(n, v0), opts)
+    t, plan = _constant_speed_plan(duration_s, dt_s, v0, opts)
     # Berntorp & Di Cairano 2018, Sec. VI-A: square-wave steering (period 4 s) and wheel torque
     # (period 5 s); small slip (< 5 %) so the linear tyre model holds.
     plan.steer_cmd_rad = _number(opts, "steer_amplitude_rad", 0.0, 0.2) * _square(t, 4.0)
@@ -477,9 +484,8 @@ def _build_stiffness_step(
 def _build_sine(
     opts: dict[str, Any], duration_s: float, rng: np.random.Generator, dt_s: float
 ) -> Plan:
-    n, t = _grid(duration_s, dt_s)
     v0 = _number(opts, "speed_m_s", 3.0, 60.0)
-    plan = _base_plan(t, dt_s, np.full(n, v0), opts)
+    t, plan = _constant_speed_plan(duration_s, dt_s, v0, opts)
     t0 = _number(opts, "straight_s", 0.0, 1e5)
     f = _number(opts, "sine_frequency_hz", 0.01, 5.0)
     periods = _number(opts, "sine_periods", 0.0, 100.0)
@@ -497,12 +503,11 @@ def _build_sine(
 def _build_lane_change(
     opts: dict[str, Any], duration_s: float, rng: np.random.Generator, dt_s: float
 ) -> Plan:
-    n, t = _grid(duration_s, dt_s)
     v0 = _number(opts, "speed_kmh", 10.0, 150.0) * KMH
-    plan = _base_plan(t, dt_s, np.full(n, v0), opts)
+    t, plan = _constant_speed_plan(duration_s, dt_s, v0, opts)
     amp = _number(opts, "steer_amplitude_rad", 0.0, 0.3)
     period = _number(opts, "lane_change_period_s", 0.5, 20.0)
-    steer = np.zeros(n)
+    steer = np.zeros(t.size)
     tk = 3.0
     while tk < duration_s:
         # double lane change: out (one steering sine period), short straight, back (negated)

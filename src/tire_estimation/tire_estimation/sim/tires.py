@@ -18,8 +18,9 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import ClassVar
 
-from tire_estimation.core.validation import require_range
+from tire_estimation.core.validation import Rule, check_rules, in_range
 
 #: Smallest vertical load used in the force laws (a lifted wheel still gets a tiny D), N.
 MIN_FZ_N = 100.0
@@ -57,23 +58,22 @@ class TireModelConfig:
     max_drive_power_w: float = 110_000.0
     brake_front_share: float = 0.65
 
+    RULES: ClassVar[dict[str, Rule]] = {
+        "nominal_pressure_kpa": in_range(50.0, 1000.0),
+        "pressure_sensitivity_mm_per_kpa": in_range(0.0, 1.0),
+        "radius_offset_std_mm": in_range(0.0, 10.0),
+        "lateral_shape_c": in_range(1.0, 1.9),
+        "lateral_curvature_e": in_range(-5.0, 0.99),
+        "longitudinal_shape_c": in_range(1.0, 1.9),
+        "rolling_resistance_coefficient": in_range(0.0, 0.1),
+        "drag_area_m2": in_range(0.0, 20.0),
+        "air_density_kg_m3": in_range(0.5, 2.0),
+        "max_drive_power_w": in_range(1e3, 1e7),
+        "brake_front_share": in_range(0.0, 1.0),
+    }
+
     def __post_init__(self) -> None:
-        p = "tires."
-        require_range(p + "nominal_pressure_kpa", self.nominal_pressure_kpa, 50.0, 1000.0)
-        require_range(
-            p + "pressure_sensitivity_mm_per_kpa", self.pressure_sensitivity_mm_per_kpa, 0.0, 1.0
-        )
-        require_range(p + "radius_offset_std_mm", self.radius_offset_std_mm, 0.0, 10.0)
-        require_range(p + "lateral_shape_c", self.lateral_shape_c, 1.0, 1.9)
-        require_range(p + "lateral_curvature_e", self.lateral_curvature_e, -5.0, 0.99)
-        require_range(p + "longitudinal_shape_c", self.longitudinal_shape_c, 1.0, 1.9)
-        require_range(
-            p + "rolling_resistance_coefficient", self.rolling_resistance_coefficient, 0.0, 0.1
-        )
-        require_range(p + "drag_area_m2", self.drag_area_m2, 0.0, 20.0)
-        require_range(p + "air_density_kg_m3", self.air_density_kg_m3, 0.5, 2.0)
-        require_range(p + "max_drive_power_w", self.max_drive_power_w, 1e3, 1e7)
-        require_range(p + "brake_front_share", self.brake_front_share, 0.0, 1.0)
+        check_rules(self, self.RULES, prefix="tires.")
 
 
 def magic_formula(x: float, stiffness: float, shape_c: float, peak_d: float, e: float) -> float:

@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 from typing import ClassVar
 
 from tire_estimation.core.validation import (
+    BOOL,
     NON_NEGATIVE,
     POSITIVE,
     Rule,
@@ -126,13 +127,13 @@ class DeflationDetectorConfig:
         "common_threshold_m": in_range(1e-9, 10.0),
         "common_lowpass_time_constant_s": NON_NEGATIVE,
         "common_calibration_average_s": NON_NEGATIVE,
+        "adaptive_threshold": BOOL,
+        "exclude_braking": BOOL,
+        "common_channel": BOOL,
     }
 
     def __post_init__(self) -> None:
         check_rules(self, self.RULES)
-        for name in ("adaptive_threshold", "exclude_braking", "common_channel"):
-            if not isinstance(getattr(self, name), bool):
-                raise ConfigError(name, getattr(self, name), "must be a bool")
         if self.max_speed_m_s <= self.min_speed_m_s:
             raise ConfigError(
                 "max_speed_m_s",

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -33,7 +33,7 @@ from tire_estimation.core.lateral.single_track import (
     first_order_hold,
     steady_state,
 )
-from tire_estimation.core.validation import require_non_negative, require_positive
+from tire_estimation.core.validation import NON_NEGATIVE, POSITIVE, Rule, check_rules
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.errors import InputError
 
@@ -68,19 +68,20 @@ class LinearLateralKFConfig:
     max_gap_s: float = 0.5
     max_input_age_s: float = 0.2
 
+    RULES: ClassVar[dict[str, Rule]] = {
+        "cornering_stiffness_front_n_rad": NON_NEGATIVE,
+        "cornering_stiffness_rear_n_rad": NON_NEGATIVE,
+        "vy_process_std_m_s_sqrt_s": POSITIVE,
+        "yaw_rate_process_std_rad_s_sqrt_s": POSITIVE,
+        "accel_y_std_m_s2": POSITIVE,
+        "yaw_rate_std_rad_s": POSITIVE,
+        "min_speed_m_s": POSITIVE,
+        "max_gap_s": POSITIVE,
+        "max_input_age_s": POSITIVE,
+    }
+
     def __post_init__(self) -> None:
-        for name in ("cornering_stiffness_front_n_rad", "cornering_stiffness_rear_n_rad"):
-            require_non_negative(name, getattr(self, name))
-        for name in (
-            "vy_process_std_m_s_sqrt_s",
-            "yaw_rate_process_std_rad_s_sqrt_s",
-            "accel_y_std_m_s2",
-            "yaw_rate_std_rad_s",
-            "min_speed_m_s",
-            "max_gap_s",
-            "max_input_age_s",
-        ):
-            require_positive(name, getattr(self, name))
+        check_rules(self, self.RULES)
 
 
 class LinearLateralKF:

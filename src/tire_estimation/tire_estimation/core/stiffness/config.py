@@ -14,8 +14,6 @@ from tire_estimation.core.validation import (
     in_range,
     int_in_range,
     one_of,
-    require_choice,
-    require_non_negative,
     require_range,
 )
 
@@ -25,11 +23,12 @@ FIRST_LEARNING = ("mpf", "grid")
 C = TypeVar("C", bound="BaselineConfig")
 
 
-def require_tyre_shape(config: Any) -> None:
-    """Check ``tyre_shape`` and the Magic Formula factors of ``config`` (ConfigError)."""
-    require_choice("tyre_shape", config.tyre_shape, TYRE_SHAPES)
-    require_range("magic_formula_shape_c", config.magic_formula_shape_c, 1.0, 1.9)
-    require_range("magic_formula_curvature_e", config.magic_formula_curvature_e, -5.0, 0.99)
+#: The tyre law's choice and the Magic Formula factors (shared by every config with a tyre law).
+TYRE_SHAPE_RULES: dict[str, Rule] = {
+    "tyre_shape": one_of(TYRE_SHAPES),
+    "magic_formula_shape_c": in_range(1.0, 1.9),
+    "magic_formula_curvature_e": in_range(-5.0, 0.99),
+}
 
 
 @dataclass(frozen=True)
@@ -74,22 +73,25 @@ class BaselineConfig:
     cornering_stiffness_front_n_rad: float = 0.0
     cornering_stiffness_rear_n_rad: float = 0.0
 
+    #: A subclass's table spreads this one (``{**BaselineConfig.RULES, ...}``): the checks
+    #: below run on the subclass's table.
     RULES: ClassVar[dict[str, Rule]] = {
         "initial_stiffness_factor": in_range(0.05, 5.0),
         "initial_stiffness_std_fraction": in_range(1e-4, 5.0),
         "accel_noise_std_m_s2": POSITIVE,
         "gyro_noise_std_rad_s": POSITIVE,
+        "initial_vy_std_m_s": NON_NEGATIVE,
+        "rolling_resistance_n": NON_NEGATIVE,
+        "drag_n_s2_m2": NON_NEGATIVE,
+        **TYRE_SHAPE_RULES,
+        "cornering_stiffness_front_n_rad": in_range(0.0, 1e7),
+        "cornering_stiffness_rear_n_rad": in_range(0.0, 1e7),
     }
 
     def __post_init__(self) -> None:
         check_rules(self, self.RULES)
-        for name in ("initial_vy_std_m_s", "rolling_resistance_n", "drag_n_s2_m2"):
-            require_non_negative(name, getattr(self, name))
         if self.friction_coefficient != 0.0:
             require_range("friction_coefficient", self.friction_coefficient, 0.1, 5.0)
-        require_tyre_shape(self)
-        for name in ("cornering_stiffness_front_n_rad", "cornering_stiffness_rear_n_rad"):
-            require_range(name, getattr(self, name), 0.0, 1e7)
 
     @classmethod
     def sharing(cls: type[C], other: Any, **overrides: Any) -> C:
@@ -190,6 +192,7 @@ class StiffnessEstimatorConfig(BaselineConfig):
     speed_noise_std_m_s: float = 0.02
 
     RULES: ClassVar[dict[str, Rule]] = {
+        **BaselineConfig.RULES,
         "n_particles": int_in_range(1, 1_000_000),
         "forgetting": in_range(0.5, 1.0),
         "state_proposal": one_of(STATE_PROPOSALS),
@@ -201,7 +204,3 @@ class StiffnessEstimatorConfig(BaselineConfig):
         "state_jitter_vx_m_s_sqrt_s": NON_NEGATIVE,
         "stiffness_noise_std_fraction": in_range(1e-5, 5.0),
     }
-
-    def __post_init__(self) -> None:
-        super().__post_init__()
-        check_rules(self, self.RULES)

@@ -28,6 +28,7 @@ from tire_estimation.core.stiffness.model import (
     SingleTrackParams,
     linearize,
     saturation_slip_at,
+    stiffness_bounds,
 )
 
 #: Central-difference steps of the numeric Jacobians in [vX m/s, vY m/s, r rad/s].
@@ -86,6 +87,15 @@ class StiffnessFilter:
     """
 
     initialized: bool = False
+
+    def _set_model(self, config: BaselineConfig, params: SingleTrackParams) -> None:
+        """Keep ``config`` and ``params``, the nominal stiffness ``C_n`` with its bounds, and
+        ``R`` of eq. (12)."""
+        self.config = config
+        self.params = params
+        self.nominal = np.asarray(params.nominal, dtype=float)
+        self.lower, self.upper = stiffness_bounds(self.nominal)
+        self.r_cov = imu_noise_cov(config)
 
     def initialize(self, x0: F64, x0_std: F64) -> None:
         """Start at state ``x0`` (3,) with std ``x0_std`` (3,) and the prior stiffness."""

@@ -62,22 +62,19 @@ from tire_estimation.core.stiffness.filter import (
     FilterEstimate,
     Measurement,
     StiffnessFilter,
-    imu_noise_cov,
     model,
 )
 from tire_estimation.core.stiffness.model import (
     WHEEL_SPEED_NOISE_STD_M_S,
     SingleTrackParams,
     measurement_cov,
-    stiffness_bounds,
 )
 from tire_estimation.core.validation import (
+    NON_NEGATIVE,
     POSITIVE,
     Rule,
-    check_rules,
     in_range,
     int_in_range,
-    require_non_negative,
 )
 
 _LOG_2PI = math.log(2.0 * math.pi)
@@ -156,6 +153,7 @@ class GridConfig(BaselineConfig):
         return self.accel_bias_std_m_s2 > 0.0 or self.gyro_bias_std_rad_s > 0.0
 
     RULES: ClassVar[dict[str, Rule]] = {
+        **BaselineConfig.RULES,
         "grid_points": int_in_range(5, 201),
         "grid_span_sigma": in_range(1.0, 20.0),
         "regrid_min_cells": in_range(0.1, 100.0),
@@ -164,18 +162,11 @@ class GridConfig(BaselineConfig):
         "learn_hold_s": in_range(0.0, 600.0),
         "fit_window_s": POSITIVE,
         "initial_stiffness_std_fraction": POSITIVE,
+        "state_jitter_vx_m_s_sqrt_s": NON_NEGATIVE,
+        "state_jitter_vy_m_s_sqrt_s": NON_NEGATIVE,
+        "state_jitter_yaw_rate_rad_s_sqrt_s": NON_NEGATIVE,
+        **dict.fromkeys(BIAS_FIELDS, NON_NEGATIVE),
     }
-
-    def __post_init__(self) -> None:
-        super().__post_init__()
-        check_rules(self, self.RULES)
-        for name in (
-            "state_jitter_vx_m_s_sqrt_s",
-            "state_jitter_vy_m_s_sqrt_s",
-            "state_jitter_yaw_rate_rad_s_sqrt_s",
-            *self.BIAS_FIELDS,
-        ):
-            require_non_negative(name, getattr(self, name))
 
 
 def lattice(points: int) -> F64:
@@ -217,11 +208,7 @@ class GridEkf(StiffnessFilter):
     """
 
     def __init__(self, config: GridConfig, params: SingleTrackParams) -> None:
-        self.config = config
-        self.params = params
-        self.nominal = np.asarray(params.nominal, dtype=float)
-        self.lower, self.upper = stiffness_bounds(self.nominal)
-        self.r_cov = imu_noise_cov(config)
+        self._set_model(config, params)
         c = config
         jitter = [
             c.state_jitter_vx_m_s_sqrt_s,

@@ -204,14 +204,15 @@ class EceCampaignPlan:
         return float(min(self.detector_calibration_s, limit))
 
 
-def _planned_case(plan: EceCampaignPlan, calibration_s: float, **fields: Any) -> CaseSpec:
-    """A case of ``plan`` with the detector calibration time ``calibration_s``: the plan's
-    estimator overrides (``wheels`` and the ``estimator`` options) and braking source."""
+def _planned_case(plan: EceCampaignPlan, **fields: Any) -> CaseSpec:
+    """A case of ``plan``: its detector calibration time (:meth:`EceCampaignPlan.calibration_s`
+    of the case's ``event_s`` and ``minutes``), the plan's estimator overrides (``wheels`` and
+    the ``estimator`` options) and braking source."""
     est: dict[str, Any] = {"wheels": plan.wheels}
     est.update(plan.estimator)
     return CaseSpec(
         **fields,
-        detector_calibration_s=calibration_s,
+        detector_calibration_s=plan.calibration_s(fields.get("event_s"), fields["minutes"]),
         estimator=est,
         braking_source=plan.braking_source,
     )
@@ -260,11 +261,9 @@ def ece_r64_cases(plan: EceCampaignPlan) -> list[CaseSpec]:
         )
     for i in range(plan.step_cases):
         wheel, sens, gnss, road = factors(i)
-        cal = plan.calibration_s(ev, plan.step_minutes)
         cases.append(
             _planned_case(
                 plan,
-                cal,
                 case_id=f"step-{i:04d}",
                 kind="step",
                 scenario="ece_r64",
@@ -288,11 +287,9 @@ def ece_r64_cases(plan: EceCampaignPlan) -> list[CaseSpec]:
     for i in range(plan.robustness_cases):
         gnss, road = rob_grid[i % len(rob_grid)]
         sens = sens_levels[i % len(sens_levels)]
-        cal = plan.calibration_s(None, plan.robustness_minutes)
         cases.append(
             _planned_case(
                 plan,
-                cal,
                 case_id=f"rob-{i:04d}",
                 kind="robustness",
                 scenario="robustness",
@@ -318,11 +315,9 @@ def ece_r64_cases(plan: EceCampaignPlan) -> list[CaseSpec]:
         picks = tuple(w for w in WHEELS if w in picks)
         rate = float(np.round(rng.uniform(0.8, 2.0), 2))
         sens = sens_levels[i % len(sens_levels)]
-        cal = plan.calibration_s(start_s, plan.diffusion_minutes)
         cases.append(
             _planned_case(
                 plan,
-                cal,
                 case_id=f"diff-{i:04d}",
                 kind="diffusion",
                 scenario="diffusion",
