@@ -114,8 +114,14 @@ class Rule:
         if self.kind == "non_negative":
             return ">= 0"
         if self.kind in ("range", "int_range"):
-            return f"in [{self.low:g}, {self.high:g}]"
+            return f"in [{_number(self.low)}, {_number(self.high)}]"
         return "one of (" + ", ".join(self.choices or ()) + ")"
+
+
+def _number(x: float | None) -> str:
+    """A bound as a user writes it: 1000000, 0.05, 1e-06."""
+    x = float(x)  # type: ignore[arg-type]
+    return str(int(x)) if x.is_integer() and abs(x) < 1e9 else f"{x:g}"
 
 
 BOOL = Rule("bool")

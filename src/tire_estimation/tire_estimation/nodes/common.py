@@ -2,16 +2,17 @@
 
 from __future__ import annotations
 
+import re
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
 import rclpy
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
-from rclpy.exceptions import ParameterException
+from rclpy.exceptions import InvalidParameterValueException, ParameterException
 from rclpy.node import Node
 
-from tire_estimation.errors import TireEstimationError
+from tire_estimation.errors import ConfigError, TireEstimationError
 from tire_estimation.params import ParameterSpec
 from tire_estimation.persistence import Identity, load_state, save_state
 
@@ -36,9 +37,19 @@ def parameter_descriptor(spec: ParameterSpec) -> ParameterDescriptor:
 
 
 def declare_specs(node: Node, specs: Sequence[ParameterSpec]) -> None:
-    """Declare one parameter per spec, with its default and descriptor."""
+    """Declare one parameter per spec, with its default and descriptor.
+
+    A value outside the descriptor's range raises :class:`ConfigError` naming the parameter and
+    the allowed values (rclpy refuses it before the configuration is built).
+    """
     for spec in specs:
-        node.declare_parameter(spec.name, spec.default, parameter_descriptor(spec))
+        try:
+            node.declare_parameter(spec.name, spec.default, parameter_descriptor(spec))
+        except InvalidParameterValueException as exc:
+            # rclpy's message: "Invalid parameter value (VALUE) for parameter. Reason: ..."
+            found = re.search(r"value \((.*)\) for parameter", str(exc.args[0]))
+            value = found.group(1) if found else exc.args[0]
+            raise ConfigError(spec.name, value, f"must be {spec.summary()}") from exc
 
 
 def spin_node(name: str, factory: Callable[[], Any], args: list[str] | None = None) -> None:
