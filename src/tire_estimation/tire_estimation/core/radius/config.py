@@ -146,13 +146,14 @@ class RadiusEstimatorConfig:
             wheel speed ``omega`` is scaled by ``1 + c dFz / r_nominal`` before use, so the
             estimated radius errors are those at static load. In [-1e-4, 1e-4]; default 0 (off);
             about -5e-7 follows from Pacejka's effective-rolling-radius parameters.
-        road_grade_correction_gain: switch of the road-grade correction (the wheels roll along
+        road_grade_correction_gain: gain of the road-grade correction (the wheels roll along
             the slope, GNSS measures the horizontal displacement): the grade ``theta`` is
             estimated online from the GNSS altitude against the wheel-travelled distance and
             every wheel speed is reduced by ``gain (1 - cos theta)`` times its axle's mean speed
             (the distance is corrected, the yaw rate from the left-right difference is not;
-            the fit spans the last 100 m, ``road_grade.ROAD_GRADE_WINDOW_M``).
-            0 = off (default), 1 = the geometric correction; in [0, 5].
+            the fit spans the last 100 m, ``road_grade.ROAD_GRADE_WINDOW_M``; the altitude
+            noise's share of the squared grade is removed, so a flat road gets none on average).
+            1 = the geometric correction (default), 0 = off; in [0, 5].
         rear_brake_slip_s2_per_m: braking slip ``k`` of the rear (non-driven) wheels per unit
             braking deceleration, s^2/m: ``kappa = -k b`` with ``b = max(0, -f_x - a_0)``
             (``f_x`` the longitudinal specific force, IMU when fresh, else the wheel-speed
@@ -194,7 +195,7 @@ class RadiusEstimatorConfig:
     gnss_antenna_offset_y_m: float = 0.0
     radius_speed_coefficient_m_per_m2_s2: float = 0.0
     radius_load_coefficient_m_per_n: float = 0.0
-    road_grade_correction_gain: float = 0.0
+    road_grade_correction_gain: float = 1.0
     rear_brake_slip_s2_per_m: float = 0.0
     seed: int = 0
 
