@@ -61,9 +61,6 @@ CONFIG: dict[str, Any] = {
     # drive fails (d): 0.36 mm at the true gain 1 (filter seeds 0-3) against 2 x 0.12 mm clean;
     # with it the profile's gain 0.71 gives 0.15 mm against 2 x 0.10 mm (clean with it)
     "rear_brake_slip_s2_per_m": 3.5e-3,
-    # the road-grade correction is on by default; here it is not declared, so that the grade
-    # drive tests finding, sizing and closing it like the other effects
-    "road_grade_correction_gain": 0.0,
 }
 #: injected size of each effect (the lever arm is lateral: a forward one is unobservable)
 INJECTED: dict[str, float] = {

@@ -213,16 +213,15 @@ def test_rear_brake_slip_without_imu_uses_the_wheel_deceleration() -> None:
 
 
 def test_every_effect_is_a_config_switch_that_is_off_by_default() -> None:
-    """One object per effect: its field is a ``RadiusEstimatorConfig`` field, 0 by default (the
-    road grade: 1) and checked against the object's limits; names and fields are unique."""
+    """One object per effect: its field is a ``RadiusEstimatorConfig`` field, 0 by default and
+    checked against the object's limits; names and fields are unique."""
     from tire_estimation.core.radius.config import RadiusEstimatorConfig
     from tire_estimation.core.radius.effects import EFFECTS
 
     cfg = RadiusEstimatorConfig()
     assert len({e.name for e in EFFECTS}) == len({e.config_field for e in EFFECTS}) == 9
     for e in EFFECTS:
-        # the road grade is corrected by default (the geometric gain 1), the others are off
-        assert e.value(cfg) == (1.0 if e.name == "road_grade" else 0.0) and 0.0 in e.grid
+        assert e.value(cfg) == 0.0 and 0.0 in e.grid
         hi = e.limits[1]
         with pytest.raises(ConfigError, match=e.config_field):
             RadiusEstimatorConfig(**{e.config_field: hi + 1.0})

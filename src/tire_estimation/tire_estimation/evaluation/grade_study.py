@@ -1,12 +1,10 @@
-"""Rear radii on hilly roads: the defaults (with the road-grade correction) against the same
-filter without it, over seeds.
+"""Rear radii on hilly roads: the defaults against the road-grade correction, over seeds.
 
 Each seed simulates a drive over sinusoidal hills (``SensorConfig.road_grade_amplitude_rad``,
-``road_grade_wavelength_m``) and runs the radius MPF with its defaults
-(``road_grade_correction_gain`` 1: the wheels roll the slope distance, the GNSS sees the
-horizontal one) and with the correction off. Printed per run: each rear radius's final error
-against the truth, in mm and relative to the nominal radius; then the count within
-``--target-pct``.
+``road_grade_wavelength_m``) and runs the radius MPF with its defaults and with
+``road_grade_correction_gain`` 1 (the wheels roll the slope distance, the GNSS sees the
+horizontal one). Printed per run: each rear radius's final error against the truth, in mm and
+relative to the nominal radius; then the count within ``--target-pct``.
 
     python -m tire_estimation.evaluation.grade_study --seeds 20 --amplitude 0.045
 """
@@ -24,8 +22,8 @@ from tire_estimation.evaluation.sim_runs import add_seed_args, run_seeds, write_
 
 #: the configurations compared: name -> radius configuration overrides
 CONFIGS: dict[str, dict[str, float]] = {
-    "no_grade_correction": {"road_grade_correction_gain": 0.0},
     "default": {},
+    "grade_gain_1": {"road_grade_correction_gain": 1.0},
 }
 
 

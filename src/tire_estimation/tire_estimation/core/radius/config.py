@@ -153,7 +153,9 @@ class RadiusEstimatorConfig:
             (the distance is corrected, the yaw rate from the left-right difference is not;
             the fit spans the last 100 m, ``road_grade.ROAD_GRADE_WINDOW_M``; the altitude
             noise's share of the squared grade is removed, so a flat road gets none on average).
-            1 = the geometric correction (default), 0 = off; in [0, 5].
+            0 = off (default), 1 = the geometric correction; in [0, 5]. Off by default: the
+            white-noise share is all it removes, and a consumer receiver's altitude wanders by
+            tens of metres (the Husky drive: grades of up to 26 degrees read on flat ground).
         rear_brake_slip_s2_per_m: braking slip ``k`` of the rear (non-driven) wheels per unit
             braking deceleration, s^2/m: ``kappa = -k b`` with ``b = max(0, -f_x - a_0)``
             (``f_x`` the longitudinal specific force, IMU when fresh, else the wheel-speed
@@ -195,7 +197,7 @@ class RadiusEstimatorConfig:
     gnss_antenna_offset_y_m: float = 0.0
     radius_speed_coefficient_m_per_m2_s2: float = 0.0
     radius_load_coefficient_m_per_n: float = 0.0
-    road_grade_correction_gain: float = 1.0
+    road_grade_correction_gain: float = 0.0
     rear_brake_slip_s2_per_m: float = 0.0
     seed: int = 0
 
