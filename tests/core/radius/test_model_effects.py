@@ -104,34 +104,9 @@ def test_sliding_line_slope_matches_least_squares():
             fit.popleft()
         if k % 97 == 0 and len(fit.pts) >= 5:
             a = np.asarray(fit.pts)
-            x = a[:, 0] - a[0, 0]
-            ref = np.polyfit(x, a[:, 1], 1)
-            sxx = float(np.sum((x - x.mean()) ** 2))
-            var = float(np.sum((a[:, 1] - np.polyval(ref, x)) ** 2)) / (len(x) - 2) / sxx
-            slope, slope_var = fit.slope()
-            assert slope == pytest.approx(ref[0], rel=1e-9, abs=1e-12)
-            assert slope_var == pytest.approx(var, rel=1e-6)
+            ref = np.polyfit(a[:, 0] - a[0, 0], a[:, 1], 1)[0]
+            assert fit.slope() == pytest.approx(ref, rel=1e-9, abs=1e-12)
     assert len(fit.pts) <= 300
-
-
-@pytest.mark.parametrize("grade", [0.0, 0.05])
-def test_the_grade_correction_is_not_biased_by_altitude_noise(grade: float) -> None:
-    """2 m of white altitude noise at 10 Hz and 20 m/s: on a flat road the noise alone would
-    read as 1 - cos(grade) of about 1e-4 (0.03 mm of radius); with its share removed the
-    correction stays near the truth, flat or on a 5 % slope."""
-    from tire_estimation.core.radius.road_grade import RoadGradeFit
-
-    rng = np.random.default_rng(3)
-    fit = RoadGradeFit()
-    raw, debiased = [], []
-    for _ in range(20_000):
-        fit.roll(0.1, 20.0)
-        fit.fix(grade * fit.distance_m + rng.normal(0.0, 2.0))
-        raw.append(1.0 - np.cos(fit.grade_rad))
-        debiased.append(fit.one_minus_cos)
-    truth = 1.0 - np.cos(np.arcsin(grade))
-    assert np.mean(raw) - truth > 3e-5
-    assert abs(np.mean(debiased) - truth) < 1e-5
 
 
 def test_physical_rear_brake_slip_of_the_simulated_vehicle() -> None:

@@ -151,11 +151,10 @@ class RadiusEstimatorConfig:
             estimated online from the GNSS altitude against the wheel-travelled distance and
             every wheel speed is reduced by ``gain (1 - cos theta)`` times its axle's mean speed
             (the distance is corrected, the yaw rate from the left-right difference is not;
-            the fit spans the last 100 m, ``road_grade.ROAD_GRADE_WINDOW_M``; the altitude
-            noise's share of the squared grade is removed, so a flat road gets none on average).
-            0 = off (default), 1 = the geometric correction; in [0, 5]. Off by default: the
-            white-noise share is all it removes, and a consumer receiver's altitude wanders by
-            tens of metres (the Husky drive: grades of up to 26 degrees read on flat ground).
+            the fit spans the last 100 m, ``road_grade.ROAD_GRADE_WINDOW_M``). 0 = off
+            (default), 1 = the geometric correction; in [0, 5]. Off by default: a consumer
+            receiver's altitude wanders by tens of metres (the Husky drive: fitted grades of up
+            to 27 degrees), which the correction would read as hills.
         rear_brake_slip_s2_per_m: braking slip ``k`` of the rear (non-driven) wheels per unit
             braking deceleration, s^2/m: ``kappa = -k b`` with ``b = max(0, -f_x - a_0)``
             (``f_x`` the longitudinal specific force, IMU when fresh, else the wheel-speed

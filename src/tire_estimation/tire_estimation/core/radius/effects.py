@@ -19,6 +19,7 @@ Corrections come in three kinds:
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -146,13 +147,13 @@ def _rear_brake_slip(est: RadiusEstimator, k: float, t_ns: int, ws: F64) -> F64:
 
 def _road_grade(est: RadiusEstimator, gain: float, t_ns: int, ws: F64) -> F64:
     """Horizontal projection of the slope distance with the online grade."""
-    excess = est.grade.one_minus_cos
-    if not excess:
+    grade = est.grade.grade_rad
+    if not grade:
         return ws
     # the wheels roll along the slope, the pose and GNSS are horizontal:
     # ds_horizontal = ds cos(theta); the common mode of each axle is reduced by
     # gain (1 - cos theta), the left-right difference (the yaw rate) is kept
-    eps = gain * excess
+    eps = gain * (1.0 - math.cos(grade))
     mf = 0.5 * float(ws[FL] + ws[FR])
     mr = 0.5 * float(ws[RL] + ws[RR])
     return ws - eps * np.array([mf, mf, mr, mr])

@@ -29,7 +29,7 @@ class SlidingLine:
     def _rebuild(self) -> None:
         s0, z0 = self.pts[0] if self.pts else (0.0, 0.0)
         self._o = (s0, z0)
-        self._n_s = self._n_z = self._n_ss = self._n_sz = self._n_zz = 0.0
+        self._n_s = self._n_z = self._n_ss = self._n_sz = 0.0
         self._updates = 0
         for s, z in self.pts:
             self._add(s, z, 1.0)
@@ -40,7 +40,6 @@ class SlidingLine:
         self._n_z += sign * dz
         self._n_ss += sign * ds * ds
         self._n_sz += sign * ds * dz
-        self._n_zz += sign * dz * dz
 
     def append(self, s: float, z: float) -> None:
         if len(self.pts) >= self.max_points:
@@ -59,18 +58,12 @@ class SlidingLine:
         s, z = self.pts.popleft()
         self._add(s, z, -1.0)
 
-    def slope(self) -> tuple[float, float]:
-        """Least-squares slope ``b = S_sz / S_ss`` and its variance ``sigma^2 / S_ss`` with the
-        residual variance ``sigma^2 = (S_zz - b S_sz) / (n - 2)`` (``S`` sums about the means);
-        NaN if degenerate."""
+    def slope(self) -> float:
+        """``sum (s - s_mean)(z - z_mean) / sum (s - s_mean)^2`` (NaN if degenerate)."""
         n = len(self.pts)
         sxx = self._n_ss - self._n_s * self._n_s / n
-        if sxx <= 0.0 or n < 3:
-            return math.nan, math.nan
         sxz = self._n_sz - self._n_s * self._n_z / n
-        szz = self._n_zz - self._n_z * self._n_z / n
-        b = sxz / sxx
-        return b, max(szz - b * sxz, 0.0) / (n - 2) / sxx
+        return sxz / sxx if sxx > 0.0 else math.nan
 
 
 class RoadGradeFit:
@@ -82,9 +75,6 @@ class RoadGradeFit:
         self._fit = SlidingLine(GRADE_MAX_POINTS)
         #: online grade (positive uphill), rad; 0 until a window of fixes is available
         self.grade_rad = 0.0
-        #: ``1 - cos(grade)``, the part of the slope distance that is not horizontal, estimated
-        #: without bias from the altitude noise: 0 on average on a flat road
-        self.one_minus_cos = 0.0
 
     def roll(self, dt_s: float, rolled_m_s: float) -> None:
         """Add ``dt_s`` at the rolling speed ``rolled_m_s`` to the distance."""
@@ -102,13 +92,6 @@ class RoadGradeFit:
         if len(pts) < 5 or pts[-1][0] - pts[0][0] < 0.5 * window:
             return  # keep the last estimate (standstill, start)
         # sin(theta) = dz / ds along the slope distance s (least-squares slope)
-        sin_grade, var = fit.slope()
+        sin_grade = fit.slope()
         if math.isfinite(sin_grade):
-            sin_grade = min(0.5, max(-0.5, sin_grade))
-            self.grade_rad = math.asin(sin_grade)
-            # 1 - cos(theta) = 1 - sqrt(1 - sin^2 theta) with the noise's share of the squared
-            # slope removed: E[b^2] = sin^2 theta + var(b), so b^2 - var(b) is unbiased and an
-            # altitude scatter alone does not read as a grade (slightly negative on a flat road
-            # at times: the corrections average out there)
-            sin2 = sin_grade * sin_grade - var if math.isfinite(var) else 0.0
-            self.one_minus_cos = 1.0 - math.sqrt(1.0 - sin2) if sin2 > 0.0 else 0.5 * sin2
+            self.grade_rad = math.asin(min(0.5, max(-0.5, sin_grade)))
