@@ -46,8 +46,6 @@ NumPy functions of :mod:`.student_t`.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 from numpy.typing import NDArray
 
@@ -65,6 +63,7 @@ from tire_estimation.core.stiffness.model import (
     saturation_slip_at,
     stiffness_bounds,
 )
+from tire_estimation.core.stiffness.mpf_outcomes import Measured, MpfEstimate
 from tire_estimation.core.stiffness.proposal import (
     marginal_maha_logdet,
     measured_state_proposal,
@@ -72,6 +71,7 @@ from tire_estimation.core.stiffness.proposal import (
 from tire_estimation.core.stiffness.student_t import (
     NE,
     NW,
+    LikelihoodParams,
     bias_update,
     conditional_predictive,
     freeze_component,
@@ -114,34 +114,6 @@ def imu_bias_covariances(config: StiffnessEstimatorConfig) -> tuple[F64, F64]:
     a0, g0 = on * ACCEL_BIAS_STD_M_S2, on * GYRO_BIAS_STD_RAD_S
     aw, gw = on * ACCEL_BIAS_WALK_M_S2_SQRT_S, on * GYRO_BIAS_WALK_RAD_S_SQRT_S
     return np.diag([a0**2, a0**2, g0**2]), np.diag([aw**2, aw**2, gw**2])
-
-
-@dataclass(frozen=True)
-class MpfEstimate:
-    """Weighted estimates of Algorithm 1 (eq. 27, 42).
-
-    Attributes:
-        stiffness: C_n + mu_hat (eq. 7, 27a), (3,).
-        stiffness_std: sqrt(diag(Sigma_hat)) of eq. (27b), (3,).
-        mean_std: std of the posterior of the mean mu, (3,).
-        state: weighted mean [vX, vY, r] (eq. 42), (3,).
-        state_cov: weighted covariance of the state, (3, 3).
-        bias: weighted mean bias [b_ax, b_ay, b_r], (3,).
-        n_eff: effective sample size before the last resampling decision.
-    """
-
-    stiffness: F64
-    stiffness_std: F64
-    mean_std: F64
-    state: F64
-    state_cov: F64
-    bias: F64
-    n_eff: float
-
-
-#: What :meth:`StiffnessMpf._propose_measured` returns: the log proposal weights (N,), the rows
-#: of ``y`` weighed with the Student-t, and the weighted gyro NIS.
-Measured = tuple[F64, tuple[int, ...], float]
 
 
 class StiffnessMpf:
@@ -470,6 +442,22 @@ class StiffnessMpf:
         self.weights, log_pred = resampling.normalize_log_weights(self.log_w)
         self._add_evidence(log_pred)
         self.n_eff = resampling.ess(self.weights)
+        self._sample_and_learn(lin, e_bar, r_cov, lp, maha, n_meas, learn, freeze_before)
+
+    def _sample_and_learn(
+        self,
+        lin: Linearized,
+        e_bar: F64,
+        r_cov: F64,
+        lp: LikelihoodParams,
+        maha: F64,
+        n_meas: int,
+        learn: bool,
+        freeze_before: niw.NiwStats | None,
+    ) -> None:
+        """Algorithm 1 after the weights are normalized: resample, draw ``w_k``, update the NiW
+        statistics and the IMU bias, store the derivative (lines 8-18). ``n_meas`` is the
+        number of measured rows the Student-t marginal was taken over."""
         if not np.all(np.isfinite(self.weights)):
             self.weights = np.full(self.n, 1.0 / self.n)
         beta = 0.0
