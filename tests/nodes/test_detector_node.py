@@ -308,3 +308,51 @@ def test_detector_node_reports_a_common_channel_alarm(tmp_path: Path) -> None:
         node.destroy_node()
     finally:
         rclpy.shutdown(context=context)
+
+
+def test_detector_node_survives_stamps_that_jump(tmp_path: Path) -> None:
+    """One TireRadii two hours ahead is dropped and counted; a clock stepped back ten minutes
+    is adopted: calibration goes on and the published stamps follow the topics' clock."""
+    rclpy, msg_mod, nav_msgs, rclpy_parameter, node_mod = import_ros(
+        "rclpy",
+        "tire_estimation_msgs.msg",
+        "nav_msgs.msg",
+        "rclpy.parameter",
+        "tire_estimation.nodes.detector_node",
+    )
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    try:
+        node = node_mod.DetectorNode(
+            context=context,
+            parameter_overrides=_params(rclpy_parameter.Parameter, tmp_path, **{
+                "detector.calibration_time_s": 600.0,
+                "detector.calibration_average_s": 60.0,
+            }),
+        )  # fmt: skip
+        published: list[Any] = []
+        node.pub_status.publish = published.append
+        feed = Feeder(msg_mod, nav_msgs.Odometry)
+        feed.drive(node, 5.0, MU_CAL)
+        driven_s = node.detector.status().calibrated_driving_time_s
+        assert driven_s > 3.0
+
+        future = feed.radii(MU_CAL)
+        future.header.stamp.sec += 7200
+        node.on_tire_radii(future)
+        feed.drive(node, 5.0, MU_CAL)
+        assert node.dropped["tire_radii:clock_jump"] == 1
+        assert node.detector.status().calibrated_driving_time_s == pytest.approx(
+            driven_s + 5.0, abs=0.3
+        )
+
+        feed.t_ns -= 600 * S  # the clock steps back ten minutes
+        feed.drive(node, 5.0, MU_CAL)
+        assert node.detector.status().calibrated_driving_time_s == pytest.approx(
+            driven_s + 10.0, abs=1.0
+        )
+        last = published[-1].header.stamp
+        assert last.sec * S + last.nanosec == feed.t_ns
+        node.destroy_node()
+    finally:
+        rclpy.shutdown(context=context)

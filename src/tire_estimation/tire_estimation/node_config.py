@@ -74,6 +74,9 @@ class EstimatorNodeOptions(PersistentNodeOptions):
             this long after the wheel speeds of a later stamp (so a live run computes what a
             replay of its recording computes); every output is delayed by as much, s.
             Default 0.05.
+        max_clock_jump_s: a sample stamped more than this before or after the newest one is
+            held; five agreeing ones make a new clock (a clock reset), an isolated one is
+            dropped as ``<stream>:clock_jump``, s. Default 5.
     """
 
     persistence_file: str = "~/.ros/tire_estimation/learned_radii.json"
@@ -86,10 +89,12 @@ class EstimatorNodeOptions(PersistentNodeOptions):
     diagnostics_period_s: float = 1.0
     sensor_qos: str = "sensor_data"
     reorder_delay_s: float = 0.05
+    max_clock_jump_s: float = 5.0
 
     RULES: ClassVar[dict[str, Rule]] = {
         **PersistentNodeOptions.RULES,
         "reorder_delay_s": NON_NEGATIVE,
+        "max_clock_jump_s": POSITIVE,
         "odometry_publish_period_s": NON_NEGATIVE,
         "radii_publish_period_s": POSITIVE,
         "lateral_publish_period_s": NON_NEGATIVE,

@@ -3,7 +3,9 @@
 The estimator node, the bag replay and the campaigns push the same typed samples
 (:mod:`tire_estimation.core.samples`) into an :class:`EstimationPipeline`. It owns
 
-* the stamp ordering (:class:`~tire_estimation.core.ordering.ReorderBuffer`),
+* stamps that jump (:class:`~tire_estimation.core.clock.ClockGuard`: a far sample is held,
+  a new clock adopted after a run of agreeing samples; outputs carry the stream's own clock)
+  and the stamp ordering (:class:`~tire_estimation.core.ordering.ReorderBuffer`),
 * the routing of each sample to the estimators that use it: the tyre-radius MPF
   (:class:`~tire_estimation.core.radius.estimator.RadiusEstimator`), the tyre-force lateral KF
   (:class:`~tire_estimation.core.lateral.tyre_force_kf.TyreForceEstimator`), the stiffness MPF
@@ -28,11 +30,12 @@ from __future__ import annotations
 import math
 from collections import Counter
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, ClassVar, Protocol
 
 import numpy as np
 
+from tire_estimation.core.clock import ClockGuard, ClockGuardConfig
 from tire_estimation.core.deflation.config import DeflationDetectorConfig
 from tire_estimation.core.deflation.monitor import DeflationMonitor, MonitorConfig, MonitorStep
 from tire_estimation.core.deflation.status import RadiusErrors
@@ -111,6 +114,8 @@ class PipelineConfig:
         reorder_delay_s: the lag behind the wheel speeds (or measured speed) up to which a
             sample of another stream is still processed in stamp order, s; it delays every
             output by as much. Default 0.05.
+        clock: when a stamp is far enough from the others to be held, and when a new clock
+            is adopted.
     """
 
     seed: int = 0
@@ -122,6 +127,7 @@ class PipelineConfig:
     periods: PublishPeriods = field(default_factory=PublishPeriods)
     max_hold_s: float = 0.5
     reorder_delay_s: float = 0.05
+    clock: ClockGuardConfig = field(default_factory=ClockGuardConfig)
 
     RULES: ClassVar[dict[str, Rule]] = {
         "max_hold_s": NON_NEGATIVE,
@@ -260,6 +266,8 @@ class EstimationPipeline:
             self.monitor = DeflationMonitor(config.detector, config.monitor)
         self.baselines: dict[str, LateralBaseline] = dict(baselines or {})
         self.observers: list[Observer] = list(observers)
+        #: per-stream clock offsets in front of the ordering
+        self.clock: ClockGuard[Sample] = ClockGuard(config.clock)
         self.buffer = ReorderBuffer(
             round(config.max_hold_s * 1e9), round(config.reorder_delay_s * 1e9)
         )
@@ -284,9 +292,18 @@ class EstimationPipeline:
         """Take one sample; process what the stamp order allows; return the outputs due."""
         self.received[sample.KIND] += 1
         out: list[Output] = []
-        for ready in self.buffer.push(sample):
-            self._process(ready, out)
+        for t_ns, admitted in self.clock.admit(sample.KIND, sample.t_ns, sample):
+            self._order(admitted if t_ns == admitted.t_ns else replace(admitted, t_ns=t_ns), out)
         return out
+
+    def _order(self, sample: Sample, out: list[Output]) -> None:
+        """Through the ordering buffer and the estimators; outputs in the stream's own clock."""
+        for ready in self.buffer.push(sample):
+            n_before = len(out)
+            self._process(ready, out)
+            offset_ns = self.clock.offset_ns(ready.KIND)
+            if offset_ns and len(out) > n_before:
+                out[n_before:] = [replace(o, t_ns=o.t_ns - offset_ns) for o in out[n_before:]]
 
     def push_ordered(self, samples: Iterable[Sample]) -> None:
         """Process samples that are already in :func:`~tire_estimation.core.samples.order_key`
@@ -297,17 +314,22 @@ class EstimationPipeline:
         :meth:`flush`. The outputs go to the observers."""
         received = self.received
         process = self._process
+        admit = self.clock.admit
+        buffer = self.buffer
         last: tuple[int, int] | None = None
         out: list[Output] = []
         for sample in samples:
-            key = (sample.t_ns, sample.PRIORITY)
-            if len(self.buffer) == 0 and (last is None or key > last):
-                last = key
-                received[sample.KIND] += 1
-                process(sample, out)
+            received[sample.KIND] += 1
+            for t_ns, admitted in admit(sample.KIND, sample.t_ns, sample):
+                if t_ns != admitted.t_ns:
+                    admitted = replace(admitted, t_ns=t_ns)
+                key = (t_ns, admitted.PRIORITY)
+                if len(buffer) == 0 and (last is None or key > last):
+                    last = key
+                    process(admitted, out)
+                else:
+                    self._order(admitted, out)
                 out.clear()
-            else:
-                self.push(sample)
         self.flush()
 
     def push_all(self, samples: Iterable[Sample]) -> None:
@@ -318,7 +340,9 @@ class EstimationPipeline:
         self.flush()
 
     def flush(self) -> list[Output]:
-        """Process the samples still held for ordering (at the end of a recording)."""
+        """Process the samples still held for ordering (at the end of a recording); suspects
+        of the clock guard that no new clock confirmed are dropped."""
+        self.clock.discard_held()
         out: list[Output] = []
         for ready in self.buffer.flush():
             self._process(ready, out)

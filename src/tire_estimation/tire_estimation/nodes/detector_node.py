@@ -25,6 +25,7 @@ from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from std_srvs.srv import Trigger
 
+from tire_estimation.core.clock import ClockGuard
 from tire_estimation.core.deflation.config import DeflationDetectorConfig
 from tire_estimation.core.deflation.monitor import DeflationMonitor
 from tire_estimation.core.deflation.status import DeflationStatusData, RadiusErrors
@@ -61,7 +62,10 @@ class DetectorNode(Node):
         self.received: Counter[str] = Counter()
         self.dropped: Counter[str] = Counter()
         self.events = self.monitor.events
-        self._last_radii_ns: int | None = None  # stamp of the last TireRadii
+        # stamps that jump: a far one is held, a run of agreeing ones makes a new clock; the
+        # detector runs on the guard's continuous time, published stamps on the topics' clock
+        self._stamps: ClockGuard[Callable[[int], None]] = ClockGuard()
+        self._last_radii_ns: int | None = None  # guard time of the last TireRadii
         self._last_radii_clock_ns = 0  # node clock when it arrived
         self._last_status: DeflationStatusData | None = None
 
@@ -156,18 +160,37 @@ class DetectorNode(Node):
 
         return callback
 
+    def _admit(self, stream: str, t_ns: int, apply: Callable[[int], None]) -> None:
+        """Through the clock guard: apply what it releases, each at its guard time."""
+        for u_ns, apply_at in self._stamps.admit(stream, t_ns, apply):
+            try:
+                apply_at(u_ns)
+            except InputError as exc:
+                self.dropped[f"{stream}:{exc.kind}"] += 1
+        if self._stamps.dropped[stream]:
+            self.dropped[f"{stream}:clock_jump"] = self._stamps.dropped[stream]
+
     def _on_odometry(self, msg: Odometry) -> None:
-        self.monitor.on_odometry(conv.stamp_ns(msg.header), float(msg.twist.twist.linear.x))
+        speed_m_s = float(msg.twist.twist.linear.x)
+        self._admit(
+            "odometry",
+            conv.stamp_ns(msg.header),
+            lambda t_ns: self.monitor.on_odometry(t_ns, speed_m_s),
+        )
 
     def _on_radii(self, msg: TireRadii) -> None:
-        t_ns = conv.stamp_ns(msg.header)
-        radii = RadiusErrors(
-            t_ns,
-            list(msg.wheel_names),
-            list(msg.radius_error_m),
-            list(msg.radius_error_std_m),
-            list(msg.active),
+        names = list(msg.wheel_names)
+        errors_m = list(msg.radius_error_m)
+        stds_m = list(msg.radius_error_std_m)
+        active = list(msg.active)
+        self._admit(
+            "tire_radii",
+            conv.stamp_ns(msg.header),
+            lambda t_ns: self._radii_at(RadiusErrors(t_ns, names, errors_m, stds_m, active)),
         )
+
+    def _radii_at(self, radii: RadiusErrors) -> None:
+        t_ns = radii.t_ns
         step = self.monitor.on_radii(radii)
         if step is None:
             return
@@ -195,8 +218,10 @@ class DetectorNode(Node):
     # --- outputs ----------------------------------------------------------------------------
     def _status_msg(self, status: DeflationStatusData) -> DeflationStatus:
         msg = DeflationStatus()
+        # the detector's time is the guard's; the message carries the topics' clock
+        offset_ns = self._stamps.offset_ns("tire_radii")
         if status.t_ns is not None:
-            conv.ns_to_stamp(status.t_ns, msg.header.stamp)
+            conv.ns_to_stamp(status.t_ns - offset_ns, msg.header.stamp)
         msg.header.frame_id = "base_link"
         msg.calibration_state = int(status.calibration_state)
         msg.calibration_progress = float(status.calibration_progress)
@@ -210,7 +235,7 @@ class DetectorNode(Node):
             entry.cusum = float(w.cusum_m)
             entry.threshold = float(w.threshold_m)
             entry.alarm = bool(w.alarm)
-            entry.alarm_time_s = 0.0 if w.alarm_t_ns is None else w.alarm_t_ns * 1e-9
+            entry.alarm_time_s = 0.0 if w.alarm_t_ns is None else (w.alarm_t_ns - offset_ns) * 1e-9
             msg.wheels.append(entry)
         return msg
 

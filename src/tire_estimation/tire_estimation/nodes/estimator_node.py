@@ -31,6 +31,7 @@ from rclpy.qos import QoSProfile, qos_profile_sensor_data
 from sensor_msgs.msg import Imu, JointState, NavSatFix
 from std_srvs.srv import Trigger
 
+from tire_estimation.core.clock import ClockGuardConfig
 from tire_estimation.core.lateral.tyre_force_kf import TyreForceKFConfig
 from tire_estimation.core.pipeline import (
     EstimationPipeline,
@@ -86,6 +87,7 @@ class EstimatorNode(Node):
                 else None,
                 periods=periods_of(opts),
                 reorder_delay_s=opts.reorder_delay_s,
+                clock=ClockGuardConfig(max_jump_s=opts.max_clock_jump_s),
             ),
             self.vehicle,
         )

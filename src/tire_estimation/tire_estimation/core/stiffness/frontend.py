@@ -264,7 +264,8 @@ class StiffnessFrontEnd(Generic[F]):
 
     def _fresh(self, stream: str, t_ns: int) -> bool:
         last = self._last[stream]
-        return last is not None and (t_ns - last) * 1e-9 <= MAX_INPUT_AGE_S
+        # an input stamped after the IMU sample is not fresh: its age would be negative
+        return last is not None and 0 <= t_ns - last <= MAX_INPUT_AGE_S * 1e9
 
     def on_wheel_speeds(self, t_ns: int, wheel_speed_rad_s: Any) -> None:
         """Wheel speeds (fl, fr, rl, rr), rad/s."""
