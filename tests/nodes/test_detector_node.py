@@ -310,6 +310,66 @@ def test_detector_node_reports_a_common_channel_alarm(tmp_path: Path) -> None:
         rclpy.shutdown(context=context)
 
 
+def _detector_file(calibrated_m: str, g_m: str) -> str:
+    """A saved detector state whose rear-left wheel is calibrated at ``calibrated_m`` with the
+    CUSUM sum ``g_m`` (JSON number texts)."""
+    wheel = (
+        '{"calib_time_s": 20.0, "calib_sum_w": 5.0, "calib_sum_wx": 0.0, '
+        f'"calibrated_m": {calibrated_m}, "calibration_t_ns": {T0}, "common_sum_w": 0.0, '
+        '"common_sum_wx": 0.0, "common_calibrated_m": null, "lp_m": 0.0, "xbar_m": 0.0, '
+        f'"raw_m": 0.0, "g_m": {g_m}, "threshold_m": 0.009, "alarm_t_ns": null, '
+        '"last_estimate_m": 0.0}'
+    )
+    return (
+        '{"format_version": 1, "vehicle_name": "test_car", "tire_set_id": "summer", '
+        '"state": {"version": 1, "driving_time_s": 30.0, "t_last_ns": null, '
+        f'"wheels": {{"wheel_rl": {wheel}}}}}}}'
+    )
+
+
+@pytest.mark.parametrize(
+    ("content", "reason"),
+    [
+        (_detector_file("0.0", "9" * 500), "500 digits"),  # crashed the node at start
+        (_detector_file("0.5", "1e29"), "calibrated_m=0.5"),  # restored and published
+    ],
+    ids=["500-digit integer", "calibrated 0.5 m, CUSUM 1e29 m"],
+)
+def test_detector_node_starts_on_a_corrupt_file_and_publishes_finite_status(
+    tmp_path: Path, content: str, reason: str
+) -> None:
+    rclpy, msg_mod, nav_msgs, rclpy_parameter, node_mod = import_ros(
+        "rclpy",
+        "tire_estimation_msgs.msg",
+        "nav_msgs.msg",
+        "rclpy.parameter",
+        "tire_estimation.nodes.detector_node",
+    )
+    (tmp_path / "deflation.json").write_text(content)
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    try:
+        node = node_mod.DetectorNode(
+            context=context, parameter_overrides=_params(rclpy_parameter.Parameter, tmp_path)
+        )
+        assert node._persist_note.startswith("rejected") and reason in node._persist_note
+        main = _by_name(node.diagnostic_statuses())["tire_estimation: deflation detector"]
+        assert _diag_values(main)["persistence"] == node._persist_note
+        assert node.detector.calibration_state.name == "NOT_STARTED"
+        published: list[Any] = []
+        node.pub_status.publish = published.append  # capture instead of DDS
+        Feeder(msg_mod, nav_msgs.Odometry).drive(node, 5.0, MU_CAL)
+        assert len(published) == 50
+        for msg in published:
+            assert not msg.any_alarm and msg.calibration_state != 2  # not DONE
+            for w in msg.wheels:
+                values = (w.radius_change_m, w.cusum, w.threshold)
+                assert all(math.isfinite(v) and abs(v) < 0.1 for v in values)
+        node.destroy_node()
+    finally:
+        rclpy.shutdown(context=context)
+
+
 def test_detector_node_survives_stamps_that_jump(tmp_path: Path) -> None:
     """One TireRadii two hours ahead is dropped and counted; a clock stepped back ten minutes
     is adopted: calibration goes on and the published stamps follow the topics' clock."""

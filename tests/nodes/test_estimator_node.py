@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import copy
+import json
 import math
 from pathlib import Path
 from typing import Any
@@ -191,6 +193,58 @@ def test_radii_persist_across_restarts_and_reset_forgets(ros: Any, tmp_path: Pat
     est = again.estimator.estimate()
     assert np.allclose(est.radius_error_m, 0.0, atol=1e-12)
     again.destroy_node()
+
+
+def _corrupt_files(good: dict[str, Any]) -> dict[str, str]:
+    """Persistence files that crashed the node at start or left its filter NaN or absurd."""
+
+    def payload(state: Any) -> str:
+        return json.dumps(
+            {"format_version": 1, "vehicle_name": "test_car", "tire_set_id": "default",
+             "saved_unix_s": 1.7e9, "state": state}
+        )  # fmt: skip
+
+    zero_noise = copy.deepcopy(good)
+    zero_noise["radius"]["rear"]["noise_cov_m2"] = [[0.0, 0.0], [0.0, 0.0]]
+    far = copy.deepcopy(good)
+    far["radius"]["rear"]["mean_m"] = [0.02, -0.02]
+    text = payload(good)
+    return {
+        "deep nesting": '{"state": ' + "[" * 100_000 + "]" * 100_000 + "}",
+        "500-digit integer": text.replace('"dof": 10.0', '"dof": ' + "9" * 500, 1),
+        "zero noise covariance": payload(zero_noise),
+        "radius errors of +-20 mm": payload(far),
+    }
+
+
+@pytest.mark.parametrize(
+    "corruption",
+    ["deep nesting", "500-digit integer", "zero noise covariance", "radius errors of +-20 mm"],
+)
+def test_a_corrupt_persistence_file_is_rejected_and_the_node_publishes_finite_radii(
+    ros: Any, tmp_path: Path, corruption: str
+) -> None:
+    probe = _node(ros, tmp_path, persistence_file="")
+    good = probe._learned.state_dict()
+    probe.destroy_node()
+    assert '"dof": 10.0' in json.dumps(good)
+    (tmp_path / "radii.json").write_text(_corrupt_files(good)[corruption])
+    node = _node(ros, tmp_path)  # starts: no RecursionError / OverflowError
+    assert "rejected" in node._persist_note and "radius restored" not in node._persist_note
+    assert "rejected" in _diag_values(node)["persistence"]
+    published: list[Any] = []
+    node.pub_radii.publish = published.append  # capture instead of DDS
+    _drive(_callbacks(node), 1_000_000_000_000, 20.0)
+    from tire_estimation_msgs.msg import TireRadii
+
+    running = [m for m in published if m.state == TireRadii.STATE_RUNNING]
+    assert running, "the estimator never ran"
+    for msg in running:
+        assert all(math.isfinite(v) and abs(v) < 0.0155 for v in msg.radius_error_m)
+        assert all(0.0 < v < 0.01 for v in msg.radius_error_std_m)  # not the NaN fallback
+    st = node.estimator.mpf.stats
+    assert all(np.all(np.isfinite(a)) for a in (st.mean, st.scale, st.gamma, st.dof))
+    node.destroy_node()
 
 
 def test_tire_forces_drive_the_lateral_state(ros: Any, tmp_path: Path) -> None:

@@ -43,3 +43,8 @@ class BagError(TireEstimationError):
 
 class ScenarioError(TireEstimationError, ValueError):
     """An unknown simulation scenario or an invalid scenario option."""
+
+
+class StateFileError(TireEstimationError, ValueError):
+    """A persistence file cannot be read safely: too large, nested too deep, not UTF-8 JSON,
+    non-finite or absurdly large numbers, duplicate keys."""

@@ -9,11 +9,8 @@ and atomically; a failed run removes any stale one, so no partial report looks l
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
-import os
 import sys
-import tempfile
 import time
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
@@ -23,6 +20,7 @@ from typing import Any, TypeVar
 import numpy as np
 import yaml
 
+from tire_estimation.atomic_io import atomic_write_json, atomic_write_text
 from tire_estimation.bag import topics
 from tire_estimation.bag.reader import BagData, TopicInfo, read_bag
 from tire_estimation.core import yamlio
@@ -334,17 +332,6 @@ def _reference_positions(
     return None, "none"
 
 
-def _atomic_json(path: Path, payload: dict[str, Any]) -> None:
-    fd, tmp = tempfile.mkstemp(prefix=".metrics", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w") as fh:
-            json.dump(payload, fh, indent=2, allow_nan=False)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
 def _clean(obj: Any) -> Any:
     """JSON-safe copy: numpy scalars to Python, non-finite floats to None."""
     if isinstance(obj, dict):
@@ -535,7 +522,7 @@ def run_replay(
         if "stiffness_mpf" in imu_lateral:
             write_lateral_plots(out, bag, imu_lateral)
     metrics["plots"] = sorted(p.name for p in out.glob("*.png")) if plots else []
-    _atomic_json(stale, _clean(metrics))
+    atomic_write_json(stale, _clean(metrics), allow_nan=False)
     return ReplayReport(out, _clean(metrics))
 
 
@@ -844,7 +831,7 @@ def _close_loop(
     text += yaml.safe_dump({NODE_NAME: {"ros__parameters": params}}, sort_keys=True)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(text)
+        atomic_write_text(path, text)
     except OSError as exc:
         raise ConfigError("--write-config", str(path), f"cannot write: {exc}") from exc
     return {

@@ -88,6 +88,44 @@ def test_state_dict_roundtrip_and_reset() -> None:
     assert est.estimate().reason == "not initialized"
 
 
+_ZERO3 = [[0.0] * 3 for _ in range(3)]
+
+
+_BAD_STATES = [
+    ("noise_cov", _ZERO3, "not positive definite"),
+    ("mean_cov", [[-1.0 if i == j else 0.0 for j in range(3)] for i in range(3)],
+     "not positive definite"),
+    ("noise_cov", [[1e20 if i == j else 0.0 for j in range(3)] for i in range(3)],
+     "standard deviations"),
+    ("dof", 1e308, "dof"),
+    ("dof", int("9" * 500), "too large"),
+    ("dof", float("nan"), "not finite"),
+    ("mean", [1.5e6, 0.0, 0.0], "stiffness bounds"),
+    ("mean", [0.0, -1e5, 0.0], "stiffness bounds"),
+    ("mean", [0.0, 0.0], "list of 3"),
+    ("names", ["a", "b", "c"], "names"),
+    ("version", 2, "version"),
+    ("extra", 1, "unknown keys extra"),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("key", "value", "reason"), _BAD_STATES, ids=[f"{k} {r}" for k, _, r in _BAD_STATES]
+)
+def test_an_implausible_state_is_rejected_and_changes_nothing(
+    key: str, value: object, reason: str
+) -> None:
+    est = _est()
+    _straight(est, 1.0, steer=0.02)
+    before = est.state_dict()
+    with pytest.raises(InputError, match=reason) as info:
+        est.load_state_dict({**before, key: value})
+    assert info.value.kind == "state"
+    assert est.state_dict() == before
+    st = est.mpf.stats
+    assert all(np.all(np.isfinite(a)) for a in (st.mean, st.scale, st.gamma, st.dof))
+
+
 def test_rear_drive_from_the_vehicle() -> None:
     est = StiffnessEstimator(
         StiffnessEstimatorConfig(n_particles=10),

@@ -20,6 +20,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from tire_estimation.atomic_io import atomic_write_text
+
 #: the deadline of an alarm after the step, s (ECE R-64)
 DEADLINE_S = 600.0
 
@@ -100,7 +102,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 f"{row['drive']}: {'ok' if row['ok'] else 'FAILED'} "
                 f"(alarms: {alarms or 'none'}; armed {row['armed']}; {row['wall_s']:.0f} s)"
             )
-    (args.out / "summary.json").write_text(json.dumps(rows, indent=2))
+    atomic_write_text(args.out / "summary.json", json.dumps(rows, indent=2))
     return 0 if all(r["ok"] for r in rows) else 1
 
 

@@ -43,6 +43,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from tire_estimation.atomic_io import atomic_write_text
 from tire_estimation.core.arrays import F64
 from tire_estimation.core.lateral.tyre_force_kf import TyreForceKFConfig
 from tire_estimation.core.pipeline import EstimationPipeline, Output, PipelineConfig
@@ -460,7 +461,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         with_sensitivity=not args.no_sensitivity,
         mpf_particles=args.particles,
     )
-    (out / "lateral_tyre.json").write_text(json.dumps(result, indent=2))
+    atomic_write_text(out / "lateral_tyre.json", json.dumps(result, indent=2))
     print(json.dumps(result["summary_mean_over_seeds"], indent=2))
     return 0
 

@@ -9,6 +9,8 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from tire_estimation.atomic_io import atomic_write_text
+
 
 def simulated_radius_run(
     scenario: str,
@@ -75,4 +77,4 @@ def run_seeds(
 def write_rows(path: Path | None, rows: Sequence[dict[str, Any]]) -> None:
     """Every run as JSON in ``path`` (nothing when ``None``)."""
     if path is not None:
-        path.write_text(json.dumps(rows, indent=1))
+        atomic_write_text(path, json.dumps(rows, indent=1))

@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from tire_estimation.atomic_io import atomic_write_text
 from tire_estimation.core.pipeline import EstimationPipeline, Output, PipelineConfig
 from tire_estimation.core.samples import ImuSample, Sample
 from tire_estimation.core.stiffness.config import StiffnessEstimatorConfig
@@ -471,7 +472,7 @@ def main(argv: list[str] | None = None) -> None:
         name = "stiffness_sine.json" if len(args.sine_scenarios) > 1 else (
             f"stiffness_sine_{args.sine_scenarios[0]}.json"
         )  # fmt: skip
-        (args.out / name).write_text(json.dumps(sine, indent=2))
+        atomic_write_text(args.out / name, json.dumps(sine, indent=2))
         print(json.dumps({k: {kk: vv for kk, vv in v.items() if kk != "per_run"}
                           for k, v in sine.items()}, indent=2))  # fmt: skip
         return
@@ -489,7 +490,8 @@ def main(argv: list[str] | None = None) -> None:
             )
             for n in args.particles
         ]
-        (args.out / f"stiffness_{args.scenario}.json").write_text(json.dumps(results, indent=2))
+        out_file = args.out / f"stiffness_{args.scenario}.json"
+        atomic_write_text(out_file, json.dumps(results, indent=2))
         print(json.dumps(results, indent=2))
         return
     report: dict[str, Any] = {"fig5_vy_rmse": {}, "cy_front": {}, "timing_ms": {}, "sine": {}}
@@ -509,7 +511,7 @@ def main(argv: list[str] | None = None) -> None:
         for f0 in (1.5, 0.75):
             # one drive of the sine study (initial guess relative to the drive's truth)
             report["sine"][f"{scen}@{f0}"] = sine_study(scen, f0, runs=1, n=200)["per_run"][0]
-    (args.out / "stiffness.json").write_text(json.dumps(report, indent=2))
+    atomic_write_text(args.out / "stiffness.json", json.dumps(report, indent=2))
     print(json.dumps(report, indent=2))
 
 

@@ -51,6 +51,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.ticker import NullFormatter
 
+from tire_estimation.atomic_io import atomic_write_text
 from tire_estimation.core.stiffness.estimator import StiffnessEstimator
 from tire_estimation.core.stiffness.frontend import StiffnessFrontEnd
 from tire_estimation.core.stiffness.grid import GridConfig
@@ -537,7 +538,7 @@ def main(argv: list[str] | None = None) -> None:
         "summary": summary,
         "per_run": per_run,
     }
-    (args.out / "compare.json").write_text(json.dumps(report, indent=2))
+    atomic_write_text(args.out / "compare.json", json.dumps(report, indent=2))
     plot_all(args.out, summary, per_run, particles)
     print(_table(summary))
     print(f"wrote {args.out / 'compare.json'} ({report['wall_s']:.0f} s)")
@@ -582,7 +583,7 @@ def _main_sine(args: argparse.Namespace) -> None:
         print(f"{args.sine} from {f:.0%} of the truth, N = {n}, {len(seeds)} runs:")
         print(_sine_table(summary, len(seeds)))
     path = args.out / f"compare_{args.sine}.json"
-    path.write_text(json.dumps(report, indent=2))
+    atomic_write_text(path, json.dumps(report, indent=2))
     print(f"wrote {path} ({report['wall_s']:.0f} s)")
 
 

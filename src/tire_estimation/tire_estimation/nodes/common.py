@@ -14,7 +14,7 @@ from rclpy.node import Node
 
 from tire_estimation.errors import ConfigError, TireEstimationError
 from tire_estimation.params import ParameterSpec
-from tire_estimation.persistence import Identity, load_state, save_state
+from tire_estimation.persistence import Identity, restore, save_state
 
 
 def parameter_descriptor(spec: ParameterSpec) -> ParameterDescriptor:
@@ -76,20 +76,25 @@ def spin_node(name: str, factory: Callable[[], Any], args: list[str] | None = No
             rclpy.shutdown()
 
 
-def restore_state(path: Path | None, identity: Identity, target: Any, what: str) -> str:
-    """Load saved state into ``target.load_state_dict`` if it belongs to ``identity``.
+def restore_state(
+    node: Node, path: Path | None, identity: Identity, target: Any, what: str
+) -> str:
+    """Restore saved state into ``target.load_state_dict`` if it belongs to ``identity``
+    (:func:`tire_estimation.persistence.restore`: stale temporary files removed, the file read
+    with bounds, every value checked); a rejected file or part is logged as a warning.
 
     Returns the note shown on /diagnostics (what was restored, or why not).
     """
     if path is None:
         return "persistence disabled"
-    state, reason = load_state(path, identity)
-    if state is not None:
-        try:
-            target.load_state_dict(state)
-        except (TireEstimationError, KeyError, TypeError, ValueError) as exc:
-            reason = f"saved {what} rejected: {exc}"
-    return reason
+    outcome = restore(path, identity, target, what)
+    if outcome.removed_temps:
+        node.get_logger().info(
+            f"removed {outcome.removed_temps} temporary file(s) of {path} left by a killed save"
+        )
+    if outcome.rejected:
+        node.get_logger().warning(f"saved {what} not restored as saved: {outcome.note}")
+    return outcome.note
 
 
 def save_state_of(

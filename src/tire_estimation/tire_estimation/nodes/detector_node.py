@@ -57,7 +57,9 @@ class DetectorNode(Node):
             DeflationDetectorConfig, DETECTOR_PREFIX, self._values(self._specs)
         )
         options = build_config(DetectorNodeOptions, "", self._values(self._node_specs))
-        self.monitor = DeflationMonitor(self.config, options)
+        vehicle_name, nominal_radius_m = self._vehicle()
+        # the nominal radius (with a vehicle file) bounds the radius errors of a restored state
+        self.monitor = DeflationMonitor(self.config, options, nominal_radius_m)
         self.detector = self.monitor.detector
         self.received: Counter[str] = Counter()
         self.dropped: Counter[str] = Counter()
@@ -69,7 +71,7 @@ class DetectorNode(Node):
         self._last_radii_clock_ns = 0  # node clock when it arrived
         self._last_status: DeflationStatusData | None = None
 
-        self._identity = Identity(self._vehicle_name(), self.get_parameter("tire_set_id").value)
+        self._identity = Identity(vehicle_name, self.get_parameter("tire_set_id").value)
         text = self.get_parameter("persistence_file").value
         self._persist_path = Path(text).expanduser() if text else None
         self._persist_note = "persistence disabled"
@@ -109,17 +111,19 @@ class DetectorNode(Node):
             s.name: self.get_parameter(s.name).value for s in specs if self.has_parameter(s.name)
         }
 
-    def _vehicle_name(self) -> str:
+    def _vehicle(self) -> tuple[str, float | None]:
+        """The vehicle's name and, from a vehicle file, its nominal tyre radius (m)."""
         path = self.get_parameter("vehicle_file").value
         if path:
-            return load_vehicle_yaml(Path(path).expanduser()).name
-        return str(self.get_parameter("vehicle.name").value)
+            vehicle = load_vehicle_yaml(Path(path).expanduser())
+            return vehicle.name, vehicle.nominal_tire_radius_m
+        return str(self.get_parameter("vehicle.name").value), None
 
     # --- persistence ------------------------------------------------------------------------
     def _restore(self) -> None:
-        note = restore_state(self._persist_path, self._identity, self.detector, "detector state")
-        if self._persist_path is not None:
-            self._persist_note = note
+        self._persist_note = restore_state(
+            self, self._persist_path, self._identity, self.detector, "detector state"
+        )
 
     def _save(self) -> None:
         if not save_state_of(

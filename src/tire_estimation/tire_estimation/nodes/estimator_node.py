@@ -166,10 +166,9 @@ class EstimatorNode(Node):
     def _restore(self) -> None:
         # one file for the learned radii and (when the stiffness MPF runs) the learned
         # stiffness; each part is restored or rejected on its own
-        note = restore_state(self._persist_path, self._identity, self._learned, "estimates")
-        if self._persist_path is not None:
-            summary = self._learned.summary()
-            self._persist_note = f"{note} ({summary})" if summary else note
+        self._persist_note = restore_state(
+            self, self._persist_path, self._identity, self._learned, "estimates"
+        )
 
     def _save(self) -> None:
         if not save_state_of(self, self._persist_path, self._identity, self._learned, "estimates"):

@@ -8,8 +8,45 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from tire_estimation.core import state_checks as checks
 from tire_estimation.core.wheels import WHEEL_INDEX
 from tire_estimation.errors import InputError
+
+#: keys of :class:`WheelState` that may be None (not calibrated, no estimate yet)
+_OPTIONAL = ("calibrated_m", "common_calibrated_m", "last_estimate_m")
+#: relative tolerance of the consistency checks of a restored state (float rounding)
+_REL_TOL = 1e-9
+#: A radius change the CUSUM filters (``x_j - lambda mean_{k != j} x_k``, x a difference of
+#: two radius errors) is at most this many times the largest radius error.
+RADIUS_CHANGE_FACTOR = 4.0
+
+
+@dataclass(frozen=True)
+class StateLimits:
+    """Plausible values of a saved detector state.
+
+    Attributes:
+        radius_error_m: largest |radius error| (a calibrated value, the last estimate), m
+            (:func:`~tire_estimation.core.state_checks.radius_error_limit_m`).
+        cusum_m: largest CUSUM sum, m: the largest radius change accumulated over the saved
+            driving time in reference sample periods.
+    """
+
+    radius_error_m: float
+    cusum_m: float
+
+    def range_of(self, key: str) -> tuple[float, float]:
+        """``[low, high]`` of a float of the saved state."""
+        if key in _OPTIONAL:
+            return -self.radius_error_m, self.radius_error_m
+        if key in ("lp_m", "xbar_m", "raw_m"):
+            change = RADIUS_CHANGE_FACTOR * self.radius_error_m
+            return -change, change
+        if key == "g_m":
+            return 0.0, self.cusum_m
+        if key.endswith("_sum_wx"):
+            return -math.inf, math.inf  # checked against its weights
+        return 0.0, math.inf  # times, time weights, thresholds
 
 
 @dataclass
@@ -55,16 +92,34 @@ class WheelState:
         return {k: getattr(self, k) for k in self._PERSISTED}
 
     @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> WheelState:
+    def from_dict(cls, data: Mapping[str, Any], limits: StateLimits) -> WheelState:
+        """The saved state of one wheel; raises InputError (kind ``bad_state``) naming a value
+        that is malformed or not plausible (:class:`StateLimits`). A missing key takes its
+        default (states saved before the key existed)."""
+        checks.require_keys("bad_state", "saved wheel", data, (), cls._PERSISTED)
         w = cls()
         for key in cls._PERSISTED:
             value = data.get(key)
-            if key in ("calibrated_m", "common_calibrated_m", "last_estimate_m"):
-                setattr(w, key, None if value is None else finite_float(key, value))
-            elif key in ("calibration_t_ns", "alarm_t_ns"):
-                setattr(w, key, optional_int(key, value))
-            else:
-                setattr(w, key, 0.0 if value is None else finite_float(key, value))
+            if key in ("calibration_t_ns", "alarm_t_ns"):
+                setattr(w, key, checks.stamp_ns("bad_state", key, value))
+            elif value is None and key in _OPTIONAL:
+                setattr(w, key, None)
+            elif value is not None:
+                setattr(w, key, checks.bounded("bad_state", key, value, *limits.range_of(key)))
+        for weights, sums in (("calib_sum_w", "calib_sum_wx"), ("common_sum_w", "common_sum_wx")):
+            total = getattr(w, weights)
+            # time weights of the calibration: each at most the driving time it credits
+            if total > w.calib_time_s * (1.0 + _REL_TOL) + _REL_TOL:
+                raise InputError(
+                    "bad_state", f"{weights}={total:g} exceeds calib_time_s={w.calib_time_s:g}"
+                )
+            # the weighted sum of estimates: a mean within the radius-error limit
+            if abs(getattr(w, sums)) > limits.radius_error_m * total * (1.0 + _REL_TOL):
+                raise InputError(
+                    "bad_state",
+                    f"{sums}={getattr(w, sums):g} is not a mean within "
+                    f"+-{limits.radius_error_m:g} m over {weights}={total:g}",
+                )
         return w
 
 
@@ -90,33 +145,25 @@ class CommonState:
         }
 
     @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> CommonState:
+    def from_dict(cls, data: Mapping[str, Any], limits: StateLimits) -> CommonState:
+        """The saved common channel; raises InputError (kind ``bad_state``) as
+        :meth:`WheelState.from_dict`."""
+        keys = ("wheel_names", "lp_m", "xbar_m", "raw_m", "g_m", "alarm_t_ns")
+        checks.require_keys("bad_state", "saved common channel", data, (), keys)
         names = data.get("wheel_names", [])
-        if not isinstance(names, (list, tuple)) or any(n not in WHEEL_INDEX for n in names):
-            raise InputError("bad_state", f"saved common channel has bad wheels {names!r}")
-        c = cls(wheel_names=tuple(str(n) for n in names))
+        if not isinstance(names, (list, tuple)) or any(
+            not isinstance(n, str) or n not in WHEEL_INDEX for n in names
+        ):
+            raise InputError(
+                "bad_state", f"saved common channel has bad wheels {checks.shown(names)}"
+            )
+        c = cls(wheel_names=tuple(names))
         for key in ("lp_m", "xbar_m", "raw_m", "g_m"):
             value = data.get(key)
-            setattr(c, key, 0.0 if value is None else finite_float(key, value))
-        c.alarm_t_ns = optional_int("alarm_t_ns", data.get("alarm_t_ns"))
+            if value is not None:
+                setattr(c, key, checks.bounded("bad_state", key, value, *limits.range_of(key)))
+        c.alarm_t_ns = checks.stamp_ns("bad_state", "alarm_t_ns", data.get("alarm_t_ns"))
         return c
-
-
-def optional_int(key: str, value: Any) -> int | None:
-    if value is None:
-        return None
-    if isinstance(value, bool) or not isinstance(value, int):
-        raise InputError("bad_state", f"saved detector state {key}={value!r} is not an integer")
-    return value
-
-
-def finite_float(key: str, value: Any) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise InputError("bad_state", f"saved detector state {key}={value!r} is not a number")
-    out = float(value)
-    if not math.isfinite(out):
-        raise InputError("bad_state", f"saved detector state {key}={value!r} is not finite")
-    return out
 
 
 def cusum_step(

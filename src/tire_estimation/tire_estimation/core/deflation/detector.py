@@ -55,14 +55,15 @@ from collections import Counter
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+from tire_estimation.core import state_checks as checks
 from tire_estimation.core.deflation.calibration import calibrate, wheel_progress
 from tire_estimation.core.deflation.config import DeflationDetectorConfig
 from tire_estimation.core.deflation.cusum import (
+    RADIUS_CHANGE_FACTOR,
     CommonState,
+    StateLimits,
     WheelState,
     cusum_step,
-    finite_float,
-    optional_int,
 )
 from tire_estimation.core.deflation.status import (
     CalibrationState,
@@ -83,8 +84,15 @@ INFO_STATS = frozenset({"accepted", "no_speed", "recalibrations"})
 class DeflationDetector:
     """Per-wheel calibration + CUSUM deflation detector over radius-error estimates."""
 
-    def __init__(self, config: DeflationDetectorConfig | None = None) -> None:
+    def __init__(
+        self,
+        config: DeflationDetectorConfig | None = None,
+        nominal_tire_radius_m: float | None = None,
+    ) -> None:
         self.config = config if config is not None else DeflationDetectorConfig()
+        #: largest plausible |radius error| of a restored state, m (from the vehicle's nominal
+        #: radius; the largest a vehicle description allows when not given)
+        self.radius_error_limit_m = checks.radius_error_limit_m(nominal_tire_radius_m)
         self.stats: Counter[str] = Counter()
         self._wheels: dict[str, WheelState] = {}
         self._common = CommonState()
@@ -185,29 +193,56 @@ class DeflationDetector:
         }
 
     def load_state_dict(self, state: Mapping[str, Any]) -> None:
-        """Restore :meth:`state_dict` output; raises InputError (kind ``bad_state``) if malformed.
+        """Restore :meth:`state_dict` output; raises InputError (kind ``bad_state``) naming the
+        value if malformed or not plausible (calibrated values and estimates within
+        :attr:`radius_error_limit_m`, the radius changes within ``RADIUS_CHANGE_FACTOR`` times
+        it, times and weights consistent, CUSUM sums within what the saved driving time can
+        accumulate); nothing changes then.
 
         Sample ordering and staleness restart with the next sample, so a restarted node accepts
         stamps older than those before the restart (e.g. a bag replayed again); a sample newer
         than the saved last one is credited the driving time since it (at most
         ``max_sample_gap_s``), so a save/restore continues exactly.
         """
-        if not isinstance(state, Mapping) or state.get("version") != STATE_VERSION:
-            raise InputError("bad_state", "saved detector state has an unknown version")
-        raw_wheels = state.get("wheels")
+        k = "bad_state"
+        checks.require_keys(
+            k, "saved detector state", state, ("version", "wheels"),
+            ("driving_time_s", "t_last_ns", "common"),
+        )  # fmt: skip
+        checks.choice(k, "saved detector state version", state["version"], STATE_VERSION)
+        raw_wheels = state["wheels"]
         if not isinstance(raw_wheels, Mapping):
-            raise InputError("bad_state", "saved detector state has no wheels mapping")
+            raise InputError(k, "saved detector state has no wheels mapping")
+        driving = checks.bounded(
+            k, "driving_time_s", state.get("driving_time_s", 0.0), 0.0, math.inf
+        )
+        # the CUSUM sums grow by at most the largest radius change per reference period of
+        # counted driving
+        change_m = RADIUS_CHANGE_FACTOR * self.radius_error_limit_m
+        limits = StateLimits(
+            radius_error_m=self.radius_error_limit_m,
+            cusum_m=change_m * driving / self.config.reference_sample_period_s * (1.0 + 1e-9),
+        )
         wheels: dict[str, WheelState] = {}
         for name, data in raw_wheels.items():
-            if name not in WHEEL_INDEX or not isinstance(data, Mapping):
-                raise InputError("bad_state", f"saved detector state has a bad wheel {name!r}")
-            wheels[name] = WheelState.from_dict(data)
-        raw_common = state.get("common", {})  # absent in states saved before the channel
-        if not isinstance(raw_common, Mapping):
-            raise InputError("bad_state", "saved detector state has a bad common channel")
-        common = CommonState.from_dict(raw_common)
-        driving = finite_float("driving_time_s", state.get("driving_time_s", 0.0))
-        t_last = optional_int("t_last_ns", state.get("t_last_ns"))
+            if name not in WHEEL_INDEX:
+                raise InputError(k, f"saved detector state has a bad wheel {checks.shown(name)}")
+            try:
+                wheels[name] = WheelState.from_dict(data, limits)
+            except InputError as exc:
+                raise InputError(k, f"{name}: {exc}") from exc
+            if wheels[name].calib_time_s > driving * (1.0 + 1e-9) + 1e-9:
+                raise InputError(
+                    k,
+                    f"{name}: calib_time_s={wheels[name].calib_time_s:g} exceeds "
+                    f"driving_time_s={driving:g}",
+                )
+        # absent in states saved before the channel
+        try:
+            common = CommonState.from_dict(state.get("common", {}), limits)
+        except InputError as exc:
+            raise InputError(k, f"common: {exc}") from exc
+        t_last = checks.stamp_ns(k, "t_last_ns", state.get("t_last_ns"))
         self._wheels = wheels
         self._common = common
         self._driving_time_s = driving

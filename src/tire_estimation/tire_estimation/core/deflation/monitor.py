@@ -74,13 +74,18 @@ class DeflationMonitor:
     Args:
         detector: the detector configuration.
         config: how speed and braking are taken from the odometry.
+        nominal_tire_radius_m: the vehicle's nominal tyre radius when known (bounds the radius
+            errors of a restored detector state), m.
     """
 
     def __init__(
-        self, detector: DeflationDetectorConfig, config: MonitorConfig | None = None
+        self,
+        detector: DeflationDetectorConfig,
+        config: MonitorConfig | None = None,
+        nominal_tire_radius_m: float | None = None,
     ) -> None:
         self.config = config or MonitorConfig()
-        self.detector = DeflationDetector(detector)
+        self.detector = DeflationDetector(detector, nominal_tire_radius_m)
         #: events that are not drops (e.g. ``radii_without_odometry``)
         self.events: Counter[str] = Counter()
         self._window_ns = int(self.config.braking_window_s * 1e9)

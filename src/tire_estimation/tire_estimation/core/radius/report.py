@@ -11,8 +11,10 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from tire_estimation.core import niw
+from tire_estimation.core import state_checks as checks
 from tire_estimation.core.arrays import F64
 from tire_estimation.core.radius.inputs import finite_or_zero, sanitize
+from tire_estimation.core.radius.mpf import PRIOR_RADIUS_NOISE_STD_M
 from tire_estimation.core.wheels import FRONT_WHEELS, REAR_WHEELS
 from tire_estimation.errors import InputError
 
@@ -207,53 +209,73 @@ class Reporting:
         return out
 
     def load_state_dict(self, d: Mapping[str, Any]) -> None:
-        """Restore :meth:`state_dict` output; raises InputError (kind ``state``) when it does not
-        belong to this vehicle or is malformed."""
-        try:
-            if d.get("vehicle") != self.vehicle.name:
-                raise InputError("state", f"state of vehicle {d.get('vehicle')!r}")
-            rear = d["rear"]
-            n = self.mpf.n
-            # half of the uncertainty of the mean in gamma, half as spread of the particle means
-            stats = niw.stats_from_moments(
-                n,
-                np.asarray(rear["mean_m"], dtype=float).reshape(2),
-                0.5 * np.asarray(rear["mean_cov_m2"], dtype=float).reshape(2, 2),
-                np.asarray(rear["noise_cov_m2"], dtype=float).reshape(2, 2),
-                float(rear["dof"]),
+        """Restore :meth:`state_dict` output; raises InputError (kind ``state``) naming the
+        value when it does not belong to this vehicle or is not plausible: every mean within
+        :func:`~tire_estimation.core.state_checks.radius_error_limit_m` of the nominal radius,
+        every covariance positive definite with standard deviations up to that limit (or the
+        configured prior std, when larger), the dof finite within (3, 1e9]. Nothing changes
+        unless the whole state is valid."""
+        checks.require_keys(
+            "state", "radius state", d, ("version", "vehicle", "rear"), ("front", "aug_kf")
+        )
+        checks.choice("state", "radius state version", d["version"], STATE_DICT_VERSION)
+        if d["vehicle"] != self.vehicle.name:
+            raise InputError("state", f"state of vehicle {checks.shown(d['vehicle'])}")
+        nominal = self.vehicle.nominal_tire_radius_m
+        limit = checks.radius_error_limit_m(nominal)
+        stds = (
+            checks.MIN_STD_FRACTION * nominal,
+            max(limit, self.config.prior_radius_error_std_m, PRIOR_RADIUS_NOISE_STD_M),
+        )
+        mean, mean_cov, noise_cov, dof = _axle_moments("rear", d["rear"], REAR_WHEELS, limit, stds)
+        front = None
+        if "front" in d and self.config.wheels == "all":
+            front = _axle_moments("front", d["front"], FRONT_WHEELS, limit, stds)
+        aug = None
+        if "aug_kf" in d:
+            a = checks.require_keys("state", "aug_kf", d["aug_kf"], ("mean_m", "cov_m2"))
+            aug = (
+                checks.vector("state", "aug_kf.mean_m", a["mean_m"], 2, limit),
+                checks.covariance("state", "aug_kf.cov_m2", a["cov_m2"], 2, *stds),
             )
-            if (
-                not all(
-                    np.all(np.isfinite(a))
-                    for a in (stats.mean, stats.scale, stats.gamma, stats.dof)
-                )
-                or float(rear["dof"]) <= 3.0
-            ):
-                raise InputError("state", "non-finite or invalid rear statistics")
-            # spread the particle means over the restored uncertainty of the mean
-            cov = np.asarray(rear["mean_cov_m2"], dtype=float).reshape(2, 2)
-            chol = np.linalg.cholesky(0.25 * (cov + cov.T) + 1e-18 * np.eye(2))
-            z = self.rng.standard_normal((n, 2))
-            z -= z.mean(axis=0)
-            stats.mean += z @ chol.T
-            front = None
-            if "front" in d and self.config.wheels == "all":
-                f = d["front"]
-                front = niw.stats_from_moments(
-                    1,
-                    np.asarray(f["mean_m"], dtype=float).reshape(2),
-                    np.asarray(f["mean_cov_m2"], dtype=float).reshape(2, 2),
-                    np.asarray(f["noise_cov_m2"], dtype=float).reshape(2, 2),
-                    float(f["dof"]),
-                )
-        except InputError:
-            raise
-        except (KeyError, TypeError, ValueError, np.linalg.LinAlgError) as exc:
-            raise InputError("state", f"malformed radius state: {exc}") from exc
+        n = self.mpf.n
+        # half of the uncertainty of the mean in gamma, half as spread of the particle means
+        stats = niw.stats_from_moments(n, mean, 0.5 * mean_cov, noise_cov, dof)
+        if not all(
+            np.all(np.isfinite(a)) for a in (stats.mean, stats.scale, stats.gamma, stats.dof)
+        ):
+            raise InputError("state", "non-finite rear statistics")
+        # spread the particle means over the restored uncertainty of the mean
+        chol = np.linalg.cholesky(0.5 * mean_cov)
+        z = self.rng.standard_normal((n, 2))
+        z -= z.mean(axis=0)
+        stats.mean += z @ chol.T
         self.mpf.set_stats(stats)
         if front is not None:
-            self._front = front
-        if self.kf is not None and "aug_kf" in d:
-            self.kf.x[3:5] = np.asarray(d["aug_kf"]["mean_m"], dtype=float).reshape(2)
-            self.kf.p[3:5, 3:5] = np.asarray(d["aug_kf"]["cov_m2"], dtype=float).reshape(2, 2)
+            self._front = niw.stats_from_moments(1, *front)
+        if self.kf is not None and aug is not None:
+            self.kf.x[3:5] = aug[0]
+            self.kf.p[3:5, 3:5] = aug[1]
         self._set_cache(self.mpf.estimate())
+
+
+def _axle_moments(
+    axle: str,
+    data: Any,
+    wheels: tuple[str, ...],
+    limit_m: float,
+    stds_m: tuple[float, float],
+) -> tuple[F64, F64, F64, float]:
+    """The checked mean, mean covariance, noise covariance and dof of one axle's saved
+    statistics."""
+    a = checks.require_keys(
+        "state", axle, data, ("mean_m", "mean_cov_m2", "noise_cov_m2", "dof"), ("wheels",)
+    )
+    if "wheels" in a:
+        checks.choice("state", f"{axle}.wheels", a["wheels"], list(wheels))
+    return (
+        checks.vector("state", f"{axle}.mean_m", a["mean_m"], 2, limit_m),
+        checks.covariance("state", f"{axle}.mean_cov_m2", a["mean_cov_m2"], 2, *stds_m),
+        checks.covariance("state", f"{axle}.noise_cov_m2", a["noise_cov_m2"], 2, *stds_m),
+        checks.dof("state", f"{axle}.dof", a["dof"], 2),
+    )

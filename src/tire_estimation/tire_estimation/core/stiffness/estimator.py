@@ -13,19 +13,23 @@ statistics as a state to save and restore.
 from __future__ import annotations
 
 import dataclasses
-import math
 from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
 from tire_estimation.core import niw
+from tire_estimation.core import state_checks as checks
 from tire_estimation.core.arrays import F64
 from tire_estimation.core.stiffness.config import StiffnessEstimatorConfig
 from tire_estimation.core.stiffness.filter import FilterEstimate, Measurement, StiffnessFilter
 from tire_estimation.core.stiffness.frontend import StiffnessEstimate, StiffnessFrontEnd
 from tire_estimation.core.stiffness.grid import GridConfig, GridEkf, posterior
-from tire_estimation.core.stiffness.model import NAMES
+from tire_estimation.core.stiffness.model import (
+    MAX_STIFFNESS_FRACTION,
+    MIN_STIFFNESS_FRACTION,
+    NAMES,
+)
 from tire_estimation.core.stiffness.mpf import StiffnessMpf
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.errors import InputError
@@ -218,35 +222,59 @@ class StiffnessEstimator(StiffnessFrontEnd[MpfFilter]):
         }
 
     def load_state_dict(self, d: Mapping[str, Any]) -> None:
-        """Restore :meth:`state_dict` output; raises InputError (kind ``state``) if invalid."""
-        try:
-            if d.get("vehicle") != self.vehicle.name:
-                raise InputError("state", f"state of vehicle {d.get('vehicle')!r}")
-            # the learned part is relative to the nominal stiffness (eq. 7): a state learned
-            # with other nominal values would be restored as the wrong stiffness
-            nominal = np.asarray(d["nominal"], dtype=float).reshape(3)
-            if not np.allclose(nominal, self.mpf.nominal, rtol=1e-6, atol=0.0):
-                raise InputError(
-                    "state",
-                    f"state learned with nominal stiffness {nominal.tolist()}, now "
-                    f"{self.mpf.nominal.tolist()}",
-                )
-            dof = float(d["dof"])
-            if not math.isfinite(dof) or dof <= 4.0:
-                raise InputError("state", f"invalid dof {dof}")
-            stats = niw.stats_from_moments(
-                self.mpf.n,
-                np.asarray(d["mean"], dtype=float).reshape(3),
-                np.asarray(d["mean_cov"], dtype=float).reshape(3, 3),
-                np.asarray(d["noise_cov"], dtype=float).reshape(3, 3),
-                dof,
+        """Restore :meth:`state_dict` output; raises InputError (kind ``state``) naming the
+        value when it belongs to another vehicle or nominal stiffness or is not plausible: the
+        mean within the projection bounds (``MIN_STIFFNESS_FRACTION`` to
+        ``MAX_STIFFNESS_FRACTION`` of nominal), the covariances positive definite with
+        standard deviations up to the width of those bounds (or the configured prior std, when
+        larger), the dof finite within (4, 1e9]. Nothing changes unless the whole state is
+        valid."""
+        k = "state"
+        checks.require_keys(
+            k,
+            "stiffness state",
+            d,
+            ("version", "vehicle", "nominal", "mean", "mean_cov", "noise_cov", "dof"),
+            ("names",),
+        )
+        checks.choice(k, "stiffness state version", d["version"], STATE_DICT_VERSION)
+        if d["vehicle"] != self.vehicle.name:
+            raise InputError(k, f"state of vehicle {checks.shown(d['vehicle'])}")
+        if "names" in d:
+            checks.choice(k, "names", d["names"], list(NAMES))
+        # the learned part is relative to the nominal stiffness (eq. 7): a state learned
+        # with other nominal values would be restored as the wrong stiffness
+        nominal = checks.vector(k, "nominal", d["nominal"], 3)
+        if not np.allclose(nominal, self.mpf.nominal, rtol=1e-6, atol=0.0):
+            raise InputError(
+                k,
+                f"state learned with nominal stiffness {nominal.tolist()}, now "
+                f"{self.mpf.nominal.tolist()}",
             )
-            if not all(np.all(np.isfinite(a)) for a in (stats.mean, stats.scale, stats.gamma)):
-                raise InputError("state", "non-finite statistics")
-        except InputError:
-            raise
-        except (KeyError, TypeError, ValueError, AttributeError) as exc:
-            raise InputError("state", f"malformed stiffness state: {exc}") from exc
+        mean = checks.vector(k, "mean", d["mean"], 3)
+        lower, upper = self.mpf.lower, self.mpf.upper
+        if np.any(mean < lower) or np.any(mean > upper):
+            raise InputError(
+                k,
+                f"mean={mean.tolist()} is outside the stiffness bounds "
+                f"[{lower.tolist()}, {upper.tolist()}] (relative to nominal)",
+            )
+        c = self.config
+        widest = max(
+            MAX_STIFFNESS_FRACTION - MIN_STIFFNESS_FRACTION,
+            c.initial_stiffness_std_fraction,
+            c.stiffness_noise_std_fraction,
+        )
+        stds = (
+            checks.MIN_STD_FRACTION * float(np.min(self.mpf.nominal)),
+            widest * float(np.max(self.mpf.nominal)),
+        )
+        mean_cov = checks.covariance(k, "mean_cov", d["mean_cov"], 3, *stds)
+        noise_cov = checks.covariance(k, "noise_cov", d["noise_cov"], 3, *stds)
+        dof = checks.dof(k, "dof", d["dof"], 3)
+        stats = niw.stats_from_moments(self.mpf.n, mean, mean_cov, noise_cov, dof)
+        if not all(np.all(np.isfinite(a)) for a in (stats.mean, stats.scale, stats.gamma)):
+            raise InputError(k, "non-finite statistics")
         self.mpf.stats = stats
         # restored statistics are learned, not a prior to learn on a grid
         self._grid = None

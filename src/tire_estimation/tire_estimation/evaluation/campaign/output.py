@@ -4,6 +4,7 @@ directory."""
 from __future__ import annotations
 
 import csv
+import io
 import itertools
 import sys
 from collections.abc import Sequence
@@ -12,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from tire_estimation.atomic_io import atomic_write_text
 from tire_estimation.evaluation.campaign.spec import (
     DIFFUSION_DEADLINE_S,
     STEP_DEADLINE_S,
@@ -26,11 +28,12 @@ def write_csv(path: Path, rows: Sequence[dict[str, Any]]) -> None:
     keys: dict[str, None] = {}
     for r in rows:
         keys.update(dict.fromkeys(r))
-    with path.open("w", newline="") as fh:
-        writer = csv.DictWriter(fh, fieldnames=list(keys), restval="")
-        writer.writeheader()
-        for r in rows:
-            writer.writerow(r)
+    buffer = io.StringIO(newline="")
+    writer = csv.DictWriter(buffer, fieldnames=list(keys), restval="")
+    writer.writeheader()
+    for r in rows:
+        writer.writerow(r)
+    atomic_write_text(path, buffer.getvalue())
 
 
 def _csv_value(text: str) -> Any:

@@ -10,6 +10,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
+from tire_estimation.atomic_io import atomic_write_text
 from tire_estimation.evaluation.campaign.execute import execute_cases
 from tire_estimation.evaluation.campaign.output import (
     plot_calibration,
@@ -78,7 +79,7 @@ def run_calibration_study(
     write_csv(out_dir / "cases.csv", rows)
     plot_calibration(out_dir / "calibration_errors.png", rows, 60.0 * at_min)
     summary["files"] = ["summary.json", "cases.csv", "calibration_errors.png"]
-    (out_dir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    atomic_write_text(out_dir / "summary.json", json.dumps(summary, indent=2) + "\n")
     return summary
 
 
@@ -106,7 +107,7 @@ def run_ece_r64_campaign(
         trace_dir = out_dir / "traces"
         trace_dir.mkdir(exist_ok=True)
         cases = [dataclasses.replace(c, trace_dir=str(trace_dir.resolve())) for c in cases]
-    (out_dir / "cases.json").write_text(json.dumps([c.to_dict() for c in cases], indent=1))
+    atomic_write_text(out_dir / "cases.json", json.dumps([c.to_dict() for c in cases], indent=1))
     t0 = time.perf_counter()
     rows = execute_cases(cases, executor, n_workers, scheduler, threads, progress)
     summary = summarize_detection(rows)
@@ -130,7 +131,7 @@ def run_ece_r64_campaign(
     summary["versions"] = versions()
     write_csv(out_dir / "cases.csv", rows)
     summary["files"] = ["summary.json", "cases.csv", "cases.json", *plot_detection(out_dir, rows)]
-    (out_dir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    atomic_write_text(out_dir / "summary.json", json.dumps(summary, indent=2) + "\n")
     return summary
 
 
@@ -144,7 +145,7 @@ def _write_pooled(
     summary["versions"] = versions()
     write_csv(out_dir / "cases.csv", rows)
     summary["files"] = ["summary.json", "cases.csv", *plot_detection(out_dir, rows)]
-    (out_dir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    atomic_write_text(out_dir / "summary.json", json.dumps(summary, indent=2) + "\n")
     return summary
 
 
