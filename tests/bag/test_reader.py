@@ -338,3 +338,64 @@ def test_topics_chosen_from_the_bags_topic_list(bag: Path) -> None:
     assert data.truth_odometry is None and data.wheel_speeds is None
     with pytest.raises(BagError, match="cannot decode topic /not/a/topic"):
         read_bag(bag, topics=lambda infos: ["/not/a/topic"])
+
+
+def _fix(t_ns: int, alt: float, cov: list[float], cov_type: int, status: int = 0) -> object:
+    msg = mb.nav_sat_fix(t_ns, 58.4, 15.6, alt, cov, covariance_type=cov_type)
+    msg.status.status = status
+    return msg
+
+
+def test_bad_input_messages_are_dropped_and_counted_as_the_node_does(tmp_path: Path) -> None:
+    """The checks of the node's conversions: a fix with a bad covariance or without a fix is
+    dropped and counted (before the repeated stamps, as the node checks each message as it
+    comes); with covariance type unknown its covariance is not read; a NaN altitude is kept; a
+    wheel or joint named twice, a repeated stamp and a bad velocity are dropped."""
+    nan = float("nan")
+    good = [2.25, 0.0, 0.0, 0.0, 2.25, 0.0, 0.0, 0.0, 4.0]
+    known, fix, js = mb.COVARIANCE_TYPE_KNOWN, tp.NAV_SAT_FIX, tp.JOINT_STATE
+    twice = [*WHEELS, "wheel_rl"]
+    vel = tp.TWIST_WITH_COVARIANCE_STAMPED
+    bag = _write_custom_bag(
+        tmp_path / "bad",
+        [
+            (tp.GNSS_FIX, fix, 10, _fix(10, 80.0, good, known)),
+            (tp.GNSS_FIX, fix, 11, _fix(10, 80.0, good, known)),  # repeated stamp
+            (tp.GNSS_FIX, fix, 20, _fix(20, 80.0, [nan, *good[1:]], known)),
+            (tp.GNSS_FIX, fix, 30, _fix(30, 80.0, [*good[:8], -4.0], known)),
+            (tp.GNSS_FIX, fix, 40, _fix(40, 80.0, [nan] * 9, 0)),  # type unknown
+            (tp.GNSS_FIX, fix, 50, _fix(50, nan, good, known)),  # no altitude
+            (tp.GNSS_FIX, fix, 60, _fix(60, 80.0, good, known, status=-1)),  # STATUS_NO_FIX
+            (tp.GNSS_FIX, fix, 61, _fix(60, 80.0, good, known)),  # after a refused one: used
+            (tp.WHEEL_SPEEDS, js, 10, mb.joint_state(10, WHEELS, velocity=[1.0] * 4)),
+            (tp.WHEEL_SPEEDS, js, 20, mb.joint_state(20, twice, velocity=[1.0] * 5)),
+            (tp.STEERING, js, 10, mb.joint_state(10, ["front_wheel_angle"] * 2, position=[0, 0])),
+            (tp.GNSS_VELOCITY, vel, 10, mb.twist_with_covariance_stamped(10, [1, 0, 0], good)),
+            (
+                tp.GNSS_VELOCITY,
+                vel,
+                20,
+                mb.twist_with_covariance_stamped(20, [1, 0, 0], [nan] * 9),
+            ),
+        ],
+    )
+    for fast in (True, False):
+        data = read_bag(bag, fast=fast)
+        assert data.dropped == {
+            "gnss_fix:bad_covariance": 2,
+            "gnss_fix:duplicate": 1,
+            "gnss_fix:no_fix": 1,
+            "gnss_velocity:bad_covariance": 1,
+            "steering:duplicate_joint": 1,
+            "wheel_speeds:duplicate_wheel": 1,
+        }
+        g = data.gnss
+        assert g is not None and data.wheel_speeds is not None and data.steering is not None
+        _eq(g.t_ns, np.array([10, 40, 50, 60]))
+        _eq(g.alt_m, np.array([80.0, 80.0, nan, 80.0]))
+        _eq(g.position_covariance_m2[1], np.zeros((3, 3)))  # not reported: the default
+        _eq(g.position_covariance_m2[2], np.reshape(good, (3, 3)))
+        _eq(data.wheel_speeds.t_ns, np.array([10]))
+        assert data.steering.t_ns.size == 0
+        assert data.gnss_velocity is not None
+        _eq(data.gnss_velocity.t_ns, np.array([10]))

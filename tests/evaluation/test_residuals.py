@@ -537,7 +537,7 @@ def test_gnss_velocity_latency_is_found_from_the_velocity_innovations(latency_s:
         # these runs were gated as outliers, mean NIS 3.2-5.9)
         for seed in RANK_SEEDS:
             tr = _velocity_run(latency_s, "gnss_velocity_latency", latency_s, seed)
-            assert tr.dropped.get("gnss_outlier", 0) == 0, tr.dropped
+            assert tr.dropped.get("gnss_fix:outlier", 0) == 0, tr.dropped
             assert np.mean(np.asarray(tr.nis)[np.asarray(tr.accepted)]) < 2.3
     else:
         assert res["tests"]["likelihood_ratio_ok"] is True

@@ -276,7 +276,7 @@ def test_bad_input_is_counted_and_reset_forgets() -> None:
     est.on_wheel_speeds(10, [1.0, 2.0, 3.0])
     est.on_steering(20, float("nan"))
     est.on_imu(30, [0.0, 0.0, 0.0], [0.0, 0.0, 9.81])
-    assert est.stats == {"wrong_length": 1, "nan": 1, "no_speed": 1}
+    assert est.stats == {"wheel_speeds:wrong_length": 1, "steering:nan": 1, "imu:no_speed": 1}
     w = 20.0 / 0.31
     for k in range(50):
         t = 1_000_000_000 + k * 10_000_000

@@ -26,6 +26,7 @@ from tire_estimation.bag.reader import BagData, TopicInfo, read_bag
 from tire_estimation.core import yamlio
 from tire_estimation.core.deflation.config import DeflationDetectorConfig
 from tire_estimation.core.geodesy import LocalTangentPlane
+from tire_estimation.core.input_checks import merged_counts
 from tire_estimation.core.lateral.linear_kf import LinearLateralKF, LinearLateralKFConfig
 from tire_estimation.core.lateral.tyre_force_kf import TyreForceKFConfig
 from tire_estimation.core.pipeline import EstimationPipeline, Observer, PipelineConfig
@@ -704,7 +705,9 @@ def build_metrics(
         "lateral": primary,
         "lateral_by_source": by_source or None,
         "residuals": residual_report,
-        "dropped_samples": trace.dropped,
+        # input samples dropped by the bag reader's checks and by the radius estimator, by
+        # <stream>:<kind> (the names of the node's /diagnostics)
+        "dropped_samples": dict(sorted(merged_counts(bag.dropped, trace.dropped).items())),
         "resample_count": trace.resample_count,
         "gnss_velocity": trace.gnss_velocity,
         "events": [

@@ -1,10 +1,11 @@
 """Recorded and simulated streams as one sequence of typed samples for the pipeline.
 
 The bag reader and the simulator produce whole-stream arrays (:mod:`tire_estimation.sim.streams`,
-checked as a whole there); these functions turn them into the typed samples of
-:mod:`tire_estimation.core.samples`, merged in the pipeline's ``(stamp, priority)`` order, so
-that the replay and the campaigns feed :class:`~tire_estimation.core.pipeline.EstimationPipeline`
-the way the node does.
+checked as a whole there; the bag reader drops and counts the input messages the node's checks
+refuse, :attr:`~tire_estimation.bag.reader.BagData.dropped`); these functions turn them into the
+typed samples of :mod:`tire_estimation.core.samples`, merged in the pipeline's ``(stamp,
+priority)`` order, so that the replay and the campaigns feed
+:class:`~tire_estimation.core.pipeline.EstimationPipeline` the way the node does.
 """
 
 from __future__ import annotations
@@ -69,21 +70,21 @@ def _unknown_if_zero(cov: np.ndarray) -> np.ndarray | None:
 
 
 def _velocities(s: GnssVelocityStream) -> Iterator[Sample]:
+    # every row, a bad one too: the radius estimator drops and counts it
     vel, cov = s.velocity_enu_m_s, s.covariance_m2_s2
-    finite = np.isfinite(vel).all(axis=1).tolist()
     for k, t in enumerate(s.t_ns.tolist()):
-        if finite[k]:
-            yield GnssVelocity(t, vel[k], _unknown_if_zero(cov[k]))
+        yield GnssVelocity(t, vel[k], _unknown_if_zero(cov[k]))
 
 
 def velocity_stream(gnss: GnssStream) -> GnssVelocityStream | None:
-    """The Doppler velocity a :class:`GnssStream` carries beside its fixes (rows with NaN are
-    left out), or None."""
+    """The Doppler velocity a :class:`GnssStream` carries beside its fixes, or None. Its rows
+    of NaN velocity are fixes without a velocity (left out); a covariance is passed on as it is
+    (all zero or absent: not given)."""
     if gnss.velocity_enu_m_s is None:
         return None
     keep = np.isfinite(gnss.velocity_enu_m_s).all(axis=1)
     cov = gnss.velocity_covariance_m2_s2
-    cov = np.zeros((gnss.t_ns.size, 3, 3)) if cov is None else np.nan_to_num(cov)
+    cov = np.zeros((gnss.t_ns.size, 3, 3)) if cov is None else cov
     return GnssVelocityStream(gnss.t_ns[keep], gnss.velocity_enu_m_s[keep], cov[keep])
 
 

@@ -68,7 +68,12 @@ def test_bad_input_is_counted_and_the_state_stays_finite() -> None:
     kf.on_imu(t0 + 2_000_000_000, [math.nan, 0.0, 0.0], [0.0, 0.0, 9.81])
     kf.on_steering(t0 + 2_000_000_000, [0.1, 0.2])
     kf.on_velocity(t0 + 2_000_000_000, "fast")
-    assert kf.stats == {"out_of_order": 1, "nan": 1, "wrong_length": 1, "bad_value": 1}
+    assert kf.stats == {
+        "imu:out_of_order": 1,
+        "imu:nan": 1,
+        "steering:wrong_length": 1,
+        "velocity:bad_value": 1,
+    }
     e = kf.estimate()
     assert kf.initialized and all(math.isfinite(v) for v in (e.vy_m_s, e.yaw_rate_rad_s))
     assert e.yaw_rate_rad_s == pytest.approx(0.1, abs=0.01)

@@ -310,7 +310,7 @@ def test_bad_inputs_are_dropped_and_counted() -> None:
     good = np.array([500.0, 0.0, 0.0, 500.0]), np.array([4300.0, 0.0, 0.0, 3000.0])
     # no steering / speed yet
     assert est.on_tire_forces(t, np.zeros(4), good[0], good[1], valid) is None
-    assert est.stats["no_steering"] == 1
+    assert est.stats["tire_forces:no_steering"] == 1
     for k in range(1, 20):
         assert _feed_ok(est, t + k * 10_000_000) is not None
     t_last = t + 19 * 10_000_000
@@ -323,12 +323,17 @@ def test_bad_inputs_are_dropped_and_counted() -> None:
     est.on_wheel_speeds(t_last + 4, [1.0, 2.0])
     est.on_wheel_speeds(t_last + 5, [1.0, 2.0, 3.0])
     est.on_wheel_speeds(t_last + 6, "fast")
-    assert est.stats["out_of_order"] == 1
-    assert est.stats["nan"] == 2
-    assert est.stats["wrong_length"] == 3
-    assert est.stats["no_valid_sensor"] == 1
-    assert est.stats["bad_stamp"] == 1
-    assert est.stats["bad_value"] == 1
+    assert est.stats == {
+        "tire_forces:no_steering": 1,
+        "tire_forces:out_of_order": 1,
+        "tire_forces:nan": 1,
+        "tire_forces:wrong_length": 1,
+        "tire_forces:no_valid_sensor": 1,
+        "tire_forces:bad_stamp": 1,
+        "steering:nan": 1,
+        "wheel_speeds:wrong_length": 2,
+        "wheel_speeds:bad_value": 1,
+    }
     e = est.estimate()
     values = [e.vx_m_s, e.vy_m_s, e.yaw_rate_rad_s, e.sideslip_rad]
     assert all(math.isfinite(v) for v in values)
@@ -349,7 +354,7 @@ def test_a_gap_reinitializes_and_low_speed_is_unknown() -> None:
     for k in range(5):
         _feed_ok(est, t + k * 10_000_000)
     _feed_ok(est, t + 2_000_000_000)  # 2 s gap > max_gap_s
-    assert est.stats["gap"] == 1
+    assert est.stats["tire_forces:gap"] == 1
     est.on_steering(t + 2_010_000_000, 0.0)
     est.on_wheel_speeds(t + 2_010_000_000, np.full(4, 1.0))  # 0.31 m/s
     est.on_tire_forces(

@@ -110,7 +110,7 @@ def test_gnss_error_share_on_a_white_gnss_drive():
     assert np.all(np.abs(e.baseline.radius_error_m - truth) < 0.5e-3), e.baseline.radius_error_m
     nis = np.array([f.nis for f in fixes[5:] if f.accepted])
     assert 2.5 < nis.mean() < 4.5  # white noise read as half white: NIS above its 2 dof
-    assert est.stats.get("gnss_outlier", 0) <= 0.02 * len(fixes)
+    assert est.stats.get("gnss_fix:outlier", 0) <= 0.02 * len(fixes)
 
 
 def test_state_dict_round_trip(converged):
@@ -161,10 +161,16 @@ def test_bad_arrays_take_the_checks_of_the_fast_path():
     est.on_steering(t + 1, 1.5)
     est.on_steering(t + 2, float("inf"))
     est.on_steering(t + 3, np.float64(0.1))  # numpy scalar: general path, accepted
-    s = est.stats
-    assert s["nan"] == 6 and s["out_of_range"] == 4
-    assert s["duplicate"] == 1 and s["out_of_order"] == 1 and s["wrong_length"] == 1
-    assert sum(s.values()) == 13
+    assert est.stats == {
+        "wheel_speeds:nan": 3,
+        "wheel_speeds:out_of_range": 3,
+        "wheel_speeds:duplicate": 1,
+        "wheel_speeds:out_of_order": 1,
+        "imu:nan": 2,
+        "imu:wrong_length": 1,
+        "steering:out_of_range": 1,
+        "steering:nan": 1,
+    }
     # the accepted samples were used: the float32 sample advanced the wheel stream
     assert est._streams["wheel"].last_t_ns == t + 100
     assert est._streams["steering"].last_t_ns == t + 3
@@ -186,7 +192,7 @@ def test_bad_inputs_are_dropped_counted_and_estimates_stay_finite():
     est.on_wheel_speeds(t + 5, "garbage")
     est.on_steering(t + 6, float("nan"))
     est.on_imu(t + 7, [0, 0, 0], [0, 0])
-    outliers_before = est.stats.get("gnss_outlier", 0)
+    outliers_before = est.stats.get("gnss_fix:outlier", 0)
     u = est.on_gnss_fix(t + 8, float("nan"), 15.6, 80.0, None)
     assert not u.accepted
     u = est.on_gnss_enu(
@@ -194,9 +200,11 @@ def test_bad_inputs_are_dropped_counted_and_estimates_stay_finite():
     )
     assert not u.accepted and u.reason == "outlier" and u.nis > 100
     s = est.stats
-    assert s["nan"] == 4 and s["out_of_order"] == 1 and s["duplicate"] == 1
-    assert s["wrong_length"] == 2 and s["unknown_wheel"] == 1 and s["bad_value"] == 1
-    assert s["gnss_outlier"] == outliers_before + 1
+    assert s["wheel_speeds:nan"] == 2 and s["steering:nan"] == 1 and s["gnss_fix:nan"] == 1
+    assert s["wheel_speeds:out_of_order"] == 1 and s["wheel_speeds:duplicate"] == 1
+    assert s["wheel_speeds:wrong_length"] == 1 and s["imu:wrong_length"] == 1
+    assert s["wheel_speeds:unknown_wheel"] == 1 and s["wheel_speeds:bad_value"] == 1
+    assert s["gnss_fix:outlier"] == outliers_before + 1
     e = est.estimate()
     assert e.state == "running"
     for v in (e.radius_error_m, e.radius_error_std_m, e.pose, e.pose_cov):
@@ -207,7 +215,7 @@ def test_bad_inputs_are_dropped_counted_and_estimates_stay_finite():
     drive2 = dict(drive)
     drive2["t_ns"] = drive["t_ns"] + shift
     feed(est, drive2, 3001, 3002)
-    assert est.stats["gap"] == 1
+    assert est.stats["wheel_speeds:gap"] == 1
     e = est.estimate()
     assert e.state == "initializing"
     np.testing.assert_allclose(e.radius_error_m, before)
@@ -228,7 +236,7 @@ def test_gnss_relocation_recovers_after_repeated_rejections():
     ups = feed(est, drive2, 4000, 9001)
     # GNSS_MAX_REJECTIONS consecutive outliers re-initialize the pose
     assert [u.accepted for u in ups[:GNSS_MAX_REJECTIONS]] == [False] * GNSS_MAX_REJECTIONS
-    assert est.stats["gnss_outlier"] == GNSS_MAX_REJECTIONS
+    assert est.stats["gnss_fix:outlier"] == GNSS_MAX_REJECTIONS
     e = est.estimate()
     assert e.state == "running", e.state_reason
     assert (
@@ -544,7 +552,7 @@ def test_gnss_velocity_is_not_used_while_accelerating():
     # the gate reads the wheel acceleration at the velocity's time (0.2 s difference)
     assert max(abs(fix_ax[u.t_ns]) for u in used) < 0.18
     assert min(abs(fix_ax[u.t_ns]) for u in skipped) > 0.12
-    assert "gnss_velocity_accelerating" not in est.stats  # not bad input: nothing dropped
+    assert "gnss_velocity:accelerating" not in est.stats  # not bad input: nothing dropped
     open_gate = RadiusEstimator(
         RadiusEstimatorConfig(gnss_velocity_enabled=True, gnss_velocity_max_accel_m_s2=100.0),
         VEH,
@@ -575,9 +583,46 @@ def test_bad_gnss_velocities_are_dropped_and_counted():
     assert not far.accepted and far.reason == "outlier"
     assert not est.on_gnss_velocity(t + 2, v, None).accepted  # out of order
     s = est.stats
-    assert s["gnss_velocity_nan"] == 1 and s["gnss_velocity_wrong_length"] == 1
-    assert s["gnss_velocity_bad_covariance"] == 1 and s["gnss_velocity_out_of_range"] == 1
-    assert s["gnss_velocity_bad_value"] == 1 and s["gnss_velocity_out_of_order"] == 1
-    assert s["gnss_velocity_outlier"] == 1
+    assert s["gnss_velocity:nan"] == 1 and s["gnss_velocity:wrong_length"] == 1
+    assert s["gnss_velocity:bad_covariance"] == 1 and s["gnss_velocity:out_of_range"] == 1
+    assert s["gnss_velocity:bad_value"] == 1 and s["gnss_velocity:out_of_order"] == 1
+    assert s["gnss_velocity:outlier"] == 1
     e = est.estimate()
     assert all(np.all(np.isfinite(x)) for x in (e.radius_error_m, e.pose, e.pose_cov))
+
+
+def test_bad_gnss_covariances_are_dropped_and_a_fix_without_altitude_is_used():
+    """A fix covariance that is NaN, infinite, negative or not positive semi-definite drops the
+    fix (``gnss_fix:bad_covariance``); an all-zero one is "not reported" (the default std). A
+    NaN altitude (none reported) keeps the fix, counted ``gnss_fix:no_altitude``, out of the
+    road-grade fit."""
+    drive = make_drive(duration_s=40.0, gnss_rate_hz=1.0, seed=8)
+    est = RadiusEstimator(RadiusEstimatorConfig(), VEH, np.random.default_rng(8))
+    feed(est, drive, 0, 3000, use_lla=True)
+    assert est.estimate().state == "running"
+    before = dict(est.stats)  # outliers while converging
+    t = int(drive["t_ns"][2999])
+    lat, lon, alt = (float(v) for v in LTP.to_lla(drive["east"][2999], drive["north"][2999], 0))
+    good = [2.25, 0.0, 0.0, 0.0, 2.25, 0.0, 0.0, 0.0, 9.0]
+    bad = (
+        [np.nan, *good[1:]],
+        [*good[:4], np.inf, *good[5:]],
+        [*good[:8], -9.0],  # negative vertical variance
+        [2.25, 0.0, 5.0, 0.0, 2.25, 0.0, 5.0, 0.0, 9.0],  # |correlation| > 1
+        [2.25, 1.0, 0.0, 0.0, 2.25, 0.0, 0.0, 0.0, 9.0],  # not symmetric
+    )
+    for k, cov in enumerate(bad):
+        u = est.on_gnss_fix(t + 1 + k, lat, lon, alt, np.reshape(cov, (3, 3)))
+        assert not u.accepted and u.reason == "bad_covariance"
+    assert est.stats == {**before, "gnss_fix:bad_covariance": len(bad)}
+    fit = est.grade._fit.pts  # (distance, altitude) points of the road-grade fit
+    last = fit[-1]
+    assert last[0] < est.grade.distance_m
+    u = est.on_gnss_fix(t + 10, lat, lon, float("nan"), np.reshape(good, (3, 3)))
+    assert u.accepted and u.nis < 20.0
+    assert est.stats["gnss_fix:no_altitude"] == 1
+    assert fit[-1] == last
+    u = est.on_gnss_fix(t + 11, lat, lon, alt, np.zeros((3, 3)))  # not reported: the default
+    assert u.accepted
+    assert fit[-1][0] == est.grade.distance_m
+    assert est.stats == {**before, "gnss_fix:bad_covariance": len(bad), "gnss_fix:no_altitude": 1}

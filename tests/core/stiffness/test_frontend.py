@@ -159,7 +159,7 @@ def test_losing_the_speed_stops_learning_of_cx_too() -> None:
     t = 1_000_000_000 + 600 * 10 * MS + 500 * MS
     est.on_imu(t, [0.0, 0.0, 0.0], [0.0, 0.0, 9.81])
     assert (est._active, est._cx_active, est._reason) == (False, False, "no speed input")
-    assert est.stats == {"no_speed": 1}
+    assert est.stats == {"imu:no_speed": 1}
 
 
 def _imports(path: Path) -> list[str]:

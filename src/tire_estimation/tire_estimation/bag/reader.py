@@ -5,11 +5,20 @@ compressed or not) and returns :class:`BagData`. Messages are decoded in bulk wi
 :mod:`tire_estimation.bag.cdr` (NumPy over batches of same-layout messages), falling back to the
 ``rosbags`` deserializer for messages that do not fit a batch layout. Stream times are header
 stamps (ns), sorted; samples with a repeated stamp are dropped (noted in :attr:`BagData.notes`).
+
+Bad input messages are dropped and counted in :attr:`BagData.dropped` as ``<stream>:<kind>``,
+the names the estimator node counts on ``/diagnostics``: a repeated stamp (``duplicate``), a
+JointState or TireForces naming a wheel twice (``duplicate_wheel``, ``duplicate_joint``), and
+every GNSS fix and velocity the node's check refuses (:meth:`GnssFix.from_navsat`,
+:meth:`GnssVelocity.checked`: ``no_fix``, ``bad_covariance``, ``nan``, ...). The other bad
+values of the high-rate streams reach the estimators, which drop and count them under the same
+names.
 """
 
 from __future__ import annotations
 
 import math
+from collections import Counter
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -27,9 +36,11 @@ from tire_estimation.bag.typestore import bag_typestore
 from tire_estimation.bag.writer import CUSTOM_EVENTS, CUSTOM_VEHICLE, SIM_CONFIG_FILE, VEHICLE_FILE
 from tire_estimation.core import yamlio
 from tire_estimation.core.arrays import F64, I64
+from tire_estimation.core.input_checks import drop_key, unique_names
+from tire_estimation.core.samples import STATUS_NO_FIX, GnssFix, GnssVelocity
 from tire_estimation.core.vehicle import VehicleParams, load_vehicle_yaml
 from tire_estimation.core.wheels import STEERING_JOINT, WHEELS
-from tire_estimation.errors import BagError, VehicleConfigError
+from tire_estimation.errors import BagError, InputError, VehicleConfigError
 from tire_estimation.sim.streams import (
     GnssStream,
     GnssVelocityStream,
@@ -42,8 +53,24 @@ from tire_estimation.sim.streams import (
 )
 
 _NS_PER_S = 1_000_000_000
-#: ``sensor_msgs/NavSatStatus.STATUS_NO_FIX``; such fixes are dropped.
-_STATUS_NO_FIX = -1
+
+
+@dataclass
+class ReadLog:
+    """What reading dropped: remarks (``notes``) and, for the input topics, counts by
+    ``<stream>:<kind>`` (``dropped``)."""
+
+    notes: list[str] = field(default_factory=list)
+    dropped: Counter[str] = field(default_factory=Counter)
+
+    def drop(self, topic: str, kind: str, count: int, note: str) -> None:
+        """``count`` messages of ``topic`` dropped as ``kind``; ``note`` says why."""
+        if count <= 0:
+            return
+        self.notes.append(f"{topic}: dropped {count} {note}")
+        stream = tp.INPUT_STREAMS.get(topic)
+        if stream is not None:
+            self.dropped[drop_key(stream, kind)] += count
 
 
 @dataclass(frozen=True)
@@ -92,6 +119,7 @@ class BagData:
     ``topics``: every topic of the bag (read or not) with type and message count.
     ``events``, ``scenario``, ``seed``, ``sim_config``: from ``sim_config.yaml`` (simulated bags).
     ``notes``: human-readable remarks about data that was dropped while reading.
+    ``dropped``: input messages dropped while reading, by ``<stream>:<kind>``.
     """
 
     path: Path
@@ -119,6 +147,7 @@ class BagData:
     sim_config: dict[str, Any] = field(default_factory=dict)
     custom_data: dict[str, str] = field(default_factory=dict)
     notes: tuple[str, ...] = ()
+    dropped: dict[str, int] = field(default_factory=dict)
 
     def t_s(self, t_ns: I64) -> F64:
         """Seconds from the start of the bag."""
@@ -254,17 +283,19 @@ def _column(batches: list[Batch], count: int, path: str, width: int | None = Non
     return out
 
 
-def _order(t_ns: I64, what: str, notes: list[str]) -> I64:
-    """Indices sorting ``t_ns`` (stable) and keeping the first of repeated stamps."""
+def _order(t_ns: I64, what: str, log: ReadLog, bad: NDArray[np.bool_] | None = None) -> I64:
+    """Indices sorting ``t_ns`` (stable) and keeping the first of repeated stamps, without the
+    rows marked ``bad`` (dropped and counted by the caller)."""
     order = np.argsort(t_ns, kind="stable")
+    if bad is not None:
+        order = order[~bad[order]]
     t_sorted = t_ns[order]
     keep = np.ones(t_sorted.size, dtype=bool)
     keep[1:] = np.diff(t_sorted) > 0
     dropped = int(t_sorted.size - keep.sum())
-    if dropped:
-        notes.append(f"{what}: dropped {dropped} messages with a repeated header stamp")
+    log.drop(what, "duplicate", dropped, "messages with a repeated header stamp")
     if np.any(np.diff(t_ns) < 0):
-        notes.append(f"{what}: messages were not in header-stamp order; sorted")
+        log.notes.append(f"{what}: messages were not in header-stamp order; sorted")
     return order[keep]
 
 
@@ -275,12 +306,19 @@ def _by_name(
     value_paths: Sequence[str],
     names: Sequence[str],
     fill: float = np.nan,
-) -> list[F64]:
-    """Per-name columns of parallel arrays (JointState-like); absent names stay ``fill``."""
+) -> tuple[list[F64], NDArray[np.bool_]]:
+    """Per-name columns of parallel arrays (JointState-like); absent names stay ``fill``; and
+    the rows whose message names one of ``names`` more than once (not filled)."""
     index = {n: i for i, n in enumerate(names)}
     outs = [np.full((count, len(names)), fill) for _ in value_paths]
+    repeated = np.zeros(count, dtype=bool)
     for b in batches:
         msg_names = b.strings.get(names_path, ())
+        try:
+            unique_names(msg_names, index, "duplicate")
+        except InputError:
+            repeated[b.index] = True
+            continue
         for out, path in zip(outs, value_paths, strict=True):
             values = b.arrays[path]
             if values.shape[1] != len(msg_names):
@@ -288,7 +326,14 @@ def _by_name(
             for j, name in enumerate(msg_names):
                 if name in index:
                     out[b.index, index[name]] = values[:, j]
-    return outs
+    return outs, repeated
+
+
+def _drop_repeated(what: str, repeated: NDArray[np.bool_], log: ReadLog) -> None:
+    """Count the messages that name a wheel (joint) twice: which value is meant is unknown."""
+    wheels = what in (tp.WHEEL_SPEEDS, tp.TIRE_FORCES_TOPIC)
+    kind = "duplicate_wheel" if wheels else "duplicate_joint"
+    log.drop(what, kind, int(repeated.sum()), "messages that name a joint more than once")
 
 
 def joint_arrays(
@@ -297,21 +342,22 @@ def joint_arrays(
     names: Sequence[str],
     value: str,
     what: str,
-    notes: list[str],
+    log: ReadLog,
 ) -> JointArrays:
     """A JointState topic's ``value`` field (position/velocity/effort) matched by name."""
     t = _all_stamps(batches, count)
-    (values,) = _by_name(batches, count, "name", [value], names)
-    keep = _order(t, what, notes)
+    (values,), repeated = _by_name(batches, count, "name", [value], names)
+    _drop_repeated(what, repeated, log)
+    keep = _order(t, what, log, repeated)
     return JointArrays(t[keep], tuple(names), values[keep])
 
 
-def imu_stream(batches: list[Batch], count: int, notes: list[str]) -> ImuStream:
+def imu_stream(batches: list[Batch], count: int, log: ReadLog) -> ImuStream:
     """``sensor_msgs/Imu`` messages as :class:`ImuStream` (noise std from the covariances)."""
     t = _all_stamps(batches, count)
     gyro = np.column_stack([_column(batches, count, f"angular_velocity.{a}") for a in "xyz"])
     acc = np.column_stack([_column(batches, count, f"linear_acceleration.{a}") for a in "xyz"])
-    keep = _order(t, tp.IMU_DATA, notes)
+    keep = _order(t, tp.IMU_DATA, log)
 
     def std(path: str) -> float:
         diag = batches[0].arrays[path][0][[0, 4, 8]]
@@ -326,24 +372,60 @@ def imu_stream(batches: list[Batch], count: int, notes: list[str]) -> ImuStream:
     )
 
 
+def _refused(
+    count: int, check: Callable[[int], None], what: str, log: ReadLog
+) -> NDArray[np.bool_]:
+    """The rows ``check`` refuses (raises InputError), dropped and counted by kind (before the
+    repeated stamps: as the node, which checks each message as it comes)."""
+    bad = np.zeros(count, dtype=bool)
+    kinds: Counter[str] = Counter()
+    for i in range(count):
+        try:
+            check(i)
+        except InputError as exc:
+            kinds[exc.kind] += 1
+            bad[i] = True
+    for kind, n in sorted(kinds.items()):
+        log.drop(what, kind, n, f"messages refused by the input check ({kind})")
+    return bad
+
+
 def fix_stream(
     batches: list[Batch],
     count: int,
     what: str,
-    notes: list[str],
+    log: ReadLog,
     velocity: tuple[I64, F64, F64] | None = None,
 ) -> GnssStream | None:
     """``sensor_msgs/NavSatFix`` messages as :class:`GnssStream` (no-fix messages dropped).
 
-    ``velocity`` (t_ns, (K, 3), (K, 3, 3)) is matched to the fixes by identical stamp; fixes
-    without a velocity get NaN rows.
+    The fixes of the input topic are checked as the node checks them
+    (:meth:`GnssFix.from_navsat`): a refused fix is dropped and counted, a covariance of type
+    unknown is stored all zero (not reported), a missing altitude as NaN. ``velocity`` (t_ns,
+    (K, 3), (K, 3, 3)) is matched to the fixes by identical stamp; fixes without a velocity get
+    NaN rows.
     """
     t = _all_stamps(batches, count)
     status = _column(batches, count, "status.status")
-    keep = _order(t, what, notes)
-    good = keep[status[keep] != _STATUS_NO_FIX]
-    if good.size < keep.size:
-        notes.append(f"{what}: dropped {keep.size - good.size} messages with STATUS_NO_FIX")
+    lat = _column(batches, count, "latitude")
+    lon = _column(batches, count, "longitude")
+    alt = _column(batches, count, "altitude")
+    cov = _column(batches, count, "position_covariance", 9).reshape(-1, 3, 3)
+    if what == tp.GNSS_FIX:
+        cov_type = _column(batches, count, "position_covariance_type")
+
+        def check(i: int) -> None:
+            fix = GnssFix.from_navsat(
+                int(t[i]), status[i], lat[i], lon[i], alt[i], cov[i], cov_type[i]
+            )
+            alt[i] = fix.alt_m
+            cov[i] = 0.0 if fix.covariance_m2 is None else fix.covariance_m2
+
+        bad = _refused(count, check, what, log)
+    else:
+        bad = status == STATUS_NO_FIX
+        log.drop(what, "no_fix", int(bad.sum()), "messages with STATUS_NO_FIX")
+    good = _order(t, what, log, bad)
     if good.size == 0:
         return None
     vel = vcov = None
@@ -356,42 +438,45 @@ def fix_stream(
         vel[hit] = v[pos[hit]]
         vcov[hit] = c[pos[hit]]
         if not hit.all():
-            notes.append(f"{what}: {int((~hit).sum())} fixes have no velocity at their stamp")
-    return GnssStream(
-        t[good],
-        _column(batches, count, "latitude")[good],
-        _column(batches, count, "longitude")[good],
-        _column(batches, count, "altitude")[good],
-        _column(batches, count, "position_covariance", 9)[good].reshape(-1, 3, 3),
-        vel,
-        vcov,
-    )
+            log.notes.append(f"{what}: {int((~hit).sum())} fixes have no velocity at their stamp")
+    return GnssStream(t[good], lat[good], lon[good], alt[good], cov[good], vel, vcov)
 
 
 def velocity_arrays(
-    batches: list[Batch], count: int, notes: list[str], what: str = tp.GNSS_VELOCITY
+    batches: list[Batch], count: int, log: ReadLog, what: str = tp.GNSS_VELOCITY
 ) -> tuple[I64, F64, F64]:
     """A ``TwistWithCovarianceStamped`` topic (``/gnss/velocity``: ENU) as (t_ns, linear
-    velocity (K, 3) m/s, covariance (K, 3, 3) m^2/s^2)."""
+    velocity (K, 3) m/s, covariance (K, 3, 3) m^2/s^2). The GNSS velocities are checked as the
+    node checks them (:meth:`GnssVelocity.checked`): a refused one is dropped and counted (an
+    all-zero covariance is not given)."""
     t = _all_stamps(batches, count)
     vel = np.column_stack([_column(batches, count, f"twist.twist.linear.{a}") for a in "xyz"])
     cov = _column(batches, count, "twist.covariance", 36).reshape(-1, 6, 6)[:, :3, :3]
-    keep = _order(t, what, notes)
-    return t[keep], vel[keep], np.ascontiguousarray(cov[keep])
+    cov = np.ascontiguousarray(cov)
+    bad = None
+    if what == tp.GNSS_VELOCITY:
+
+        def check(i: int) -> None:
+            GnssVelocity.checked(int(t[i]), vel[i], cov[i])
+
+        bad = _refused(count, check, what, log)
+    keep = _order(t, what, log, bad)
+    return t[keep], vel[keep], cov[keep]
 
 
-def tire_force_stream(batches: list[Batch], count: int, notes: list[str]) -> TireForceStream:
+def tire_force_stream(batches: list[Batch], count: int, log: ReadLog) -> TireForceStream:
     """``tire_estimation_msgs/TireForces`` by wheel name; absent wheels NaN and not valid."""
     t = _all_stamps(batches, count)
-    fx, fy, fz = _by_name(batches, count, "wheel_names", ["fx_n", "fy_n", "fz_n"], WHEELS)
-    (valid,) = _by_name(batches, count, "wheel_names", ["valid"], WHEELS, fill=0.0)
-    keep = _order(t, tp.TIRE_FORCES_TOPIC, notes)
+    (fx, fy, fz), repeated = _by_name(
+        batches, count, "wheel_names", ["fx_n", "fy_n", "fz_n"], WHEELS
+    )
+    (valid,), _ = _by_name(batches, count, "wheel_names", ["valid"], WHEELS, fill=0.0)
+    _drop_repeated(tp.TIRE_FORCES_TOPIC, repeated, log)
+    keep = _order(t, tp.TIRE_FORCES_TOPIC, log, repeated)
     return TireForceStream(t[keep], fx[keep], fy[keep], fz[keep], valid[keep] > 0.5)
 
 
-def odometry_arrays(
-    batches: list[Batch], count: int, what: str, notes: list[str]
-) -> OdometryArrays:
+def odometry_arrays(batches: list[Batch], count: int, what: str, log: ReadLog) -> OdometryArrays:
     """``nav_msgs/Odometry`` messages as :class:`OdometryArrays`."""
     t = _all_stamps(batches, count)
     pos = np.column_stack([_column(batches, count, f"pose.pose.position.{a}") for a in "xyz"])
@@ -400,7 +485,7 @@ def odometry_arrays(
     ang = np.column_stack([_column(batches, count, f"twist.twist.angular.{a}") for a in "xyz"])
     pcov = _column(batches, count, "pose.covariance", 36).reshape(-1, 6, 6)
     tcov = _column(batches, count, "twist.covariance", 36).reshape(-1, 6, 6)
-    keep = _order(t, what, notes)
+    keep = _order(t, what, log)
     x, y, z, w = quat[keep].T
     yaw = np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
     first = batches[0].strings
@@ -579,11 +664,12 @@ def _check_readable(selected: tuple[str, ...]) -> None:
 
 
 def decode_topics(raw: dict[str, RawTopic], *, fast: bool = True) -> dict[str, Any]:
-    """Decode raw topics into the stream fields of :class:`BagData` (plus ``notes``)."""
+    """Decode raw topics into the stream fields of :class:`BagData` (plus ``notes`` and
+    ``dropped``)."""
     store = bag_typestore(
         tuple(sorted({(rt.msgtype, *rt.schema) for rt in raw.values() if len(rt)}))
     )
-    notes: list[str] = []
+    log = ReadLog()
     batches: dict[str, tuple[list[Batch], int]] = {}
     for topic, rt in raw.items():
         if len(rt):
@@ -594,32 +680,32 @@ def decode_topics(raw: dict[str, RawTopic], *, fast: bool = True) -> dict[str, A
 
     out: dict[str, Any] = {}
     if tp.WHEEL_SPEEDS in batches:
-        ja = joint_arrays(*batches[tp.WHEEL_SPEEDS], WHEELS, "velocity", tp.WHEEL_SPEEDS, notes)
+        ja = joint_arrays(*batches[tp.WHEEL_SPEEDS], WHEELS, "velocity", tp.WHEEL_SPEEDS, log)
         out["wheel_speeds"] = WheelSpeedStream(ja.t_ns, ja.values)
     if tp.STEERING in batches:
-        ja = joint_arrays(*batches[tp.STEERING], (STEERING_JOINT,), "position", tp.STEERING, notes)
+        ja = joint_arrays(*batches[tp.STEERING], (STEERING_JOINT,), "position", tp.STEERING, log)
         out["steering"] = SteeringStream(ja.t_ns, ja.values[:, 0])
     if tp.IMU_DATA in batches:
-        out["imu"] = imu_stream(*batches[tp.IMU_DATA], notes)
+        out["imu"] = imu_stream(*batches[tp.IMU_DATA], log)
     velocity = None
     if tp.GNSS_VELOCITY in batches:
-        velocity = velocity_arrays(*batches[tp.GNSS_VELOCITY], notes)
+        velocity = velocity_arrays(*batches[tp.GNSS_VELOCITY], log)
         out["gnss_velocity"] = GnssVelocityStream(*velocity)
     if tp.GNSS_FIX in batches:
-        out["gnss"] = fix_stream(*batches[tp.GNSS_FIX], tp.GNSS_FIX, notes, velocity)
+        out["gnss"] = fix_stream(*batches[tp.GNSS_FIX], tp.GNSS_FIX, log, velocity)
     if tp.TIRE_FORCES_TOPIC in batches:
-        out["tire_forces"] = tire_force_stream(*batches[tp.TIRE_FORCES_TOPIC], notes)
+        out["tire_forces"] = tire_force_stream(*batches[tp.TIRE_FORCES_TOPIC], log)
     if tp.VEHICLE_VELOCITY in batches:
-        t_v, vel, _ = velocity_arrays(*batches[tp.VEHICLE_VELOCITY], notes, tp.VEHICLE_VELOCITY)
+        t_v, vel, _ = velocity_arrays(*batches[tp.VEHICLE_VELOCITY], log, tp.VEHICLE_VELOCITY)
         out["vehicle_velocity"] = SpeedStream(t_v, np.ascontiguousarray(vel[:, 0]))
     if tp.TRUTH_FIX in batches:
-        out["truth_fix"] = fix_stream(*batches[tp.TRUTH_FIX], tp.TRUTH_FIX, notes)
+        out["truth_fix"] = fix_stream(*batches[tp.TRUTH_FIX], tp.TRUTH_FIX, log)
     for topic, key in (
         (tp.TRUTH_ODOMETRY, "truth_odometry"),
         (tp.REFERENCE_ODOMETRY, "reference_odometry"),
     ):
         if topic in batches:
-            out[key] = odometry_arrays(*batches[topic], topic, notes)
+            out[key] = odometry_arrays(*batches[topic], topic, log)
     for topic, key, names in (
         (tp.TRUTH_WHEEL_RADII, "truth_wheel_radii", WHEELS),
         (tp.TRUTH_TIRE_PRESSURE, "truth_tire_pressure", WHEELS),
@@ -627,6 +713,7 @@ def decode_topics(raw: dict[str, RawTopic], *, fast: bool = True) -> dict[str, A
         (tp.REFERENCE_LATERAL_STATE, "reference_lateral", tp.REFERENCE_LATERAL_NAMES),
     ):
         if topic in batches:
-            out[key] = joint_arrays(*batches[topic], names, "position", topic, notes)
-    out["notes"] = tuple(notes)
+            out[key] = joint_arrays(*batches[topic], names, "position", topic, log)
+    out["notes"] = tuple(log.notes)
+    out["dropped"] = dict(sorted(log.dropped.items()))
     return out

@@ -90,6 +90,17 @@ INPUT_TOPICS: Final = (
     TIRE_FORCES_TOPIC,
     VEHICLE_VELOCITY,
 )
+#: The sample stream (``core.samples`` ``KIND``, the key of the drop counters) of each input
+#: topic.
+INPUT_STREAMS: Final[dict[str, str]] = {
+    WHEEL_SPEEDS: "wheel_speeds",
+    STEERING: "steering",
+    IMU_DATA: "imu",
+    GNSS_FIX: "gnss_fix",
+    GNSS_VELOCITY: "gnss_velocity",
+    TIRE_FORCES_TOPIC: "tire_forces",
+    VEHICLE_VELOCITY: "velocity",
+}
 TRUTH_TOPICS: Final = (
     TRUTH_FIX,
     TRUTH_ODOMETRY,

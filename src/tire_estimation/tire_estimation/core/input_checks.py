@@ -3,11 +3,15 @@
 Samples that entered through :mod:`tire_estimation.core.samples` are already checked; the
 estimators still guard their own state (stamp order per stream, vector length, finiteness)
 because tests, benchmarks and studies call them directly. Each check raises
-:class:`~tire_estimation.errors.InputError` with the ``kind`` the caller counts.
+:class:`~tire_estimation.errors.InputError` with the ``kind`` the caller counts, as
+``<stream>:<kind>`` (:func:`drop_key`). The checks of covariances and of repeated names are
+shared by the node's message conversions, the bag reader and the estimators.
 """
 
 from __future__ import annotations
 
+import math
+from collections.abc import Container, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -41,3 +45,80 @@ def finite_vector(value: Any, n: int, what: str) -> F64:
     if not np.all(np.isfinite(v)):
         raise InputError("nan", f"{what}: non-finite value")
     return v
+
+
+def drop_key(stream: str, kind: str) -> str:
+    """The counter key of a dropped sample: ``<stream>:<kind>`` (``/diagnostics`` shows it as
+    ``dropped.<stream>:<kind>``, ``metrics.json`` under ``dropped_samples``)."""
+    return f"{stream}:{kind}"
+
+
+def unique_names(names: Sequence[str], known: Container[str], kind: str) -> None:
+    """Raise InputError ``kind`` (``duplicate_wheel``, ``duplicate_joint``) when one of the
+    ``known`` names appears more than once in ``names`` (which value is meant is unknown)."""
+    seen: set[str] = set()
+    for name in names:
+        if name in known:
+            if name in seen:
+                raise InputError(kind, f"{name!r} appears more than once in {list(names)}")
+            seen.add(name)
+
+
+#: relative tolerance of the symmetry and semi-definiteness checks of a covariance (rounding)
+COVARIANCE_RTOL = 1e-9
+
+
+def checked_covariance(values: Any, what: str) -> F64 | None:
+    """A covariance given as 9 (3x3) or 4 (2x2) values, row-major, first two axes horizontal
+    (ENU east, north): the (n, n) matrix, or None when absent or all zero (ROS: not reported).
+
+    Raises InputError ``wrong_length`` (another number of values) or ``bad_covariance``: a value
+    not finite, the matrix not symmetric or not positive semi-definite, or its horizontal 2x2
+    block not positive definite (the estimators invert it).
+    """
+    if values is None:
+        return None
+    try:
+        flat = np.asarray(values, dtype=np.float64).reshape(-1)
+    except (TypeError, ValueError) as exc:
+        raise InputError("bad_covariance", f"{what}: {exc}") from exc
+    n = 3 if flat.size == 9 else 2 if flat.size == 4 else 0
+    if n == 0:
+        raise InputError("wrong_length", f"{what}: need 9 (3x3) or 4 values, got {flat.size}")
+    c = flat.tolist()
+    if not all(math.isfinite(v) for v in c):
+        raise InputError("bad_covariance", f"{what} is not finite: {c}")
+    if not any(c):
+        return None
+    diag = [c[i * n + i] for i in range(n)]
+    if min(diag) < 0.0:
+        raise InputError("bad_covariance", f"{what} has a negative variance: {diag}")
+    for i in range(n):
+        for j in range(i + 1, n):
+            cij, cji = c[i * n + j], c[j * n + i]
+            scale = math.sqrt(diag[i] * diag[j])
+            if abs(cij - cji) > COVARIANCE_RTOL * scale:
+                raise InputError("bad_covariance", f"{what} is not symmetric: {c}")
+            # every 2x2 principal minor of a positive semi-definite matrix is >= 0
+            if diag[i] * diag[j] - cij * cji < -COVARIANCE_RTOL * diag[i] * diag[j]:
+                raise InputError("bad_covariance", f"{what} is not positive semi-definite: {c}")
+    if not (diag[0] > 0.0 and diag[0] * diag[1] - c[1] * c[n] > 0.0):
+        raise InputError("bad_covariance", f"{what}: horizontal block not positive definite")
+    if n == 3:
+        det = (
+            c[0] * (c[4] * c[8] - c[5] * c[7])
+            - c[1] * (c[3] * c[8] - c[5] * c[6])
+            + c[2] * (c[3] * c[7] - c[4] * c[6])
+        )
+        if det < -COVARIANCE_RTOL * diag[0] * diag[1] * diag[2]:
+            raise InputError("bad_covariance", f"{what} is not positive semi-definite: {c}")
+    return flat.reshape(n, n)
+
+
+def merged_counts(*counts: Mapping[str, int]) -> dict[str, int]:
+    """Counters summed key by key (the drops of the message checks and of an estimator)."""
+    out: dict[str, int] = {}
+    for c in counts:
+        for key, n in c.items():
+            out[key] = out.get(key, 0) + int(n)
+    return out

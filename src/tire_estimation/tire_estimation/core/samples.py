@@ -6,9 +6,11 @@ per-wheel arrays have 4 entries in the order of :data:`~tire_estimation.core.whe
 
 A sample is checked once, where it enters the package: :meth:`checked` of each type raises
 :class:`~tire_estimation.errors.InputError` with a stable ``kind`` (``no_stamp``, ``nan``,
-``wrong_shape``, ``out_of_range``) that the caller counts as ``dropped.<stream>:<kind>``.
-Sources whose arrays were validated as a whole (the bag reader, the simulator) build samples
-with the plain constructor.
+``wrong_shape``, ``out_of_range``, ``bad_covariance``, ...) that the caller counts as
+``dropped.<stream>:<kind>``. The node's conversions and the bag reader check the GNSS samples
+with the same methods (:meth:`GnssFix.from_navsat`, :meth:`GnssVelocity.checked`); for the
+high-rate streams the bag reader and the simulator build samples with the plain constructor
+and the estimators' own checks drop and count bad values under the same names.
 
 ``KIND`` names the stream (the key of the drop counters and of ``/diagnostics``);
 ``PRIORITY`` orders samples of equal stamp: the speeds and steering an IMU sample belongs to
@@ -28,12 +30,19 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tire_estimation.core.arrays import F64
+from tire_estimation.core.input_checks import checked_covariance
 from tire_estimation.errors import InputError
 
 #: largest wheel angular speed accepted, rad/s (about 1300 km/h on a 0.35 m tyre)
 MAX_WHEEL_SPEED_RAD_S = 1000.0
 #: largest steering angle accepted, rad
 MAX_STEERING_RAD = 1.2
+#: largest altitude of a GNSS fix accepted, m (above or below the WGS-84 ellipsoid)
+MAX_ABS_ALTITUDE_M = 1e5
+#: ``sensor_msgs/NavSatFix.COVARIANCE_TYPE_UNKNOWN``: the position covariance is not reported
+COVARIANCE_TYPE_UNKNOWN = 0
+#: ``sensor_msgs/NavSatStatus.STATUS_NO_FIX``
+STATUS_NO_FIX = -1
 
 
 def _stamp(t_ns: object) -> int:
@@ -52,24 +61,6 @@ def _vector(values: object, n: int, what: str) -> F64:
     if arr.size != n:
         raise InputError("wrong_shape", f"{what} needs {n} values, got {arr.size}")
     return arr
-
-
-def _covariance(values: object, n: int, what: str) -> F64 | None:
-    """An (n, n) covariance; None when absent or all zero (ROS: unknown). Non-finite, or not
-    positive on the horizontal variances: ``bad_cov``."""
-    if values is None:
-        return None
-    try:
-        cov = np.asarray(values, dtype=np.float64).reshape(n, n)
-    except (TypeError, ValueError) as exc:
-        raise InputError("bad_cov", f"{what}: {exc}") from exc
-    if not np.all(np.isfinite(cov)):
-        raise InputError("bad_cov", f"{what} is not finite")
-    if not np.any(cov):
-        return None
-    if cov[0, 0] <= 0.0 or cov[1, 1] <= 0.0:
-        raise InputError("bad_cov", f"{what} has a horizontal variance <= 0")
-    return cov
 
 
 @dataclass(frozen=True, slots=True)
@@ -140,7 +131,8 @@ class ImuSample:
 
 @dataclass(frozen=True, slots=True)
 class GnssFix:
-    """WGS-84 antenna position and its ENU covariance (3, 3) m^2 (None: not reported)."""
+    """WGS-84 antenna position and its ENU covariance (3, 3) m^2 (None: not reported);
+    ``alt_m`` NaN when the receiver reports no altitude."""
 
     KIND: ClassVar[str] = "gnss_fix"
     PRIORITY: ClassVar[int] = 3
@@ -154,14 +146,45 @@ class GnssFix:
     def checked(
         cls, t_ns: object, lat_deg: float, lon_deg: float, alt_m: float, covariance_m2: object
     ) -> GnssFix:
-        """Validated sample: finite latitude, longitude and altitude in range; a covariance
-        that is given must be finite and positive on its diagonal (else ``bad_cov``)."""
+        """Validated sample: finite latitude and longitude in range; a covariance that is given
+        must be a finite, symmetric, positive semi-definite matrix whose horizontal block is
+        positive definite (else ``bad_covariance``). A non-finite altitude is kept as NaN: not
+        reported (the ROS convention for a fix without altitude); the radius estimator then uses
+        the fix without it and counts ``no_altitude``."""
         lat, lon, alt = float(lat_deg), float(lon_deg), float(alt_m)
-        if not (math.isfinite(lat) and math.isfinite(lon) and math.isfinite(alt)):
-            raise InputError("nan", "GNSS latitude, longitude or altitude not finite")
+        if not (math.isfinite(lat) and math.isfinite(lon)):
+            raise InputError("nan", "GNSS latitude or longitude not finite")
         if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
             raise InputError("out_of_range", f"GNSS lat/lon out of range: {lat}, {lon}")
-        return cls(_stamp(t_ns), lat, lon, alt, _covariance(covariance_m2, 3, "fix covariance"))
+        if not math.isfinite(alt):
+            alt = math.nan
+        elif abs(alt) > MAX_ABS_ALTITUDE_M:
+            raise InputError("out_of_range", f"GNSS altitude out of range: {alt}")
+        return cls(
+            _stamp(t_ns), lat, lon, alt, checked_covariance(covariance_m2, "fix covariance")
+        )
+
+    @classmethod
+    def from_navsat(
+        cls,
+        t_ns: object,
+        status: int,
+        lat_deg: float,
+        lon_deg: float,
+        alt_m: float,
+        covariance_m2: object,
+        covariance_type: int,
+    ) -> GnssFix:
+        """The fields of a ``sensor_msgs/NavSatFix`` as a checked sample (node and bag reader).
+
+        Status ``STATUS_NO_FIX`` raises ``no_fix`` (``STATUS_UNKNOWN``, -2, the message default
+        many drivers leave, is accepted). With ``COVARIANCE_TYPE_UNKNOWN`` the covariance is not
+        read (None: the estimator's configured default); any other type must carry a valid one
+        (:meth:`checked`; all zero is read as not reported)."""
+        if int(status) == STATUS_NO_FIX:
+            raise InputError("no_fix", "NavSatFix status reports no fix")
+        cov = None if int(covariance_type) == COVARIANCE_TYPE_UNKNOWN else covariance_m2
+        return cls.checked(t_ns, lat_deg, lon_deg, alt_m, cov)
 
 
 @dataclass(frozen=True, slots=True)
@@ -176,11 +199,12 @@ class GnssVelocity:
 
     @classmethod
     def checked(cls, t_ns: object, velocity_enu_m_s: object, covariance: object) -> GnssVelocity:
-        """Validated sample: a finite 3-vector."""
+        """Validated sample: a finite 3-vector; a covariance as for :meth:`GnssFix.checked`
+        (all zero: not given)."""
         v = _vector(velocity_enu_m_s, 3, "GNSS velocity")
         if not np.all(np.isfinite(v)):
             raise InputError("nan", "GNSS velocity is not finite")
-        return cls(_stamp(t_ns), v, _covariance(covariance, 3, "velocity covariance"))
+        return cls(_stamp(t_ns), v, checked_covariance(covariance, "velocity covariance"))
 
 
 @dataclass(frozen=True, slots=True)

@@ -73,9 +73,10 @@ class LateralTrace:
     ``kf_*``: the tyre-force KF; ``st_*``: the single-track model alone; ``truth_*``: truth of
     base_link interpolated at ``t_s``; ``nonlinear``: relay state; ``deviation_n``: eq. (29)
     after the low-pass; ``relay_t_s``/``relay_state``: the relay switching instants and new
-    states; ``stats``: dropped samples by kind. ``mpf_*``: the stiffness MPF's estimates moved
-    to base_link and interpolated at ``t_s`` (nan outside the span where the MPF had an
-    estimate; ``None`` when it was not run), ``mpf_info``: its set-up and a few diagnostics.
+    states; ``stats``: dropped samples by ``<stream>:<kind>``. ``mpf_*``: the stiffness MPF's
+    estimates moved to base_link and interpolated at ``t_s`` (nan outside the span where the
+    MPF had an estimate; ``None`` when it was not run), ``mpf_info``: its set-up and a few
+    diagnostics.
     """
 
     t_s: F64

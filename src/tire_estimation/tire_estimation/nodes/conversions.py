@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from tire_estimation.core.input_checks import unique_names
 from tire_estimation.core.samples import (
     GnssFix,
     GnssVelocity,
@@ -23,9 +24,6 @@ from tire_estimation.core.samples import (
 )
 from tire_estimation.core.wheels import STEERING_JOINT, WHEEL_INDEX, WHEELS
 from tire_estimation.errors import InputError
-
-#: sensor_msgs/NavSatStatus.STATUS_NO_FIX
-STATUS_NO_FIX = -1
 
 
 def stamp_ns(header: Any) -> int:
@@ -46,7 +44,8 @@ def wheel_speeds_from_msg(msg: Any) -> WheelSpeeds:
     """JointState -> :class:`WheelSpeeds` (NaN for a wheel the message does not name).
 
     Names are matched, not positions (contract). Unknown names are ignored if at least one known
-    wheel is present; a message with no known wheel raises ``unknown_wheel``.
+    wheel is present; a message with no known wheel raises ``unknown_wheel``, one that names a
+    wheel twice ``duplicate_wheel``.
     """
     t_ns = stamp_ns(msg.header)
     names = list(msg.name)
@@ -58,6 +57,7 @@ def wheel_speeds_from_msg(msg: Any) -> WheelSpeeds:
             "wrong_length",
             f"wheel speed JointState has {len(names)} names but {len(velocity)} velocities",
         )
+    unique_names(names, WHEEL_INDEX, "duplicate_wheel")
     out = np.full(4, np.nan)
     known = 0
     for name, value in zip(names, velocity, strict=True):
@@ -74,7 +74,8 @@ def wheel_speeds_from_msg(msg: Any) -> WheelSpeeds:
 
 
 def steering_from_msg(msg: Any) -> Steering:
-    """JointState with ``front_wheel_angle`` -> :class:`Steering`."""
+    """JointState with ``front_wheel_angle`` -> :class:`Steering` (named twice:
+    ``duplicate_joint``)."""
     t_ns = stamp_ns(msg.header)
     names = list(msg.name)
     position = list(msg.position)
@@ -83,6 +84,7 @@ def steering_from_msg(msg: Any) -> Steering:
             "wrong_length",
             f"steering JointState has {len(names)} names but {len(position)} positions",
         )
+    unique_names(names, (STEERING_JOINT,), "duplicate_joint")
     for name, value in zip(names, position, strict=True):
         if name == STEERING_JOINT:
             return Steering.checked(t_ns, value)
@@ -125,27 +127,31 @@ def gnss_velocity_from_msg(msg: Any) -> GnssVelocity:
 
 
 def gnss_from_msg(msg: Any) -> GnssFix:
-    """NavSatFix -> :class:`GnssFix`.
+    """NavSatFix -> :class:`GnssFix` (:meth:`GnssFix.from_navsat`, the bag reader's check).
 
     A fix with status STATUS_NO_FIX (-1) raises ``no_fix``; STATUS_UNKNOWN (-2, the message
     default, left by many drivers) is accepted. Covariance type 0 (unknown) gives None so the
-    estimator applies its configured default; a covariance that is given but not finite or not
-    positive raises ``bad_cov``.
+    estimator applies its configured default; with any other type a covariance that is not
+    finite, not symmetric or not positive semi-definite raises ``bad_covariance`` (all zero is
+    read as not reported). A NaN altitude (none reported) is kept.
     """
-    t_ns = stamp_ns(msg.header)
-    if int(msg.status.status) == STATUS_NO_FIX:
-        raise InputError("no_fix", "NavSatFix status reports no fix")
-    cov = None
-    if int(msg.position_covariance_type) != 0:
-        cov = np.asarray(msg.position_covariance, dtype=float).reshape(3, 3)
-    return GnssFix.checked(t_ns, msg.latitude, msg.longitude, msg.altitude, cov)
+    return GnssFix.from_navsat(
+        stamp_ns(msg.header),
+        msg.status.status,
+        msg.latitude,
+        msg.longitude,
+        msg.altitude,
+        msg.position_covariance,
+        msg.position_covariance_type,
+    )
 
 
 def tire_forces_from_msg(msg: Any) -> TireForces:
     """TireForces message -> :class:`TireForces` sample, arrays in WHEELS order.
 
     Wheels absent from the message are invalid; unknown names are ignored; mismatched array
-    lengths raise ``wrong_length``; no known wheel raises ``unknown_wheel``.
+    lengths raise ``wrong_length``; no known wheel raises ``unknown_wheel``, a wheel named twice
+    ``duplicate_wheel``.
     """
     t_ns = stamp_ns(msg.header)
     names = list(msg.wheel_names)
@@ -155,6 +161,7 @@ def tire_forces_from_msg(msg: Any) -> TireForces:
             "wrong_length",
             f"TireForces has {len(names)} names but {[len(c) for c in cols]} values",
         )
+    unique_names(names, WHEEL_INDEX, "duplicate_wheel")
     fx, fy, fz = np.zeros(4), np.zeros(4), np.zeros(4)
     valid = np.zeros(4, dtype=bool)
     known = 0

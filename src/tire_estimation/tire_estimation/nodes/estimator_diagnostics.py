@@ -1,4 +1,9 @@
-"""``/diagnostics`` of the estimator node: one status per estimator and one per wheel."""
+"""``/diagnostics`` of the estimator node: one status per estimator and one per wheel.
+
+Dropped samples are reported as ``dropped.<stream>:<kind>``: on the radius estimator's status
+those the message checks dropped (:mod:`.conversions`) with those the radius estimator dropped,
+on the stiffness and tyre-force statuses those each of these estimators dropped.
+"""
 
 from __future__ import annotations
 
@@ -6,6 +11,7 @@ from collections.abc import Mapping
 
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 
+from tire_estimation.core.input_checks import merged_counts
 from tire_estimation.core.lateral.tyre_force_kf import TyreForceEstimator
 from tire_estimation.core.pipeline import EstimationPipeline
 from tire_estimation.core.stiffness.estimator import StiffnessEstimator
@@ -60,13 +66,12 @@ def statuses(
         for stream in INPUT_STREAMS:
             values[f"rate_hz.{stream}"] = f"{rates_hz.get(stream, 0.0):.1f}"
             values[f"received.{stream}"] = str(received.get(stream, 0))
-        for key, count in sorted(dropped.items()):
+        # dropped by the message checks and by the radius estimator, both as <stream>:<kind>
+        for key, count in sorted(merged_counts(dropped, radius.stats).items()):
             values[f"dropped.{key}"] = str(count)
         # processed out of stamp order: arrived more than reorder_delay_s behind the wheel speeds
         for key, count in sorted(pipeline.buffer.late.items()):
             values[f"late.{key}"] = str(count)
-        for key, count in sorted(radius.stats.items()):
-            values[f"dropped.core.{key}"] = str(count)
         if pipeline.axles is not None:
             for axle in ("front", "rear"):
                 values[f"axle.{axle}.split"] = pipeline.axles.status(axle).reason
@@ -130,7 +135,7 @@ def _tyre_force_status(
         "yaw_rate_rad_s": f"{float(est.yaw_rate_rad_s):.4f}",
     }
     for key, count in sorted(lateral.stats.items()):
-        values[f"dropped.core.{key}"] = str(count)
+        values[f"dropped.{key}"] = str(count)
     st.values = _values(values)
     return st
 
@@ -161,6 +166,6 @@ def _stiffness_status(
         values[name] = f"{float(c):.0f}"
         values[f"{name}_std"] = f"{float(s):.0f}"
     for key, count in sorted(stiffness.stats.items()):
-        values[f"dropped.core.{key}"] = str(count)
+        values[f"dropped.{key}"] = str(count)
     st.values = _values(values)
     return st

@@ -90,7 +90,8 @@ class ImuStream:
 class GnssStream:
     """GNSS antenna fixes.
 
-    WGS-84 ``lat_deg``, ``lon_deg``, ``alt_m`` (M,) and ENU covariance (M, 3, 3) m^2.
+    WGS-84 ``lat_deg``, ``lon_deg``, ``alt_m`` (M,) (NaN: no altitude reported) and ENU
+    covariance (M, 3, 3) m^2 (all zero: not reported).
 
     ``velocity_enu_m_s`` (M, 3) and ``velocity_covariance_m2_s2`` (M, 3, 3) are the optional
     Doppler velocity (None when the receiver does not report it).

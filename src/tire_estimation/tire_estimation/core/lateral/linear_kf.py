@@ -13,7 +13,8 @@ along x: ``ay_cg = ay_imu - (imu_x - lr) dr/dt``, neglected here: the filter is 
 simple baseline the issue names, "a linear single-track Kalman filter", and the Revs IMU is at
 the CG). Inputs: the road-wheel steer angle (first-order hold between samples, as the tyre-force
 KF) and the longitudinal speed (measured, or the rear-axle wheel speed). The IMU drives the
-steps; bad input is dropped and counted in :attr:`LinearLateralKF.stats`, never raised.
+steps; bad input is dropped and counted in :attr:`LinearLateralKF.stats` as
+``<stream>:<kind>``, never raised.
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from tire_estimation.core.arrays import F64
-from tire_estimation.core.input_checks import finite_vector, stamp_after
+from tire_estimation.core.input_checks import drop_key, finite_vector, stamp_after
 from tire_estimation.core.lateral.estimate import LateralState
 from tire_estimation.core.lateral.single_track import (
     SingleTrackParams,
@@ -114,8 +115,9 @@ class LinearLateralKF:
         self._steer_prev: float | None = None
         self._t_imu: int | None = None
 
-    def _drop(self, kind: str) -> None:
-        self.stats[kind] = self.stats.get(kind, 0) + 1
+    def _drop(self, stream: str, kind: str) -> None:
+        key = drop_key(stream, kind)
+        self.stats[key] = self.stats.get(key, 0) + 1
 
     def on_wheel_speeds(self, t_ns: int, wheel_speed_rad_s: Any) -> None:
         """Wheel speeds (fl, fr, rl, rr), rad/s; vx = mean rear wheel speed x nominal radius."""
@@ -123,7 +125,7 @@ class LinearLateralKF:
             t = stamp_after("wheel speeds", t_ns, self._t_vx)
             ws = finite_vector(wheel_speed_rad_s, 4, "wheel speeds")
         except (InputError, TypeError, ValueError) as exc:
-            self._drop(exc.kind if isinstance(exc, InputError) else "bad_value")
+            self._drop("wheel_speeds", exc.kind if isinstance(exc, InputError) else "bad_value")
             return
         self._t_vx, self._vx = t, float(0.5 * (ws[2] + ws[3]) * self.wheel_radius_m)
 
@@ -133,7 +135,7 @@ class LinearLateralKF:
             stamp_after(stream, t_ns, last_ns)
             return float(finite_vector(value, 1, stream)[0])
         except (InputError, TypeError, ValueError) as exc:
-            self._drop(exc.kind if isinstance(exc, InputError) else "bad_value")
+            self._drop(stream, exc.kind if isinstance(exc, InputError) else "bad_value")
             return None
 
     def on_velocity(self, t_ns: int, vx_m_s: float) -> None:
@@ -158,11 +160,11 @@ class LinearLateralKF:
             gyro = finite_vector(gyro_rad_s, 3, "gyro")
             acc = finite_vector(accel_m_s2, 3, "accel")
         except (InputError, TypeError, ValueError) as exc:
-            self._drop(exc.kind if isinstance(exc, InputError) else "bad_value")
+            self._drop("imu", exc.kind if isinstance(exc, InputError) else "bad_value")
             return
         last, self._t_imu = self._t_imu, t
         if not (self._fresh(self._t_vx, t) and self._vx is not None):
-            self._drop("no_speed")
+            self._drop("imu", "no_speed")
             return
         vx = self._vx
         delta = self._steer if (self._steer is not None and self._fresh(self._t_steer, t)) else 0.0
@@ -173,7 +175,7 @@ class LinearLateralKF:
             return
         dt = None if last is None else (t - last) * 1e-9
         if dt is not None and dt > self.config.max_gap_s:
-            self._drop("gap")
+            self._drop("imu", "gap")
             self.initialized = False
         if not self.initialized:
             self.x = steady_state(self.params, vx, delta)

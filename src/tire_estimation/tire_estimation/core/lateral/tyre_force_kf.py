@@ -27,7 +27,7 @@ gravity (the paper's); the published :class:`LateralEstimate` is of ``base_link`
 the rear axle, REP-103 axes) as the ``LateralState`` message requires: vy_base = vy_cg - lr r.
 
 Bad input never raises out of the ``on_*`` methods: the sample is dropped and counted in
-:attr:`TyreForceEstimator.stats` by kind.
+:attr:`TyreForceEstimator.stats` as ``<stream>:<kind>``.
 """
 
 from __future__ import annotations
@@ -40,7 +40,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from tire_estimation.core.arrays import F64
-from tire_estimation.core.input_checks import stamp_after
+from tire_estimation.core.input_checks import drop_key, stamp_after
 from tire_estimation.core.lateral.estimate import TYRE_FORCE_SOURCE as SOURCE
 from tire_estimation.core.lateral.estimate import LateralEstimate
 from tire_estimation.core.lateral.single_track import SingleTrackModel, SingleTrackParams
@@ -177,11 +177,12 @@ def _finite(kind: str, values: F64) -> None:
 class TyreForceEstimator:
     """Front-end of the tyre-force Kalman filter: inputs in, :class:`LateralEstimate` out.
 
-    ``stats`` counts dropped samples by kind (``nan``, ``out_of_order``, ``duplicate``,
-    ``wrong_length``, ``bad_stamp``, ``bad_value``, ``out_of_range``, ``no_valid_sensor``,
-    ``no_steering``, ``no_speed``), filter re-initializations (``gap``, ``diverged``) and
-    degraded steps where one axle had no sensor (``axle_unobserved``: that axle's force row is
-    left out of the update).
+    ``stats`` counts, as ``<stream>:<kind>``, dropped samples (kinds ``nan``,
+    ``out_of_order``, ``duplicate``, ``wrong_length``, ``bad_stamp``, ``bad_value``,
+    ``out_of_range``; ``tire_forces:no_valid_sensor``, ``:no_steering``, ``:no_speed``), filter
+    re-initializations (``tire_forces:gap``, ``tire_forces:diverged``) and degraded steps where
+    one axle had no sensor (``tire_forces:axle_unobserved``: that axle's force row is left out
+    of the update).
 
     Args:
         config: filter configuration.
@@ -238,8 +239,9 @@ class TyreForceEstimator:
         #: Steer angle of the previous filter step (start of the single-track model's step).
         self._st_delta_rad = 0.0
 
-    def _drop(self, kind: str) -> None:
-        self.stats[kind] = self.stats.get(kind, 0) + 1
+    def _drop(self, stream: str, kind: str) -> None:
+        key = drop_key(stream, kind)
+        self.stats[key] = self.stats.get(key, 0) + 1
 
     def _check_stamp(self, stream: str, t_ns: int) -> int:
         return stamp_after(stream, t_ns, self._held[stream].t_ns)
@@ -267,7 +269,7 @@ class TyreForceEstimator:
             if abs(angle) > 1.2:
                 raise InputError("out_of_range", f"steering angle {angle} rad")
         except (InputError, TypeError, ValueError) as exc:
-            self._drop(exc.kind if isinstance(exc, InputError) else "bad_value")
+            self._drop("steering", exc.kind if isinstance(exc, InputError) else "bad_value")
             return
         self._held["steering"] = _Held(t, angle)
 
@@ -284,7 +286,7 @@ class TyreForceEstimator:
             if np.any(np.abs(ws) > 1000.0):
                 raise InputError("out_of_range", f"wheel speed above 1000 rad/s: {ws}")
         except (InputError, TypeError, ValueError) as exc:
-            self._drop(exc.kind if isinstance(exc, InputError) else "bad_value")
+            self._drop("wheel_speeds", exc.kind if isinstance(exc, InputError) else "bad_value")
             return
         self._held["wheels"] = _Held(t, ws)
         radius = self.vehicle.nominal_tire_radius_m
@@ -320,7 +322,7 @@ class TyreForceEstimator:
             if self._speed_m_s is None or not self._fresh("wheels", t):
                 raise InputError("no_speed", "no fresh forward speed")
         except (InputError, TypeError, ValueError) as exc:
-            self._drop(exc.kind if isinstance(exc, InputError) else "bad_value")
+            self._drop("tire_forces", exc.kind if isinstance(exc, InputError) else "bad_value")
             return None
         self._held["forces"] = _Held(t, None)
         self._step(t, fx, fy, fz, ok)
@@ -397,11 +399,11 @@ class TyreForceEstimator:
         delta = float(self._held["steering"].value)
         dt = 0.0 if self._t_ns is None else (t - self._t_ns) * 1e-9
         if self._initialized and dt > c.max_gap_s:
-            self._drop("gap")
+            self._drop("tire_forces", "gap")
             self._initialized = False
         measured, have, moment = self._axle_forces(dt, fx, fy, fz, ok, delta)
         if not np.all(have):
-            self._drop("axle_unobserved")
+            self._drop("tire_forces", "axle_unobserved")
         self._measured_axle_n = measured
         if not self._initialized or vx < c.min_speed_m_s:
             self._moment_nm = moment
@@ -437,7 +439,7 @@ class TyreForceEstimator:
         h = MEASUREMENT_MATRIX[rows]
         self.kf.update(z, h, np.asarray(r_diag))
         if not np.all(np.isfinite(self.kf.x)) or not np.all(np.isfinite(self.kf.p)):
-            self._drop("diverged")
+            self._drop("tire_forces", "diverged")
             self._initialize(t, vx, delta, np.where(have, measured, 0.0))
 
     # ------------------------------------------------------------------ outputs

@@ -1,7 +1,9 @@
 """Front-end of the tyre-radius estimation: input validation, gates, GNSS handling, estimates.
 
 The ROS node and the bag replay drive the same :class:`RadiusEstimator`. Bad input never raises
-out of the ``on_*`` methods: the sample is dropped and counted in :attr:`RadiusEstimator.stats`.
+out of the ``on_*`` methods: the sample is dropped and counted in :attr:`RadiusEstimator.stats`
+as ``<stream>:<kind>`` (``wheel_speeds:nan``, ``gnss_fix:bad_covariance``, ``gnss_fix:outlier``,
+...); a fix without altitude is used and counted as ``gnss_fix:no_altitude``.
 
 Beyond the paper (``wheels='all'``): the front radii are estimated from the front wheel speeds
 and the rear-based speed and yaw rate (kinematic front-wheel rolling speed with Ackermann steer
@@ -26,7 +28,7 @@ from scipy.special import chdtri
 
 from tire_estimation.core import niw
 from tire_estimation.core.arrays import F64
-from tire_estimation.core.input_checks import stamp_after
+from tire_estimation.core.input_checks import drop_key, stamp_after
 from tire_estimation.core.radius.aug_kf import AugKf
 from tire_estimation.core.radius.axle_check import AxleCheck
 from tire_estimation.core.radius.config import RadiusEstimatorConfig
@@ -167,6 +169,8 @@ class RadiusEstimator(GnssHandling, Reporting, Gates):
         self._reason = "waiting for wheel speeds"
         self._rejections = 0
         self._t_last_fix_ns: int | None = None
+        #: altitude of the last fix that reported one, m (used for a fix without altitude)
+        self._last_alt_m = 0.0
         self._active_time_s = 0.0
         #: road grade: wheel-travelled (slope) distance and the grade fitted over it
         self.grade = RoadGradeFit()
@@ -203,8 +207,9 @@ class RadiusEstimator(GnssHandling, Reporting, Gates):
         scale0 = np.eye(d) * PRIOR_RADIUS_NOISE_STD_M**2 * (PRIOR_DOF - d - 1.0)
         return niw.init_stats(1, np.zeros(d), gamma0, PRIOR_DOF, scale0)
 
-    def _drop(self, kind: str) -> None:
-        self.stats[kind] = self.stats.get(kind, 0) + 1
+    def _drop(self, stream: str, kind: str) -> None:
+        key = drop_key(stream, kind)
+        self.stats[key] = self.stats.get(key, 0) + 1
 
     def _check_order(self, stream: str, t_ns: int) -> None:
         stamp_after(stream, t_ns, self._streams[stream].last_t_ns)
@@ -230,7 +235,7 @@ class RadiusEstimator(GnssHandling, Reporting, Gates):
             if abs(angle_rad) > 1.2:
                 raise InputError("out_of_range", f"steering angle {angle_rad} rad")
         except (InputError, TypeError, ValueError) as exc:
-            self._drop(exc.kind if isinstance(exc, InputError) else "bad_value")
+            self._drop("steering", exc.kind if isinstance(exc, InputError) else "bad_value")
             return
         stream.last_t_ns = int(t_ns)
         self._steer = (int(t_ns), float(angle_rad))
@@ -268,7 +273,7 @@ class RadiusEstimator(GnssHandling, Reporting, Gates):
                 raise InputError("wrong_length", "imu vectors must have 3 components")
             finite("imu", *gyro, *acc)
         except (InputError, TypeError, ValueError) as exc:
-            self._drop(exc.kind if isinstance(exc, InputError) else "bad_value")
+            self._drop("imu", exc.kind if isinstance(exc, InputError) else "bad_value")
             return
         stream.last_t_ns = int(t_ns)
         self._imu = (int(t_ns), gyro, acc)
@@ -297,7 +302,8 @@ class RadiusEstimator(GnssHandling, Reporting, Gates):
                 self._check_order("wheel", t_ns)
                 ws = parse_wheels(wheel_speed_rad_s)
             except (InputError, TypeError, ValueError) as exc:
-                self._drop(exc.kind if isinstance(exc, InputError) else "bad_value")
+                kind = exc.kind if isinstance(exc, InputError) else "bad_value"
+                self._drop("wheel_speeds", kind)
                 return
             t_ns = int(t_ns)
         self.axles.on_wheel_speeds(t_ns, ws)
@@ -328,7 +334,7 @@ class RadiusEstimator(GnssHandling, Reporting, Gates):
             return
         dt = (t_ns - last) * 1e-9
         if dt > self.config.max_gap_s:
-            self._drop("gap")
+            self._drop("wheel_speeds", "gap")
             self._reinit_pose("wheel-speed gap")
             self._t_pose_ns = t_ns
             self._prev_v = None

@@ -12,7 +12,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from tire_estimation.core.arrays import F64
+from tire_estimation.core.input_checks import checked_covariance
 from tire_estimation.core.radius.inputs import finite, is_int
+from tire_estimation.core.samples import MAX_ABS_ALTITUDE_M
 from tire_estimation.errors import InputError
 
 if TYPE_CHECKING:
@@ -125,6 +127,7 @@ class GnssHandling:
     _reason: str
     _rejections: int
     _t_last_fix_ns: int | None
+    _last_alt_m: float
     _cache_version: int
 
     def _refresh_cache(self) -> None:
@@ -141,7 +144,9 @@ class GnssHandling:
         alt_m: float,
         position_covariance_m2: Any = None,
     ) -> GnssUpdate:
-        """GNSS antenna fix (WGS-84) with an optional ENU covariance (3, 3)."""
+        """GNSS antenna fix (WGS-84) with an optional ENU covariance (3, 3). A fix without
+        altitude (NaN) is used horizontally and counted as ``gnss_fix:no_altitude``; a bad
+        covariance drops it (``gnss_fix:bad_covariance``)."""
         update = self._gnss_fix(t_ns, lat_deg, lon_deg, alt_m, position_covariance_m2)
         self._refresh_cache()
         return update
@@ -158,16 +163,28 @@ class GnssHandling:
         try:
             self._check_order("gnss", t_ns)
             lat, lon, alt = float(lat_deg), float(lon_deg), float(alt_m)
-            finite("gnss", lat, lon, alt)
-            if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 360.0 and abs(alt) < 1e5):
+            finite("gnss", lat, lon)
+            has_alt = math.isfinite(alt)
+            if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 360.0) or (
+                has_alt and abs(alt) > MAX_ABS_ALTITUDE_M
+            ):
                 raise InputError("out_of_range", f"gnss fix out of range: {lat}, {lon}, {alt}")
             r = self._gnss_cov(position_covariance_m2)
         except (InputError, TypeError, ValueError) as exc:
             kind = exc.kind if isinstance(exc, InputError) else "bad_value"
-            self._drop(kind)
+            self._drop("gnss_fix", kind)
             return GnssUpdate(int(t_ns) if is_int(t_ns) else 0, zeros2, eye2, 0.0, False, kind)
         t_ns = int(t_ns)
         self._streams["gnss"].last_t_ns = t_ns
+        if has_alt:
+            self._last_alt_m = alt
+        else:
+            # no altitude (NaN, the ROS convention): the horizontal position is used at the
+            # last reported altitude (the frame's origin: the ellipsoid when none was ever
+            # reported; a height error h moves east/north by h d / R at a distance d from the
+            # origin, 0.16 m for 100 m at 10 km) and the road-grade fit skips the fix
+            self._drop("gnss_fix", "no_altitude")
+            alt = self._last_alt_m
         try:
             if self._ltp is None:
                 from tire_estimation.core.geodesy import LocalTangentPlane
@@ -177,34 +194,21 @@ class GnssHandling:
             y = np.array([float(e), float(n)])
             finite("gnss", *y)
         except Exception:
-            self._drop("bad_value")
+            self._drop("gnss_fix", "bad_value")
             return GnssUpdate(t_ns, zeros2, eye2, 0.0, False, "bad_value")
-        self.grade.fix(float(u))
+        if has_alt:
+            self.grade.fix(float(u))
         return self.on_gnss_enu(t_ns, y, r)
 
     def _gnss_cov(self, cov: Any, default_std: float | None = None) -> F64:
-        """(2, 2) horizontal block of a (3, 3) or (2, 2) covariance; all zero or None: the
+        """(2, 2) horizontal block of a (3, 3) or (2, 2) covariance
+        (:func:`~tire_estimation.core.input_checks.checked_covariance`); all zero or None: the
         default std (``gnss_default_std_m`` unless given)."""
         sd = self.config.gnss_default_std_m if default_std is None else default_std
-        if cov is None:
-            return np.eye(2) * sd**2
-        c = np.asarray(cov, dtype=float)
-        if c.size == 9:
-            flat = c.ravel().tolist()
-            c00, c01, c10, c11 = flat[0], flat[1], flat[3], flat[4]
-        elif c.size == 4:
-            c00, c01, c10, c11 = c.ravel().tolist()
-        else:
-            raise InputError("wrong_length", f"gnss covariance must be 3x3, got size {c.size}")
-        if not all(math.isfinite(v) for v in (c00, c01, c10, c11)):
-            raise InputError("nan", "gnss covariance not finite")
-        c01 = 0.5 * (c01 + c10)
-        if c00 == 0.0 and c01 == 0.0 and c11 == 0.0:
+        c = checked_covariance(cov, "gnss covariance")
+        if c is None:
             return np.eye(2) * sd**2  # "covariance unknown"
-        # a symmetric 2x2 matrix is positive definite iff c00 > 0 and det > 0
-        if not (c00 > 0.0 and c00 * c11 - c01 * c01 > 0.0):
-            raise InputError("bad_covariance", "gnss covariance not positive definite")
-        return np.array([[c00, c01], [c01, c11]])
+        return np.ascontiguousarray(c[:2, :2])
 
     def on_gnss_enu(self, t_ns: int, y_m: F64, r_m2: F64) -> GnssUpdate:
         """GNSS update with a fix already in the local ENU frame (east, north) and its (2, 2)
@@ -218,20 +222,20 @@ class GnssHandling:
             and self._t_last_fix_ns is not None
             and (t_ns - self._t_last_fix_ns) * 1e-9 > GNSS_MAX_GAP_S
         ):
-            self._drop("gnss_gap")
+            self._drop("gnss_fix", "gap")
             self._reinit_pose("GNSS gap")
         if not self._pose_ok:
             return self._initialize(t_ns, y_m, r_m2)
         ext = 0.0 if self._t_pose_ns is None else (t_ns - self._t_pose_ns) * 1e-9
         if abs(ext) > 0.5:
-            self._drop("stale")
+            self._drop("gnss_fix", "stale")
             return GnssUpdate(t_ns, zeros2, r_m2, 0.0, False, "stale (no wheel speeds)")
         # calibrated time alignment (default 0): the fix describes the antenna at
         # t - gnss_latency_s, the pose describes base_link at t_pose - wheel_speed_time_offset_s
         ext += self._fix_shift_s
         pred = self.mpf.predict_fix(y_m, r_m2, self.lever_arm_m, ext)
         if not math.isfinite(pred.nis) or pred.nis > self._gate:
-            self._drop("gnss_outlier")
+            self._drop("gnss_fix", "outlier")
             self._rejections += 1
             if self._rejections >= GNSS_MAX_REJECTIONS:
                 self._rejections = 0
@@ -296,7 +300,7 @@ class GnssHandling:
             r = self._gnss_cov(velocity_covariance_m2_s2, GNSS_VELOCITY_DEFAULT_STD_M_S)
         except (InputError, TypeError, ValueError) as exc:
             kind = exc.kind if isinstance(exc, InputError) else "bad_value"
-            self._drop(f"gnss_velocity_{kind}")
+            self._drop("gnss_velocity", kind)
             return GnssVelocityUpdate(stamp, zeros2, eye2, 0.0, False, kind)
         t_ns = int(t_ns)
         self._streams["gnss_velocity"].last_t_ns = t_ns
@@ -305,7 +309,7 @@ class GnssHandling:
         if not self._pose_ok or self._prev_ws is None or len(self._speed_hist) < 2:
             return GnssVelocityUpdate(t_ns, zeros2, r, 0.0, False, "initializing")
         if self._t_pose_ns is None or abs(t_ns - self._t_pose_ns) * 1e-9 > 0.5:
-            self._drop("gnss_velocity_stale")
+            self._drop("gnss_velocity", "stale")
             return GnssVelocityUpdate(t_ns, zeros2, r, 0.0, False, "stale (no wheel speeds)")
         if not self._active:
             return GnssVelocityUpdate(t_ns, zeros2, r, 0.0, False, f"paused ({self._reason})")
@@ -361,7 +365,7 @@ class GnssHandling:
             along_var_m2_s2=along_var, gate_nis=self._gate, heading_offset_rad=dpsi,
         )  # fmt: skip
         if not upd.accepted:
-            self._drop("gnss_velocity_outlier")
+            self._drop("gnss_velocity", "outlier")
             return GnssVelocityUpdate(
                 t_ns, upd.innovation_m_s, upd.innovation_cov_m2_s2, upd.nis, False, "outlier"
             )

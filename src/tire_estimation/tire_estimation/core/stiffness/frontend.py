@@ -33,7 +33,7 @@ from typing import Any, Generic, TypeAlias, TypeVar
 import numpy as np
 
 from tire_estimation.core.arrays import F64
-from tire_estimation.core.input_checks import finite_vector, stamp_after
+from tire_estimation.core.input_checks import drop_key, finite_vector, stamp_after
 from tire_estimation.core.stiffness.filter import (
     BaselineConfig,
     FilterEstimate,
@@ -184,6 +184,10 @@ def single_track_params(config: FrontEndConfig, vehicle: VehicleParams) -> Singl
     )
 
 
+#: the sample streams (:data:`~tire_estimation.core.samples.STREAMS`) of the inputs' own names
+_STREAM_KIND = {"wheel": "wheel_speeds"}
+
+
 def _drop_kind(exc: Exception) -> str:
     return exc.kind if isinstance(exc, InputError) else "bad_value"
 
@@ -199,8 +203,9 @@ class StiffnessFrontEnd(Generic[F]):
 
     Attributes:
         filter: the filter (:meth:`make_filter`).
-        stats: dropped samples by kind (``bad_stamp``, ``duplicate``, ``out_of_order``,
-            ``wrong_length``, ``nan``, ``bad_value``, ``out_of_range``, ``no_speed``, ``gap``).
+        stats: dropped samples as ``<stream>:<kind>`` (kinds ``bad_stamp``, ``duplicate``,
+            ``out_of_order``, ``wrong_length``, ``nan``, ``bad_value``, ``out_of_range``;
+            ``imu:no_speed``, ``imu:gap``).
     """
 
     def __init__(
@@ -243,8 +248,9 @@ class StiffnessFrontEnd(Generic[F]):
         return self.filter.initialized
 
     # ------------------------------------------------------------------ inputs
-    def _drop(self, kind: str) -> None:
-        self.stats[kind] = self.stats.get(kind, 0) + 1
+    def _drop(self, stream: str, kind: str) -> None:
+        key = drop_key(_STREAM_KIND.get(stream, stream), kind)
+        self.stats[key] = self.stats.get(key, 0) + 1
 
     def _check_stamp(self, stream: str, t_ns: Any) -> int:
         return stamp_after(stream, t_ns, self._last[stream])
@@ -257,7 +263,7 @@ class StiffnessFrontEnd(Generic[F]):
             if np.any(np.abs(v) > _LIMITS[stream]):
                 raise InputError("out_of_range", f"{stream}: |value| above {_LIMITS[stream]}")
         except (InputError, TypeError, ValueError) as exc:
-            self._drop(_drop_kind(exc))
+            self._drop(stream, _drop_kind(exc))
             return None
         self._last[stream] = t
         return v
@@ -317,7 +323,7 @@ class StiffnessFrontEnd(Generic[F]):
             gyro = finite_vector(gyro_rad_s, 3, "gyro")
             acc = finite_vector(accel_m_s2, 3, "accel")
         except (InputError, TypeError, ValueError) as exc:
-            self._drop(_drop_kind(exc))
+            self._drop("imu", _drop_kind(exc))
             return
         last = self._last["imu"]
         self._last["imu"] = t
@@ -325,11 +331,11 @@ class StiffnessFrontEnd(Generic[F]):
         meas = self._measurement(t, gyro, acc)
         if meas is None:
             self._learning_off("no speed input")
-            self._drop("no_speed")
+            self._drop("imu", "no_speed")
             return
         dt = None if last is None else (t - last) * 1e-9
         if dt is not None and dt > MAX_GAP_S:
-            self._drop("gap")
+            self._drop("imu", "gap")
             self.filter.initialized = False
         if not self.filter.initialized:
             if meas.speed_m_s < 0.5 * MIN_LEARN_SPEED_M_S:

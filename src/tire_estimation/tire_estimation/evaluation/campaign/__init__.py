@@ -24,7 +24,7 @@ tire_estimation.evaluation.campaign``).
 """
 
 from tire_estimation.evaluation.campaign.cli import add_campaign_parser, main
-from tire_estimation.evaluation.campaign.execute import execute_cases
+from tire_estimation.evaluation.campaign.execute import execute_cases, local_cluster
 from tire_estimation.evaluation.campaign.output import read_csv_rows, write_csv
 from tire_estimation.evaluation.campaign.run import redetect_case, run_case
 from tire_estimation.evaluation.campaign.score import braking_signal
@@ -75,6 +75,7 @@ __all__ = [
     "ece_r64_cases",
     "execute_cases",
     "load_run",
+    "local_cluster",
     "main",
     "merge_ece_r64_campaigns",
     "read_csv_rows",

@@ -123,6 +123,13 @@ def _add_exec_args(p: argparse.ArgumentParser) -> None:
         "--threads", action="store_true", help="Dask LocalCluster with threads, no processes"
     )
     p.add_argument(
+        "--dashboard-address",
+        default=None,
+        metavar="HOST:PORT",
+        help="dashboard of the Dask LocalCluster (default 127.0.0.1:0, this machine only; "
+        "':8787' opens it to the network, without authentication)",
+    )
+    p.add_argument(
         "--estimator",
         action="append",
         type=_key_value,
@@ -147,6 +154,7 @@ def _cmd_calibration(args: argparse.Namespace) -> int:
         n_workers=args.workers,
         scheduler=args.scheduler,
         threads=args.threads,
+        dashboard_address=args.dashboard_address,
         overwrite=args.overwrite,
         estimator=_estimator_options(args.estimator),
         progress=_print_progress,
@@ -190,6 +198,7 @@ def _cmd_ece_r64(args: argparse.Namespace) -> int:
         n_workers=args.workers,
         scheduler=args.scheduler,
         threads=args.threads,
+        dashboard_address=args.dashboard_address,
         overwrite=args.overwrite,
         progress=_print_progress,
         save_traces=args.save_traces,

@@ -1,12 +1,48 @@
-"""Execution of a list of cases on Dask, a process pool or serially."""
+"""Execution of a list of cases on Dask, a process pool or serially.
+
+The Dask LocalCluster listens on 127.0.0.1 only (scheduler, workers, dashboards): Dask sends
+pickled data and the dashboard has no authentication, so nothing is reachable from the network
+unless ``dashboard_address`` asks for it. A remote scheduler is the user's choice
+(``docs/campaign.md``: TLS, and connect only to schedulers you trust).
+"""
 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from tire_estimation.evaluation.campaign.run import run_case
 from tire_estimation.evaluation.campaign.spec import CampaignError, CaseSpec
+
+if TYPE_CHECKING:
+    from dask.distributed import LocalCluster
+
+#: interface the LocalCluster's scheduler, workers and dashboards listen on
+LOCAL_HOST = "127.0.0.1"
+#: default dashboard address of the LocalCluster: this machine only, a free port
+DEFAULT_DASHBOARD_ADDRESS = f"{LOCAL_HOST}:0"
+
+
+def local_cluster(
+    n_workers: int, threads: bool = False, dashboard_address: str | None = None
+) -> LocalCluster:
+    """A Dask LocalCluster of ``n_workers`` single-threaded workers (processes, or threads with
+    ``threads=True``) whose scheduler, workers and dashboards listen on 127.0.0.1 only; the
+    scheduler's dashboard on ``dashboard_address`` (default 127.0.0.1, a free port; e.g.
+    ``:8787`` for every interface, when asked)."""
+    from dask.distributed import LocalCluster
+
+    return LocalCluster(
+        n_workers=n_workers,
+        threads_per_worker=1,
+        processes=not threads,
+        # TCP on the loopback interface for threads too (their in-process transport would
+        # still open each worker's dashboard on every interface)
+        protocol="tcp://",
+        host=LOCAL_HOST,
+        dashboard_address=dashboard_address or DEFAULT_DASHBOARD_ADDRESS,
+        worker_dashboard_address=f"{LOCAL_HOST}:0",
+    )
 
 
 def execute_cases(
@@ -17,12 +53,14 @@ def execute_cases(
     threads: bool = False,
     progress: Callable[[dict[str, Any], int, int], None] | None = None,
     accuracy_at_s: float = 600.0,
+    dashboard_address: str | None = None,
 ) -> list[dict[str, Any]]:
     """Run every case; rows in the order of ``cases``.
 
-    ``executor``: ``dask`` (``scheduler`` address, else a LocalCluster of ``n_workers``
-    single-threaded worker processes, or threads only with ``threads=True``), ``processes``
-    (``concurrent.futures.ProcessPoolExecutor``) or ``serial``.
+    ``executor``: ``dask`` (``scheduler`` address, else :func:`local_cluster` of ``n_workers``
+    single-threaded worker processes, or threads only with ``threads=True``, its dashboard on
+    ``dashboard_address``), ``processes`` (``concurrent.futures.ProcessPoolExecutor``) or
+    ``serial``.
     """
     if n_workers < 1:
         raise CampaignError(f"n_workers={n_workers!r}: must be >= 1")
@@ -46,7 +84,7 @@ def execute_cases(
                 done(fut.result())
     elif executor == "dask":
         try:
-            from dask.distributed import Client, LocalCluster, as_completed
+            from dask.distributed import Client, as_completed
         except ImportError as exc:  # pragma: no cover - dask is a pinned dependency
             raise CampaignError(
                 "dask.distributed is not installed; use --executor processes"
@@ -55,12 +93,7 @@ def execute_cases(
         if scheduler:
             client = Client(scheduler)
         else:
-            cluster = LocalCluster(
-                n_workers=n_workers,
-                threads_per_worker=1,
-                processes=not threads,
-                dashboard_address=":0",
-            )
+            cluster = local_cluster(n_workers, threads, dashboard_address)
             client = Client(cluster)
         try:
             futures = client.map(run_case, list(cases), accuracy_at_s=accuracy_at_s, pure=False)

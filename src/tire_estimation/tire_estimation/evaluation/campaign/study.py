@@ -52,15 +52,24 @@ def run_calibration_study(
     estimator: dict[str, Any] | None = None,
     progress: Callable[[dict[str, Any], int, int], None] | None = None,
     sensors: dict[str, Any] | None = None,
+    dashboard_address: str | None = None,
 ) -> dict[str, Any]:
-    """Issue-3 study: ``summary.json``, ``cases.csv``, ``calibration_errors.png`` in ``out``."""
+    """Issue-3 study: ``summary.json``, ``cases.csv``, ``calibration_errors.png`` in ``out``
+    (``dashboard_address``: of the Dask LocalCluster, :func:`execute_cases`)."""
     if not 0.0 < at_min <= minutes:
         raise CampaignError(f"at_min={at_min!r}: must be within (0, minutes={minutes}]")
     out_dir = prepare_out(out, overwrite)
     cases = calibration_cases(seeds, minutes, first_seed, gnss, estimator, sensors)
     t0 = time.perf_counter()
     rows = execute_cases(
-        cases, executor, n_workers, scheduler, threads, progress, accuracy_at_s=60.0 * at_min
+        cases,
+        executor,
+        n_workers,
+        scheduler,
+        threads,
+        progress,
+        accuracy_at_s=60.0 * at_min,
+        dashboard_address=dashboard_address,
     )
     summary = summarize_calibration(rows, 60.0 * at_min)
     summary["config"] = {
@@ -93,11 +102,13 @@ def run_ece_r64_campaign(
     overwrite: bool = False,
     progress: Callable[[dict[str, Any], int, int], None] | None = None,
     save_traces: bool = False,
+    dashboard_address: str | None = None,
 ) -> dict[str, Any]:
     """Issue-4 campaign: ``summary.json``, ``cases.csv``, ``cases.json`` and PNGs in ``out``.
 
     ``save_traces`` keeps every case's estimator traces in ``out/traces`` (about 2 MB per
-    25-min case) for :func:`redetect_campaigns`.
+    25-min case) for :func:`redetect_campaigns`; ``dashboard_address``: of the Dask
+    LocalCluster (:func:`execute_cases`).
     """
     out_dir = prepare_out(out, overwrite)
     cases = ece_r64_cases(plan)
@@ -109,7 +120,15 @@ def run_ece_r64_campaign(
         cases = [dataclasses.replace(c, trace_dir=str(trace_dir.resolve())) for c in cases]
     atomic_write_text(out_dir / "cases.json", json.dumps([c.to_dict() for c in cases], indent=1))
     t0 = time.perf_counter()
-    rows = execute_cases(cases, executor, n_workers, scheduler, threads, progress)
+    rows = execute_cases(
+        cases,
+        executor,
+        n_workers,
+        scheduler,
+        threads,
+        progress,
+        dashboard_address=dashboard_address,
+    )
     summary = summarize_detection(rows)
     plan_d = dataclasses.asdict(plan)
     plan_d["deflation_s"] = plan.deflation_s
