@@ -17,3 +17,20 @@ def test_require_choice_names_the_field_the_value_and_the_choices() -> None:
         require_choice("mode", ["x"], {"x": 1, "y": 2})
     with pytest.raises(VehicleConfigError):
         require_choice("vehicle.drive", "none", ("front", "rear"), VehicleConfigError)
+
+
+def test_an_unknown_key_names_the_nearest_valid_one() -> None:
+    from tire_estimation.core.validation import known_names, reject_unknown_keys
+
+    valid = ("n_particles", "seed", "forgetting_factor")
+    reject_unknown_keys({"seed": 1}, valid)
+    with pytest.raises(ConfigError, match=r"radius\.n_particle=3: unknown key; did you mean "
+                       r"radius\.n_particles\?$"):  # fmt: skip
+        reject_unknown_keys({"seed": 1, "n_particle": 3}, valid, prefix="radius.")
+    # none near: the first valid keys; mixed key types are no TypeError (no sorting)
+    with pytest.raises(ConfigError, match="unknown key; valid: forgetting_factor, n_particles"):
+        reject_unknown_keys({"zzz": 1, 2: 3}, valid)
+    with pytest.raises(VehicleConfigError, match="keys must be text, not int"):
+        reject_unknown_keys({2: 3, "zzz": 1}, valid, VehicleConfigError)
+    assert known_names("ece_r46", ["city", "ece_r64"]) == "did you mean ece_r64?"
+    assert known_names("moon", "abcdefg") == "known: a, b, c, d, e, ..."

@@ -1,4 +1,4 @@
-"""YAML 1.2 numbers in configuration values (``5e-5`` is a float)."""
+"""YAML 1.2 numbers in configuration values (``5e-5`` is a float); the loader's limits."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import yaml
 
 from tire_estimation.cli import _parse_option
 from tire_estimation.core import yamlio
-from tire_estimation.replay import load_radius_config
+from tire_estimation.replay_config import load_radius_config
 
 
 @pytest.mark.parametrize(
@@ -51,3 +51,61 @@ def test_cli_option_and_replay_config_take_exponents(tmp_path: Path) -> None:
     cfg = tmp_path / "cfg.yaml"
     cfg.write_text("radius:\n  radius_random_walk_m_sqrt_s: 3e-5\n")
     assert load_radius_config(cfg).radius_random_walk_m_sqrt_s == 3e-5
+
+
+def _error(text: str) -> str:
+    with pytest.raises(yaml.YAMLError) as exc:
+        yamlio.safe_load(text)
+    message = yamlio.describe(exc.value)
+    assert "\n" not in message and len(message) < 200
+    return message
+
+
+def test_aliases_are_bounded_and_not_recursive() -> None:
+    levels = ["a: &a [" + ", ".join(["x"] * 10) + "]"] + [
+        f"{c}: &{c} [" + ", ".join([f"*{p}"] * 10) + "]"
+        for p, c in zip("abcd", "bcde", strict=True)
+    ]
+    assert "aliases expand to more than 100000 values" in _error("\n".join(levels))
+    assert len(yamlio.safe_load("\n".join(levels[:4]))["d"]) == 10  # 11 111 values: fine
+    assert "alias *r inside the value it names" in _error("a: &r [1, *r]")
+    assert "alias *m inside the value it names" in _error("a: &m {b: *m}")
+    merged = yamlio.safe_load("base: &b {x: 1, y: 2}\nc:\n  <<: *b\n  y: 3\n")
+    assert merged["c"] == {"x": 1, "y": 3}  # a merge key's values may be overridden
+
+
+def test_depth_duplicates_size_and_long_integers_are_refused() -> None:
+    assert "nested too deep" in _error("a: " + "[" * 51 + "]" * 51)
+    assert yamlio.safe_load("a: " + "[" * 49 + "]" * 49) is not None
+    assert _error("a: 1\nb: 2\na: 3\n") == "line 3, column 1: key 'a' given twice"
+    assert "longer than 1 MB" in _error("#" * (yamlio.MAX_BYTES + 1))
+    assert "radius.n_particles is an integer of too many digits" in _error(
+        "radius:\n  n_particles: " + "9" * 5000
+    )
+    assert _error("a: [1, 2").startswith("line 1, column 9: expected ',' or ']'")
+
+
+def test_load_file_says_why_in_one_line(tmp_path: Path) -> None:
+    from tire_estimation.errors import ConfigError
+
+    def reason(content: bytes | None) -> str:
+        path = tmp_path / "f.yaml"
+        path.unlink(missing_ok=True)
+        if content is not None:
+            path.write_bytes(content)
+        with pytest.raises(ConfigError) as exc:
+            yamlio.load_file(path, "--config")
+        assert exc.value.field == "--config"
+        return exc.value.reason
+
+    assert reason(None) == "file not found"
+    assert reason(b"\xff\xfe\x00") == "not UTF-8 text (byte 0)"
+    assert (
+        reason(b"a: 1\x00")
+        == "not valid YAML: character #x0000 at position 4 is not allowed in YAML"
+    )
+    assert reason(b"# x\n" * 300_000) == "larger than 1 MB"
+    with pytest.raises(ConfigError, match="is a directory"):
+        yamlio.load_file(tmp_path, "--config")
+    (tmp_path / "ok.yaml").write_text("a: 5e-5\n")
+    assert yamlio.load_file(tmp_path / "ok.yaml", "--config") == {"a": 5e-5}

@@ -1,22 +1,56 @@
 """The ``tire-estimation`` command line: simulate, inspect, replay and convert bags.
 
-Every failure the package anticipates (bad path, corrupt bag, absurd vehicle.yaml, unknown
-scenario, ...) ends in one line ``tire-estimation: error: ...`` and exit status 2.
+Every failure the package anticipates (bad arguments, bad path, corrupt bag, absurd
+vehicle.yaml, unknown scenario, misspelled key, unwritable ``--out``, ...) ends in one line
+``tire-estimation: error: ...`` of at most :data:`MAX_LINE` characters on stderr and exit
+status 2, never in a traceback.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import difflib
 import sys
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
+
+import yaml
 
 from tire_estimation.core import yamlio
-from tire_estimation.errors import TireEstimationError
+from tire_estimation.errors import TireEstimationError, one_line
+from tire_estimation.paths import REPLAY_REPORT_FILES, out_argument
 
 EXIT_ERROR = 2
+#: longest error line
+MAX_LINE = 300
+
+
+class Parser(argparse.ArgumentParser):
+    """ArgumentParser whose errors are one line (no usage block) and name the nearest option
+    of a misspelled one."""
+
+    def error(self, message: str) -> NoReturn:
+        if message.startswith("unrecognized arguments:"):
+            options = sorted(set(_option_strings(self)))
+            for word in message.split(":", 1)[1].split():
+                near = difflib.get_close_matches(word.split("=")[0], options, n=1, cutoff=0.75)
+                if word.startswith("-") and near:
+                    message += f" (did you mean {near[0]}?)"
+                    break
+        text = f"{self.prog}: error: {message} (see {self.prog} --help)"
+        self.exit(EXIT_ERROR, one_line(text, MAX_LINE) + "\n")
+
+
+def _option_strings(parser: argparse.ArgumentParser) -> Iterator[str]:
+    """The option strings of ``parser`` and of all its sub-commands."""
+    for action in parser._actions:
+        yield from (o for o in action.option_strings if o.startswith("--"))
+        if isinstance(action, argparse._SubParsersAction):
+            for sub in action.choices.values():
+                yield from _option_strings(sub)
 
 
 def _parse_option(text: str) -> tuple[str, Any]:
@@ -25,14 +59,19 @@ def _parse_option(text: str) -> tuple[str, Any]:
     if "=" not in text:
         raise argparse.ArgumentTypeError(f"expected key=value, got {text!r}")
     key, raw = text.split("=", 1)
-    return key.strip(), yamlio.safe_load(raw)
+    try:
+        return key.strip(), yamlio.safe_load(raw)
+    except yaml.YAMLError as exc:
+        raise argparse.ArgumentTypeError(f"{key.strip()}: {yamlio.describe(exc)}") from exc
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
     import dataclasses
 
     from tire_estimation.bag.writer import write_sim_bag
+    from tire_estimation.core.validation import unknown_key_reason
     from tire_estimation.errors import ConfigError
+    from tire_estimation.paths import check_new_path
     from tire_estimation.sim import SensorConfig, simulate
 
     options = dict(args.option or [])
@@ -40,10 +79,12 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     sensor_values = dict(args.sensor or [])
     for key, value in sensor_values.items():
         if key not in sensor_fields:
-            raise ConfigError(f"--sensor {key}", value, "unknown sensor setting")
+            reason = unknown_key_reason(key, sensor_fields, what="sensor setting")
+            raise ConfigError(f"--sensor {key}", value, reason)
         if isinstance(value, list):
             sensor_values[key] = tuple(value)
     sensors = SensorConfig(**sensor_values)
+    check_new_path(args.out, "--out", overwrite=args.overwrite)
     t0 = time.perf_counter()
     result = simulate(
         args.scenario, seed=args.seed, minutes=args.minutes, sensors=sensors, **options
@@ -94,7 +135,7 @@ def _cmd_replay(args: argparse.Namespace) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser (exposed for tests and documentation)."""
-    parser = argparse.ArgumentParser(
+    parser = Parser(
         prog="tire-estimation",
         description="Online tire radius/stiffness estimation: simulate, replay, inspect bags.",
     )
@@ -102,7 +143,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     sim = sub.add_parser("simulate", help="write a simulated evaluation bag (MCAP)")
     sim.add_argument("scenario", help="scenario name (see `tire-estimation scenarios`)")
-    sim.add_argument("--out", required=True, type=Path, help="bag directory to create")
+    sim.add_argument("--out", required=True, type=out_argument, help="bag directory to create")
     sim.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     sim.add_argument("--minutes", type=float, default=None, help="duration (scenario default)")
     sim.add_argument(
@@ -131,7 +172,13 @@ def build_parser() -> argparse.ArgumentParser:
 
     rep = sub.add_parser("replay", help="run the estimators over a bag and write a report")
     rep.add_argument("bag", type=Path)
-    rep.add_argument("--out", required=True, type=Path, help="report directory")
+    rep.add_argument(
+        "--out",
+        required=True,
+        type=out_argument,
+        help="report directory; a run first removes an earlier run's metrics.json and plots "
+        "from it, and a failed run leaves none",
+    )
     rep.add_argument("--config", type=Path, default=None, help="estimator parameters (YAML)")
     rep.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     rep.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -185,16 +232,44 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``tire-estimation`` console script."""
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:
+        if exc.code:  # a replay command line that does not parse leaves no report either
+            _remove_replay_report(sys.argv[1:] if argv is None else list(argv))
+        raise
     func: Callable[[argparse.Namespace], int] = args.func
     try:
         return func(args)
     except TireEstimationError as exc:
-        print(f"tire-estimation: error: {exc}", file=sys.stderr)
-        return EXIT_ERROR
+        return fail(str(exc))
+    except OSError as exc:  # a file system failure the checks did not foresee (disk full, ...)
+        where = f" {exc.filename}" if exc.filename else ""
+        return fail(f"{exc.strerror or type(exc).__name__}:{where}")
     except KeyboardInterrupt:
         print("tire-estimation: interrupted", file=sys.stderr)
         return 130
+
+
+def _remove_replay_report(argv: list[str]) -> None:
+    """Remove the report files from the ``--out`` of a ``replay`` command line that did not
+    parse (as a run that fails removes them); nothing when it names no directory."""
+    if not argv or argv[0] != "replay":
+        return
+    for i, word in enumerate(argv):
+        name, eq, value = word.partition("=")
+        if len(name) < 3 or not "--out".startswith(name):  # argparse takes --o, --ou
+            continue
+        value = value if eq else (argv[i + 1] if i + 1 < len(argv) else "")
+        for report in REPLAY_REPORT_FILES if value.strip() else ():
+            with contextlib.suppress(OSError):  # not a directory, a name too long, ...
+                (Path(value) / report).unlink(missing_ok=True)
+
+
+def fail(message: str) -> int:
+    """Print ``tire-estimation: error: message`` as one line on stderr; return the exit status."""
+    print(one_line(f"tire-estimation: error: {message}", MAX_LINE), file=sys.stderr)
+    return EXIT_ERROR
 
 
 if __name__ == "__main__":

@@ -7,6 +7,37 @@ input and its value.
 
 from __future__ import annotations
 
+import reprlib
+
+#: longest repr of a value in a message (a 4 MB list would otherwise become a 4 MB line)
+MAX_VALUE_REPR = 80
+
+_REPR = reprlib.Repr()
+_REPR.maxstring = MAX_VALUE_REPR
+_REPR.maxother = MAX_VALUE_REPR
+_REPR.maxlist = _REPR.maxtuple = _REPR.maxdict = _REPR.maxset = 6
+_REPR.maxlevel = 3
+
+
+def short_repr(value: object) -> str:
+    """``repr(value)`` of at most about :data:`MAX_VALUE_REPR` characters (``...`` marks a cut)."""
+    if isinstance(value, int) and value.bit_length() > 100:  # repr fails beyond 4300 digits
+        return f"<integer of about {len(format(value, 'x')) * 1.2:.0f} digits>"
+    try:
+        text = _REPR.repr(value)
+    except Exception:  # a value whose __repr__ fails
+        text = f"<{type(value).__name__}>"
+    if len(text) > MAX_VALUE_REPR:
+        text = text[: MAX_VALUE_REPR - 3] + "..."
+    return text
+
+
+def one_line(text: str, limit: int = 300) -> str:
+    """``text`` on one line (runs of whitespace, newlines included, become one space), cut to
+    at most ``limit`` characters."""
+    flat = " ".join(str(text).split())
+    return flat if len(flat) <= limit else flat[: limit - 3] + "..."
+
 
 class TireEstimationError(Exception):
     """Base class of every error raised by tire_estimation."""
@@ -19,7 +50,7 @@ class ConfigError(TireEstimationError, ValueError):
         self.field = field
         self.value = value
         self.reason = reason
-        super().__init__(f"{field}={value!r}: {reason}")
+        super().__init__(f"{field}={short_repr(value)}: {reason}")
 
 
 class VehicleConfigError(ConfigError):

@@ -2,12 +2,15 @@
 
 The bag is decoded once (only the topics used), its streams are fed in header-stamp order to
 the same :class:`~tire_estimation.core.radius.estimator.RadiusEstimator` the node uses, and
-``DIR/metrics.json`` (contract v1) plus PNG plots are written. ``metrics.json`` is written last
-and atomically; a failed run removes any stale one, so no partial report looks like a result.
+``DIR/metrics.json`` (contract v1) plus PNG plots are written. A run first removes the report
+of an earlier run from ``DIR`` (``metrics.json`` and the plots, :data:`REPORT_FILES`), removes
+what it wrote if it fails, and writes ``metrics.json`` last and atomically: a report in ``DIR``
+is always that of the last run, complete.
 """
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import math
 import sys
@@ -15,7 +18,7 @@ import time
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any
 
 import numpy as np
 import yaml
@@ -48,62 +51,16 @@ from tire_estimation.evaluation.runner import (
     run_radius,
 )
 from tire_estimation.node_config import EstimatorNodeOptions, periods_of
-from tire_estimation.params import build_config, parameter_specs
+from tire_estimation.paths import REPLAY_REPORT_FILES, check_new_path, prepare_out_dir
+from tire_estimation.replay_config import (
+    NODE_NAME,
+    load_config_sections,
+    section_config,
+)
 from tire_estimation.sources import bag_samples, sample_count
 
-NODE_NAME = "estimator_node"
-T = TypeVar("T")
-
-
-def load_config_sections(path: Path | None) -> dict[str, dict[str, Any]]:
-    """Sections of a parameter YAML: ``{"radius": {...}, "tyre_force": {...}, ...}``.
-
-    Accepted layouts: the ROS params file (``estimator_node: ros__parameters: radius.x: v``),
-    a mapping with one sub-mapping per section, or flat ``section.x`` keys. Top-level scalar keys
-    (the node options, e.g. ``stiffness_enabled``) go to the section ``""``.
-    """
-    sections: dict[str, dict[str, Any]] = {}
-    if path is None:
-        return sections
-    try:
-        data = yamlio.safe_load(Path(path).read_text()) or {}
-    except FileNotFoundError as exc:
-        raise ConfigError("--config", str(path), "file not found") from exc
-    except yaml.YAMLError as exc:
-        raise ConfigError("--config", str(path), f"not valid YAML: {exc}") from exc
-    if not isinstance(data, dict):
-        raise ConfigError("--config", str(path), "must hold a mapping")
-    if NODE_NAME in data:
-        data = (data[NODE_NAME] or {}).get("ros__parameters", {}) or {}
-    for key, value in data.items():
-        if not isinstance(key, str):
-            continue
-        if isinstance(value, dict):
-            sections.setdefault(key, {}).update(value)
-        elif "." in key:
-            section, name = key.split(".", 1)
-            sections.setdefault(section, {})[name] = value
-        else:
-            sections.setdefault("", {})[key] = value
-    return sections
-
-
-def section_config(cls: type[T], prefix: str, values: dict[str, Any]) -> T:
-    """``cls`` from one section's values; an unknown key raises ConfigError naming it."""
-    names = {spec.field for spec in parameter_specs(cls, prefix)}
-    unknown = sorted(set(values) - names)
-    if unknown:
-        raise ConfigError(f"{prefix}.{unknown[0]}", values[unknown[0]], "unknown parameter")
-    return build_config(cls, prefix, {f"{prefix}.{k}": v for k, v in values.items()})
-
-
-def load_radius_config(
-    path: Path | None, overrides: dict[str, Any] | None = None
-) -> RadiusEstimatorConfig:
-    """The ``radius`` section as :class:`RadiusEstimatorConfig` (unknown keys raise)."""
-    values = dict(load_config_sections(path).get("radius", {}))
-    values.update(overrides or {})
-    return RadiusEstimatorConfig.from_dict(values)
+#: what a run writes in its output directory (and removes from it first)
+REPORT_FILES = REPLAY_REPORT_FILES
 
 
 @dataclass
@@ -333,6 +290,17 @@ def _reference_positions(
     return None, "none"
 
 
+def _remove_report(out: Path) -> None:
+    """Remove the files of a replay report (:data:`REPORT_FILES`) from ``out``."""
+    for name in REPORT_FILES:
+        try:
+            (out / name).unlink(missing_ok=True)
+        except IsADirectoryError as exc:
+            raise ConfigError("--out", str(out), f"{name} there is a directory") from exc
+        except OSError as exc:
+            raise ConfigError("--out", str(out), f"cannot remove {name}: {exc.strerror}") from exc
+
+
 def _clean(obj: Any) -> Any:
     """JSON-safe copy: numpy scalars to Python, non-finite floats to None."""
     if isinstance(obj, dict):
@@ -413,24 +381,59 @@ def run_replay(
     ``seed + rank_seeds - 1`` and profiles their mean NLL (``rank_seeds`` times the re-runs):
     on a short bag a single particle-filter run's likelihood depends on its seed.
     """
+    out = prepare_out_dir(Path(out_dir))
+    _remove_report(out)
+    try:
+        return _run(
+            bag_path, out, config_path, config, plots, progress, stiffness, rank_effects,
+            rank_seeds, observers, write_config,
+        )  # fmt: skip
+    except BaseException:
+        # a failed run leaves no report, not even the plots it had written
+        with contextlib.suppress(ConfigError):
+            _remove_report(out)
+        raise
+
+
+def _run(
+    bag_path: Path | str,
+    out: Path,
+    config_path: Path | None,
+    config: RadiusEstimatorConfig | None,
+    plots: bool,
+    progress: bool,
+    stiffness: bool | None,
+    rank_effects: bool,
+    rank_seeds: int,
+    observers: Sequence[Observer],
+    write_config: Path | None,
+) -> ReplayReport:
+    """:func:`run_replay` once ``out`` is ready and empty of an earlier report."""
     if not isinstance(rank_seeds, int) or isinstance(rank_seeds, bool) or rank_seeds < 1:
         raise ConfigError("rank_seeds", rank_seeds, "must be an integer >= 1")
     if rank_seeds > 1 and not rank_effects:
         raise ConfigError("rank_seeds", rank_seeds, "needs rank_effects (--rank-effects)")
-    if write_config is not None and not rank_effects:
-        raise ConfigError("write_config", str(write_config), "needs rank_effects (--rank-effects)")
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    stale = out / "metrics.json"
-    stale.unlink(missing_ok=True)
+    if write_config is not None:
+        if not rank_effects:
+            raise ConfigError(
+                "write_config", str(write_config), "needs rank_effects (--rank-effects)"
+            )
+        if Path(write_config).is_dir():
+            raise ConfigError("--write-config", str(write_config), "is a directory")
+        check_new_path(Path(write_config), "--write-config", overwrite=True)
     sections = load_config_sections(config_path)
-    cfg = config if config is not None else load_radius_config(config_path)
+    cfg = (
+        config
+        if config is not None
+        else section_config(RadiusEstimatorConfig, "radius", sections.get("radius", {}))
+    )
     tyre_cfg = section_config(TyreForceKFConfig, "tyre_force", sections.get("tyre_force", {}))
     stiff_cfg = section_config(
         StiffnessEstimatorConfig, "stiffness", sections.get("stiffness", {})
     )
-    options = build_config(EstimatorNodeOptions, "", sections.get("", {}))
+    options = section_config(EstimatorNodeOptions, "", sections.get("", {}))
     det_cfg = section_config(DeflationDetectorConfig, "detector", sections.get("detector", {}))
+    lin_cfg = section_config(LinearLateralKFConfig, "linear_kf", sections.get("linear_kf", {}))
     run_stiffness = options.stiffness_enabled if stiffness is None else stiffness
 
     wall0 = time.perf_counter()
@@ -476,7 +479,6 @@ def run_replay(
     )
     baselines: dict[str, Any] = {}
     if run_stiffness_mpf:
-        lin_cfg = section_config(LinearLateralKFConfig, "linear_kf", sections.get("linear_kf", {}))
         baselines["linear_kf"] = LinearLateralKF(lin_cfg, bag.vehicle)
     # the node's outputs are made only for observers that want them (the detector is fed the
     # same values either way)
@@ -523,7 +525,7 @@ def run_replay(
         if "stiffness_mpf" in imu_lateral:
             write_lateral_plots(out, bag, imu_lateral)
     metrics["plots"] = sorted(p.name for p in out.glob("*.png")) if plots else []
-    atomic_write_json(stale, _clean(metrics), allow_nan=False)
+    atomic_write_json(out / "metrics.json", _clean(metrics), allow_nan=False)
     return ReplayReport(out, _clean(metrics))
 
 

@@ -32,13 +32,14 @@ from rosbags.rosbag2 import Reader
 from tire_estimation.bag import topics as tp
 from tire_estimation.bag.cdr import Batch, decode
 from tire_estimation.bag.mcap_raw import McapFormatError, RawMessages, assemble, read_mcap
+from tire_estimation.bag.sim_config import events_from_text, read_sim_config
 from tire_estimation.bag.typestore import bag_typestore
 from tire_estimation.bag.writer import CUSTOM_EVENTS, CUSTOM_VEHICLE, SIM_CONFIG_FILE, VEHICLE_FILE
 from tire_estimation.core import yamlio
 from tire_estimation.core.arrays import F64, I64
 from tire_estimation.core.input_checks import drop_key, unique_names
 from tire_estimation.core.samples import STATUS_NO_FIX, GnssFix, GnssVelocity
-from tire_estimation.core.vehicle import VehicleParams, load_vehicle_yaml
+from tire_estimation.core.vehicle import VehicleParams, load_vehicle_yaml, vehicle_from_document
 from tire_estimation.core.wheels import STEERING_JOINT, WHEELS
 from tire_estimation.errors import BagError, InputError, VehicleConfigError
 from tire_estimation.sim.streams import (
@@ -542,10 +543,9 @@ def find_vehicle(path: Path, custom: dict[str, str]) -> VehicleParams:
         try:
             data = yamlio.safe_load(custom[CUSTOM_VEHICLE])
         except yaml.YAMLError as exc:
-            raise VehicleConfigError(CUSTOM_VEHICLE, custom[CUSTOM_VEHICLE], str(exc)) from exc
-        if not isinstance(data, dict) or "vehicle" not in data:
-            raise VehicleConfigError("vehicle", None, f"{CUSTOM_VEHICLE} has no 'vehicle' key")
-        return VehicleParams.from_dict(data["vehicle"])
+            reason = f"not valid YAML: {yamlio.describe(exc)}"
+            raise VehicleConfigError(CUSTOM_VEHICLE, custom[CUSTOM_VEHICLE], reason) from exc
+        return vehicle_from_document(data, f"metadata {CUSTOM_VEHICLE}")
     raise BagError(
         f"no vehicle.yaml for bag {path} (looked in {', '.join(map(str, candidates))} and "
         f"the metadata custom data key {CUSTOM_VEHICLE})"
@@ -553,26 +553,15 @@ def find_vehicle(path: Path, custom: dict[str, str]) -> VehicleParams:
 
 
 def _sim_config(path: Path, custom: dict[str, str]) -> tuple[dict[str, Any], tuple[SimEvent, ...]]:
-    config: dict[str, Any] = {}
     cfg_path = _bag_dir(path) / SIM_CONFIG_FILE
     if cfg_path.is_file():
-        try:
-            loaded = yamlio.safe_load(cfg_path.read_text())
-        except yaml.YAMLError as exc:
-            raise BagError(f"{cfg_path} is not valid YAML: {exc}") from exc
-        config = loaded if isinstance(loaded, dict) else {}
-    raw_events = config.get("events")
-    if raw_events is None and CUSTOM_EVENTS in custom:
-        try:
-            raw_events = yaml.safe_load(custom[CUSTOM_EVENTS])
-        except yaml.YAMLError:
-            raw_events = None
-    events = tuple(
-        SimEvent(float(e["t_s"]), str(e["kind"]), dict(e.get("detail") or {}))
-        for e in raw_events or ()
-        if isinstance(e, dict) and "t_s" in e and "kind" in e
-    )
-    return config, events
+        config, events = read_sim_config(cfg_path)
+        if "events" in config or CUSTOM_EVENTS not in custom:
+            return config, events
+        return config, events_from_text(custom[CUSTOM_EVENTS], f"metadata {CUSTOM_EVENTS}")
+    if CUSTOM_EVENTS in custom:
+        return {}, events_from_text(custom[CUSTOM_EVENTS], f"metadata {CUSTOM_EVENTS}")
+    return {}, ()
 
 
 # --------------------------------------------------------------------------- read_bag

@@ -10,6 +10,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from tire_estimation.paths import check_new_path, out_argument
+
 
 def _command(args: argparse.Namespace, dataset: str, source: Path) -> str:
     parts = ["tire-estimation", "convert", dataset, str(source), "--out", str(args.out)]
@@ -22,6 +24,7 @@ def _convert(args: argparse.Namespace) -> int:
     """Run the dataset's converter on ``args.source`` and print what it wrote, its size and
     the time."""
     dataset = args.dataset
+    check_new_path(args.out, "--out", overwrite=args.overwrite)
     module = importlib.import_module(f"tire_estimation.convert.{dataset}")
     convert: Callable[..., Path] = getattr(module, f"convert_{dataset}")
     t0 = time.perf_counter()
@@ -63,7 +66,7 @@ def add_convert_parser(subparsers: Any) -> argparse.ArgumentParser:
     for dataset, (help_text, metavar, source_help) in DATASETS.items():
         p = sub.add_parser(dataset, help=help_text)
         p.add_argument("source", type=Path, metavar=metavar, help=source_help)
-        p.add_argument("--out", required=True, type=Path, help="bag directory to create")
+        p.add_argument("--out", required=True, type=out_argument, help="bag directory to create")
         p.add_argument("--overwrite", action="store_true", help="replace an existing bag")
         p.set_defaults(func=_convert)
     return conv

@@ -6,6 +6,7 @@ naming the field and its value.
 
 from __future__ import annotations
 
+import difflib
 import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, fields
@@ -145,6 +146,48 @@ def one_of(choices: Iterable[str]) -> Rule:
     return Rule("choice", choices=tuple(choices))
 
 
+def known_names(name: object, valid: Iterable[str]) -> str:
+    """``did you mean n_particles?`` (the valid name nearest ``name`` by
+    :func:`difflib.get_close_matches`) or, with none near, ``known: a, b, c, d, e, ...``."""
+    names = list(valid)
+    near = difflib.get_close_matches(name, names, n=1) if isinstance(name, str) else []
+    if near:
+        return f"did you mean {near[0]}?"
+    return f"known: {', '.join(names[:5])}{', ...' if len(names) > 5 else ''}"
+
+
+def unknown_key_reason(
+    key: object, valid: Iterable[str], prefix: str = "", what: str = "key"
+) -> str:
+    """Why ``key`` is rejected: ``unknown key; did you mean radius.n_particles?`` (the nearest
+    valid key by :func:`difflib.get_close_matches`, written with ``prefix``) or, with none
+    near, the first few valid keys."""
+    names = sorted(valid)
+    if not isinstance(key, str):
+        return f"{what}s must be text, not {type(key).__name__}"
+    near = difflib.get_close_matches(key, names, n=1, cutoff=0.6)
+    if near:
+        return f"unknown {what}; did you mean {prefix}{near[0]}?"
+    shown = ", ".join(prefix + n for n in names[:5])
+    return f"unknown {what}; valid: {shown}{', ...' if len(names) > 5 else ''}"
+
+
+def reject_unknown_keys(
+    data: Mapping[Any, Any],
+    valid: Iterable[str],
+    error: type[ConfigError] = ConfigError,
+    prefix: str = "",
+    what: str = "key",
+) -> None:
+    """Raise ``error`` naming ``prefix + key`` and the nearest valid key for the first key of
+    ``data`` (in its order) that is not in ``valid``."""
+    names = set(valid)
+    for key in data:
+        if key not in names:
+            reason = unknown_key_reason(key, names, prefix, what)
+            raise error(f"{prefix}{key}", data[key], reason)
+
+
 def require_known_keys(
     cls: type,
     data: object,
@@ -153,13 +196,11 @@ def require_known_keys(
     prefix: str = "",
 ) -> Mapping[str, Any]:
     """``data`` if it is a mapping whose keys are all fields of dataclass ``cls``; else
-    ``error`` naming ``section`` (not a mapping) or ``prefix`` + the first unknown key."""
+    ``error`` naming ``section`` (not a mapping) or ``prefix`` + the first unknown key and the
+    nearest field."""
     if not isinstance(data, Mapping):
         raise error(section, data, "must be a mapping")
-    names = {f.name for f in fields(cls)}
-    unknown = sorted(set(data) - names)
-    if unknown:
-        raise error(prefix + unknown[0], data[unknown[0]], "unknown key")
+    reject_unknown_keys(data, (f.name for f in fields(cls)), error, prefix)
     return data
 
 

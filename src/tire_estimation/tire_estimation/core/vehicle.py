@@ -23,6 +23,7 @@ from tire_estimation.core.validation import (
     require_choice,
     require_finite,
     require_known_keys,
+    unknown_key_reason,
 )
 from tire_estimation.errors import VehicleConfigError
 
@@ -136,9 +137,12 @@ class VehicleParams:
             if key in ("gnss_antenna_position_m", "imu_position_m"):
                 if not isinstance(value, (list, tuple)):
                     raise VehicleConfigError(f"vehicle.{key}", value, "must be a list [x, y, z]")
-                value = tuple(float(v) if _is_number(v) else v for v in value)
+                value = tuple(
+                    _float(f"vehicle.{key}[{i}]", v) if _is_number(v) else v
+                    for i, v in enumerate(value)
+                )
             elif key not in ("name", "drive") and _is_int(value):
-                value = float(value)
+                value = _float(f"vehicle.{key}", value)
             kwargs[key] = value
         return cls(**kwargs)
 
@@ -158,18 +162,31 @@ def _is_int(value: object) -> bool:
     return isinstance(value, int) and not isinstance(value, bool)
 
 
+def _float(field: str, value: float) -> float:
+    try:
+        return float(value)
+    except OverflowError as exc:  # an integer beyond the float range
+        raise VehicleConfigError(field, value, "must be a finite number") from exc
+
+
+def vehicle_from_document(data: object, source: str) -> VehicleParams:
+    """The vehicle of a vehicle.yaml document (a mapping with the one key ``vehicle``);
+    ``source`` (a path) names the document in errors."""
+    if not isinstance(data, Mapping):
+        raise VehicleConfigError("vehicle", None, f"{source} has no top-level 'vehicle' mapping")
+    for key, value in data.items():
+        if key != "vehicle":
+            reason = unknown_key_reason(key, ("vehicle",), what="top-level key")
+            raise VehicleConfigError(f"{source}: {key}", value, reason)
+    if "vehicle" not in data:
+        raise VehicleConfigError("vehicle", None, f"{source} has no top-level 'vehicle' mapping")
+    return VehicleParams.from_dict(data["vehicle"])
+
+
 def load_vehicle_yaml(path: str | Path) -> VehicleParams:
     """Read ``vehicle.yaml``; raise :class:`VehicleConfigError` naming what is wrong."""
-    path = Path(path)
-    try:
-        data = yamlio.safe_load(path.read_text())
-    except FileNotFoundError as exc:
-        raise VehicleConfigError("vehicle.yaml", str(path), "file not found") from exc
-    except yaml.YAMLError as exc:
-        raise VehicleConfigError("vehicle.yaml", str(path), f"not valid YAML: {exc}") from exc
-    if not isinstance(data, dict) or "vehicle" not in data:
-        raise VehicleConfigError("vehicle", None, f"{path} has no top-level 'vehicle' mapping")
-    return VehicleParams.from_dict(data["vehicle"])
+    data = yamlio.load_file(path, "vehicle.yaml", VehicleConfigError)
+    return vehicle_from_document(data, str(path))
 
 
 def dump_vehicle_yaml(vehicle: VehicleParams, path: str | Path, comment: str = "") -> None:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import re
+import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -10,9 +11,12 @@ from typing import Any
 import rclpy
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.exceptions import InvalidParameterValueException, ParameterException
+from rclpy.executors import ExternalShutdownException
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 
-from tire_estimation.errors import ConfigError, TireEstimationError
+from tire_estimation.core.validation import unknown_key_reason
+from tire_estimation.errors import ConfigError, TireEstimationError, one_line
 from tire_estimation.params import ParameterSpec
 from tire_estimation.persistence import Identity, restore, save_state
 
@@ -52,21 +56,34 @@ def declare_specs(node: Node, specs: Sequence[ParameterSpec]) -> None:
             raise ConfigError(spec.name, value, f"must be {spec.summary()}") from exc
 
 
+def reject_undeclared_overrides(node: Node) -> None:
+    """Raise :class:`ConfigError` for the first parameter given to ``node`` (``-p name:=value``,
+    ``--params-file``, the constructor's ``parameter_overrides``) that it did not declare,
+    naming the nearest declared one: rclpy ignores such a value silently, so a misspelled
+    ``radius.n_particle`` would leave the default in place. Call it after the declarations."""
+    declared = list(node.list_parameters([], 0).names)
+    for name, param in node._parameter_overrides.items():  # rclpy has no public accessor
+        if not node.has_parameter(name):
+            reason = unknown_key_reason(name, declared, what="parameter")
+            raise ConfigError(name, param.value, reason)
+
+
 def spin_node(name: str, factory: Callable[[], Any], args: list[str] | None = None) -> None:
     """Create the node, spin it until interrupted, save its state, and shut down cleanly.
 
-    A configuration error (bad parameter) ends the process with a message naming the parameter
-    and exit status 2. The node must have ``save_on_shutdown()``.
+    A configuration error (bad or unknown parameter, unreadable parameters file) ends the
+    process with one line on stderr naming the parameter and exit status 2. The node must
+    have ``save_on_shutdown()``.
     """
-    rclpy.init(args=args)
     node: Any = None
     try:
+        rclpy.init(args=args)
         node = factory()
         rclpy.spin(node)
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, ExternalShutdownException):  # Ctrl-C, SIGTERM
         pass
-    except (TireEstimationError, ParameterException) as exc:
-        print(f"{name}: configuration error: {exc}")
+    except (TireEstimationError, ParameterException, _rclpy.RCLError) as exc:
+        print(one_line(f"{name}: configuration error: {exc}"), file=sys.stderr)
         raise SystemExit(2) from exc
     finally:
         if node is not None:

@@ -33,7 +33,13 @@ from tire_estimation.core.vehicle import load_vehicle_yaml
 from tire_estimation.errors import InputError, TireEstimationError
 from tire_estimation.node_config import DetectorNodeOptions
 from tire_estimation.nodes import conversions as conv
-from tire_estimation.nodes.common import declare_specs, restore_state, save_state_of, spin_node
+from tire_estimation.nodes.common import (
+    declare_specs,
+    reject_undeclared_overrides,
+    restore_state,
+    save_state_of,
+    spin_node,
+)
 from tire_estimation.nodes.detector_diagnostics import wheel_status
 from tire_estimation.params import (
     ParameterSpec,
@@ -105,6 +111,7 @@ class DetectorNode(Node):
         self._node_specs = parameter_specs(sections[0][1], sections[0][0])
         self._specs = parameter_specs(DeflationDetectorConfig, DETECTOR_PREFIX)
         declare_specs(self, self._specs)
+        reject_undeclared_overrides(self)
 
     def _values(self, specs: Sequence[ParameterSpec]) -> dict[str, Any]:
         return {

@@ -50,7 +50,13 @@ from tire_estimation.errors import InputError, TireEstimationError
 from tire_estimation.node_config import EstimatorNodeOptions, periods_of
 from tire_estimation.nodes import conversions as conv
 from tire_estimation.nodes import estimator_diagnostics, messages
-from tire_estimation.nodes.common import declare_specs, restore_state, save_state_of, spin_node
+from tire_estimation.nodes.common import (
+    declare_specs,
+    reject_undeclared_overrides,
+    restore_state,
+    save_state_of,
+    spin_node,
+)
 from tire_estimation.params import ParameterSpec, build_config, estimator_sections, parameter_specs
 from tire_estimation.persistence import Identity, LearnedState, delete_state
 from tire_estimation_msgs.msg import LateralState, TireForces, TireRadii, TireStiffness
@@ -67,6 +73,7 @@ class EstimatorNode(Node):
         self._specs = {prefix: parameter_specs(cls, prefix) for prefix, cls, _ in SECTIONS}
         for specs in self._specs.values():
             declare_specs(self, specs)
+        reject_undeclared_overrides(self)
         self.options = build_config(EstimatorNodeOptions, "", self._values(""))
         self.vehicle = self._load_vehicle()
         self.config = build_config(RadiusEstimatorConfig, "radius", self._values("radius"))

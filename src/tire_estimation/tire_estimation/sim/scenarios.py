@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from tire_estimation.core.arrays import F64
+from tire_estimation.core.validation import known_names
 from tire_estimation.core.wheels import WHEEL_INDEX, WHEELS
 from tire_estimation.errors import ScenarioError
 from tire_estimation.sim.streams import SimEvent
@@ -594,7 +595,7 @@ assert set(_DEFS) == set(SCENARIOS)
 def scenario_defaults(name: str) -> tuple[float, dict[str, Any]]:
     """(default minutes, default options including the common ones) of scenario ``name``."""
     if name not in _DEFS:
-        raise ScenarioError(f"unknown scenario {name!r}; known: {', '.join(SCENARIOS)}")
+        raise ScenarioError(f"unknown scenario {name!r}; {known_names(name, SCENARIOS)}")
     d = _DEFS[name]
     return d.default_minutes, {**COMMON_OPTIONS, **d.options}
 
@@ -608,10 +609,10 @@ def build_plan(
 ) -> Plan:
     """Resolve the options of scenario ``name`` and sample it on the integration grid."""
     _, defaults = scenario_defaults(name)
-    unknown = sorted(set(options) - set(defaults))
+    unknown = [k for k in options if k not in defaults]
     if unknown:
         raise ScenarioError(
-            f"scenario {name!r} has no option {unknown[0]!r}; options: {', '.join(defaults)}"
+            f"scenario {name!r} has no option {unknown[0]!r}; {known_names(unknown[0], defaults)}"
         )
     opts = {**defaults, **options}
     for key in COMMON_OPTIONS:

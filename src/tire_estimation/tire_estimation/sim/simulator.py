@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from tire_estimation.core.geodesy import LocalTangentPlane
+from tire_estimation.core.validation import known_names
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.errors import ConfigError, ScenarioError
 from tire_estimation.sim import sensors as sensor_models
@@ -47,7 +48,7 @@ def simulate(
         ConfigError: ``sensors`` / ``vehicle`` of the wrong type.
     """
     if scenario not in SCENARIOS:
-        raise ScenarioError(f"unknown scenario {scenario!r}; known: {', '.join(SCENARIOS)}")
+        raise ScenarioError(f"unknown scenario {scenario!r}; {known_names(scenario, SCENARIOS)}")
     default_minutes, _ = scenario_defaults(scenario)
     if minutes is None:
         minutes = default_minutes

@@ -21,6 +21,7 @@ from tire_estimation.core.validation import (
     in_range,
     int_in_range,
     one_of,
+    reject_unknown_keys,
 )
 from tire_estimation.errors import ConfigError
 
@@ -219,10 +220,7 @@ class RadiusEstimatorConfig:
         """Build from a mapping (e.g. ROS parameters); unknown keys raise ConfigError."""
         if not isinstance(data, Mapping):
             raise ConfigError("radius_estimator", data, "must be a mapping")
-        names = {f.name for f in dataclasses.fields(cls)}
-        unknown = sorted(set(data) - names)
-        if unknown:
-            raise ConfigError(unknown[0], data[unknown[0]], "unknown key")
+        reject_unknown_keys(data, (f.name for f in dataclasses.fields(cls)))
         kwargs = {}
         for f in dataclasses.fields(cls):
             if f.name in data:

@@ -10,8 +10,11 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+import yaml
+
 from tire_estimation.core import yamlio
-from tire_estimation.errors import ConfigError, TireEstimationError
+from tire_estimation.core.validation import reject_unknown_keys
+from tire_estimation.errors import ConfigError, TireEstimationError, one_line
 from tire_estimation.evaluation.campaign.spec import (
     GNSS_LEVELS,
     ROAD_LEVELS,
@@ -25,6 +28,7 @@ from tire_estimation.evaluation.campaign.study import (
     run_calibration_study,
     run_ece_r64_campaign,
 )
+from tire_estimation.paths import out_argument
 
 
 def _print_progress(row: dict[str, Any], n: int, total: int) -> None:
@@ -66,9 +70,8 @@ def _sensor_options(items: Sequence[tuple[str, Any]] | None) -> dict[str, Any]:
 
     d = dict(items or [])
     try:
+        reject_unknown_keys(d, (f.name for f in dataclasses.fields(SensorConfig)))
         SensorConfig(**d)
-    except TypeError as exc:
-        raise CampaignError(f"--sensor: {exc}") from exc
     except ConfigError as exc:
         raise CampaignError(f"--sensor {exc}") from exc
     return d
@@ -90,7 +93,10 @@ def _key_value(text: str) -> tuple[str, Any]:
     if "=" not in text:
         raise argparse.ArgumentTypeError(f"expected key=value, got {text!r}")
     key, raw = text.split("=", 1)
-    return key.strip(), yamlio.safe_load(raw)
+    try:
+        return key.strip(), yamlio.safe_load(raw)
+    except yaml.YAMLError as exc:
+        raise argparse.ArgumentTypeError(f"{key.strip()}: {yamlio.describe(exc)}") from exc
 
 
 def _float_list(text: str) -> tuple[float, ...]:
@@ -107,7 +113,7 @@ def _str_list(text: str) -> tuple[str, ...]:
 
 
 def _add_exec_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--out", required=True, type=Path, help="result directory")
+    p.add_argument("--out", required=True, type=out_argument, help="result directory")
     p.add_argument("--overwrite", action="store_true", help="replace an existing summary.json")
     p.add_argument(
         "--executor",
@@ -235,9 +241,10 @@ def _detector_options(items: Sequence[tuple[str, Any]] | None) -> dict[str, Any]
 
     names = {f.name for f in dataclasses.fields(DeflationDetectorConfig)}
     out = dict(items or [])
-    for k in out:
-        if k not in names:
-            raise CampaignError(f"--detector {k}: not a DeflationDetectorConfig field")
+    try:
+        reject_unknown_keys(out, names)
+    except ConfigError as exc:
+        raise CampaignError(f"--detector {exc}") from exc
     return out
 
 
@@ -324,7 +331,7 @@ def add_campaign_parser(subparsers: Any) -> argparse.ArgumentParser:
         "merge", help="pool finished ece-r64 campaign directories (shards) into one summary"
     )
     mrg.add_argument("shards", nargs="+", type=Path, help="campaign directories")
-    mrg.add_argument("--out", type=Path, required=True, help="result directory")
+    mrg.add_argument("--out", type=out_argument, required=True, help="result directory")
     mrg.add_argument("--overwrite", action="store_true", help="replace an existing summary.json")
     mrg.set_defaults(func=_cmd_merge)
 
@@ -333,7 +340,7 @@ def add_campaign_parser(subparsers: Any) -> argparse.ArgumentParser:
         help="re-run only the detection on the saved traces of campaigns (--save-traces)",
     )
     red.add_argument("campaigns", nargs="+", type=Path, help="campaign directories")
-    red.add_argument("--out", type=Path, required=True, help="result directory")
+    red.add_argument("--out", type=out_argument, required=True, help="result directory")
     red.add_argument(
         "--detector",
         type=_key_value,
@@ -348,12 +355,14 @@ def add_campaign_parser(subparsers: Any) -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Stand-alone entry point (``python -m tire_estimation.evaluation.campaign``)."""
-    parser = argparse.ArgumentParser(prog="tire-estimation")
+    from tire_estimation.cli import Parser  # one-line argument errors
+
+    parser = Parser(prog="tire-estimation")
     subparsers = parser.add_subparsers(dest="command", required=True)
     add_campaign_parser(subparsers)
     args = parser.parse_args(argv)
     try:
         return int(args.func(args))
     except TireEstimationError as exc:
-        print(f"tire-estimation: error: {exc}", file=sys.stderr)
+        print(one_line(f"tire-estimation: error: {exc}"), file=sys.stderr)
         return 2

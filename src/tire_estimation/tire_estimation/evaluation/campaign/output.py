@@ -21,6 +21,7 @@ from tire_estimation.evaluation.campaign.spec import (
     TARGET_RELATIVE_M,
     CampaignError,
 )
+from tire_estimation.paths import prepare_out_dir
 
 
 def write_csv(path: Path, rows: Sequence[dict[str, Any]]) -> None:
@@ -156,12 +157,14 @@ def plot_detection(out_dir: Path, rows: Sequence[dict[str, Any]]) -> list[str]:
 
 def prepare_out(out: Path | str, overwrite: bool) -> Path:
     path = Path(out)
-    if path.exists() and not path.is_dir():
-        raise CampaignError(f"--out {path}: exists and is not a directory")
+    try:
+        if path.exists() and not path.is_dir():
+            raise CampaignError(f"--out {path}: exists and is not a directory")
+    except OSError:  # a name too long: prepare_out_dir says so
+        pass
     if path.is_dir() and (path / "summary.json").exists() and not overwrite:
         raise CampaignError(f"--out {path}: holds a summary.json (use --overwrite)")
-    path.mkdir(parents=True, exist_ok=True)
-    return path
+    return prepare_out_dir(path)
 
 
 def versions() -> dict[str, str]:
