@@ -47,6 +47,7 @@ def test_one_sample_two_hours_ahead_is_dropped_and_counted() -> None:
     assert 50 not in released
     assert len(released) == len(events) - 1
     assert guard.dropped == {"wheel": 1}
+    assert guard.drop_counts() == {"wheel:clock_jump": 1}
     assert guard.offset_ns("wheel") == 0 and not guard.jumps
 
 

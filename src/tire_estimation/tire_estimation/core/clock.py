@@ -91,6 +91,10 @@ class ClockGuard(Generic[T]):
         """Internal stamp minus the stream's own stamp (0 until its clock jumped)."""
         return self._offset.get(stream, 0)
 
+    def drop_counts(self) -> dict[str, int]:
+        """The dropped outliers as ``<stream>:clock_jump`` counters."""
+        return {f"{stream}:clock_jump": n for stream, n in self.dropped.items() if n}
+
     def held(self) -> int:
         """Number of suspects held."""
         return sum(len(run) for run in self._held.values())
@@ -113,12 +117,15 @@ class ClockGuard(Generic[T]):
         if present - tol <= u_ns <= present + tol:
             return self._accept(stream, u_ns, item)
         cand = self._candidate_ns
+        held = self._held.get(stream)
         if (
             cand is not None
+            and held
             and cand != self._offset.get(stream, 0)
-            and present - tol <= t_ns + cand <= present + tol
+            and all(present - tol <= t + cand <= present + tol for t, _ in (*held, (t_ns, item)))
         ):
-            # this stream's clock made the jump another stream's already made
+            # two or more samples of this stream made the jump another stream already made (one
+            # alone may be an outlier that happens to match)
             self._offset[stream] = cand
             released = self._take_held(stream, cand)
             released.extend(self._accept(stream, t_ns + cand, item))

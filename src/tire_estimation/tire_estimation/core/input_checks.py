@@ -68,6 +68,10 @@ def unique_names(names: Sequence[str], known: Container[str], kind: str) -> None
 COVARIANCE_RTOL = 1e-9
 
 
+#: largest variance accepted in a covariance (a std of 1000 km; larger is no measurement)
+MAX_VARIANCE = 1e12
+
+
 def checked_covariance(values: Any, what: str) -> F64 | None:
     """A covariance given as 9 (3x3) or 4 (2x2) values, row-major, first two axes horizontal
     (ENU east, north): the (n, n) matrix, or None when absent or all zero (ROS: not reported).
@@ -93,6 +97,8 @@ def checked_covariance(values: Any, what: str) -> F64 | None:
     diag = [c[i * n + i] for i in range(n)]
     if min(diag) < 0.0:
         raise InputError("bad_covariance", f"{what} has a negative variance: {diag}")
+    if max(diag) > MAX_VARIANCE:
+        raise InputError("bad_covariance", f"{what} has a variance above {MAX_VARIANCE:g}")
     for i in range(n):
         for j in range(i + 1, n):
             cij, cji = c[i * n + j], c[j * n + i]

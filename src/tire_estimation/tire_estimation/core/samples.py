@@ -37,6 +37,14 @@ from tire_estimation.errors import InputError
 MAX_WHEEL_SPEED_RAD_S = 1000.0
 #: largest steering angle accepted, rad
 MAX_STEERING_RAD = 1.2
+#: largest angular rate accepted, rad/s (2000 deg/s, the widest range of common MEMS gyros)
+MAX_ANGULAR_RATE_RAD_S = 35.0
+#: largest specific force accepted, m/s^2 (about 20 g, beyond common MEMS ranges of 16 g)
+MAX_ACCELERATION_M_S2 = 200.0
+#: largest GNSS velocity accepted, m/s (720 km/h)
+MAX_GNSS_SPEED_M_S = 200.0
+#: the NavSatFix covariance types (unknown, approximated, diagonal known, known)
+NAVSAT_COVARIANCE_TYPES = frozenset({0, 1, 2, 3})
 #: largest altitude of a GNSS fix accepted, m (above or below the WGS-84 ellipsoid)
 MAX_ABS_ALTITUDE_M = 1e5
 #: ``sensor_msgs/NavSatFix.COVARIANCE_TYPE_UNKNOWN``: the position covariance is not reported
@@ -126,6 +134,10 @@ class ImuSample:
         acc = _vector(linear_acceleration_m_s2, 3, "linear acceleration")
         if not (np.all(np.isfinite(gyro)) and np.all(np.isfinite(acc))):
             raise InputError("nan", "IMU sample is not finite")
+        if np.max(np.abs(gyro)) > MAX_ANGULAR_RATE_RAD_S:
+            raise InputError("out_of_range", f"|angular velocity| above {MAX_ANGULAR_RATE_RAD_S}")
+        if np.max(np.abs(acc)) > MAX_ACCELERATION_M_S2:
+            raise InputError("out_of_range", f"|acceleration| above {MAX_ACCELERATION_M_S2}")
         return cls(_stamp(t_ns), gyro, acc)
 
 
@@ -183,6 +195,8 @@ class GnssFix:
         (:meth:`checked`; all zero is read as not reported)."""
         if int(status) == STATUS_NO_FIX:
             raise InputError("no_fix", "NavSatFix status reports no fix")
+        if int(covariance_type) not in NAVSAT_COVARIANCE_TYPES:
+            raise InputError("bad_covariance", f"unknown covariance type {int(covariance_type)}")
         cov = None if int(covariance_type) == COVARIANCE_TYPE_UNKNOWN else covariance_m2
         return cls.checked(t_ns, lat_deg, lon_deg, alt_m, cov)
 
@@ -204,6 +218,8 @@ class GnssVelocity:
         v = _vector(velocity_enu_m_s, 3, "GNSS velocity")
         if not np.all(np.isfinite(v)):
             raise InputError("nan", "GNSS velocity is not finite")
+        if np.max(np.abs(v)) > MAX_GNSS_SPEED_M_S:
+            raise InputError("out_of_range", f"|GNSS velocity| above {MAX_GNSS_SPEED_M_S} m/s")
         return cls(_stamp(t_ns), v, checked_covariance(covariance, "velocity covariance"))
 
 

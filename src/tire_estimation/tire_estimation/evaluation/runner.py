@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from tire_estimation.core.input_checks import merged_counts
 from tire_estimation.core.pipeline import (
     DeflationOutput,
     EstimationPipeline,
@@ -148,7 +149,8 @@ class RadiusRecorder:
         trace, estimator = self.trace, pipeline.radius
         if estimator is None:
             return trace
-        trace.dropped = dict(estimator.stats)
+        # the clock guard's outliers and the radius estimator's drops, as <stream>:<kind>
+        trace.dropped = merged_counts(pipeline.clock.drop_counts(), estimator.stats)
         if estimator.config.gnss_velocity_enabled and pipeline.received["gnss_velocity"]:
             nis = np.asarray(trace.vel_nis, dtype=float)
             trace.gnss_velocity = {

@@ -66,9 +66,13 @@ def statuses(
         for stream in INPUT_STREAMS:
             values[f"rate_hz.{stream}"] = f"{rates_hz.get(stream, 0.0):.1f}"
             values[f"received.{stream}"] = str(received.get(stream, 0))
-        # dropped by the message checks and by the radius estimator, both as <stream>:<kind>
-        for key, count in sorted(merged_counts(dropped, radius.stats).items()):
+        # dropped by the message checks, the clock guard and the radius estimator, all as
+        # <stream>:<kind>; new clocks adopted per stream
+        drops = merged_counts(dropped, pipeline.clock.drop_counts(), radius.stats)
+        for key, count in sorted(drops.items()):
             values[f"dropped.{key}"] = str(count)
+        for stream, count in sorted(pipeline.clock.jumps.items()):
+            values[f"clock_jumps.{stream}"] = str(count)
         # processed out of stamp order: arrived more than reorder_delay_s behind the wheel speeds
         for key, count in sorted(pipeline.buffer.late.items()):
             values[f"late.{key}"] = str(count)
