@@ -365,3 +365,17 @@ def test_a_gap_reinitializes_and_low_speed_is_unknown() -> None:
         np.array([True, False, False, True]),
     )
     assert est.estimate().linearity == "unknown"
+
+
+def test_an_input_stamped_after_the_forces_is_not_fresh() -> None:
+    """Steering and wheel speeds stamped 0.3 s after the forces are not used for them (a
+    negative age is not fresh, however small)."""
+    est = TyreForceEstimator(TyreForceKFConfig(), VehicleParams())
+    t = 1_000_000_000
+    future = t + 300_000_000
+    est.on_steering(future, 0.01)
+    est.on_wheel_speeds(future, np.full(4, 20.0 / 0.31))
+    fy, fz = np.array([800.0, 0.0, 0.0, 700.0]), np.array([4300.0, 0.0, 0.0, 3000.0])
+    valid = np.array([True, False, False, True])
+    assert est.on_tire_forces(t + 1, np.zeros(4), fy, fz, valid) is None
+    assert est.stats["tire_forces:no_steering"] == 1

@@ -248,3 +248,18 @@ def test_integer_config_values_and_nominal_override() -> None:
     assert est.mpf.p_bias.dtype == np.float64
     assert e.nominal[1] == 70_000.0 and e.nominal[2] == 90_000.0
     assert np.all(np.isfinite(e.stiffness))
+
+
+def test_a_speed_stamped_after_the_imu_sample_is_not_used() -> None:
+    """A wheel speed two hours ahead of the IMU does not start the filter (its age would be
+    negative); the same speed stamped before the IMU does."""
+    future, now = _est(), _est()
+    t = 1_000_000_000
+    w = 20.0 / 0.31
+    future.on_wheel_speeds(t + 7200 * 1_000_000_000, [w, w, w, w])
+    now.on_wheel_speeds(t, [w, w, w, w])
+    for est in (future, now):
+        for k in range(1, 50):
+            est.on_imu(t + k * 10_000_000, [0.0, 0.0, 0.0], [0.0, 0.0, 9.81])
+    assert not future.initialized
+    assert now.initialized

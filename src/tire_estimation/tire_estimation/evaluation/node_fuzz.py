@@ -428,7 +428,8 @@ def bad_plan(
     kinds = [(t, m) for t in present if t in MUTATIONS for m in MUTATIONS[t]]
     plan: dict[int, list[tuple[str, str]]] = {}
     for k, pick in zip(
-        rng.integers(1, len(messages), n_bad).tolist(),
+        # after the first 2 % of the drive, when every stream has sent a good message to copy
+        rng.integers(max(1, len(messages) // 50), len(messages), n_bad).tolist(),
         rng.integers(0, len(kinds), n_bad).tolist(),
         strict=True,
     ):

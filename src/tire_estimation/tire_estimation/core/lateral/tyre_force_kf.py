@@ -257,7 +257,8 @@ class TyreForceEstimator:
         held = self._held[stream]
         if held.t_ns is None:
             return False
-        return abs(t_ns - held.t_ns) * 1e-9 <= self.config.input_timeout_s
+        # an input stamped after the tyre forces is not fresh (its age is negative)
+        return 0 <= t_ns - held.t_ns <= self.config.input_timeout_s * 1e9
 
     # ------------------------------------------------------------------ inputs
     def on_steering(self, t_ns: int, angle_rad: float) -> None:

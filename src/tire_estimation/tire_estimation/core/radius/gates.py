@@ -56,11 +56,12 @@ class Gates:
         # eq. (6b) yaw_rate = (w4 (r + d4) - w3 (r + d3)) / l_T
         return v, (w4 * (r + d4) - w3 * (r + d3)) / lt
 
+    # an input stamped after the sample it is used with is not fresh (its age is negative)
     def _imu_fresh(self, t_ns: int) -> bool:
-        return self._imu is not None and (t_ns - self._imu[0]) * 1e-9 <= IMU_TIMEOUT_S
+        return self._imu is not None and 0 <= t_ns - self._imu[0] <= IMU_TIMEOUT_S * 1e9
 
     def _steer_fresh(self, t_ns: int) -> bool:
-        return self._steer is not None and (t_ns - self._steer[0]) * 1e-9 <= IMU_TIMEOUT_S
+        return self._steer is not None and 0 <= t_ns - self._steer[0] <= IMU_TIMEOUT_S * 1e9
 
     def specific_force(
         self, t_ns: int, ws: F64 | None, lateral: bool = True
