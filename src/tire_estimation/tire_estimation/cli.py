@@ -19,6 +19,7 @@ from typing import Any, NoReturn
 
 import yaml
 
+from tire_estimation import __version__
 from tire_estimation.core import yamlio
 from tire_estimation.errors import TireEstimationError, one_line
 from tire_estimation.paths import REPLAY_REPORT_FILES, out_argument
@@ -139,6 +140,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog="tire-estimation",
         description="Online tire radius/stiffness estimation: simulate, replay, inspect bags.",
     )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     sim = sub.add_parser("simulate", help="write a simulated evaluation bag (MCAP)")
