@@ -416,3 +416,38 @@ def test_detector_node_survives_stamps_that_jump(tmp_path: Path) -> None:
         node.destroy_node()
     finally:
         rclpy.shutdown(context=context)
+
+
+def test_detector_node_persists_only_a_changed_state_of_a_named_vehicle(tmp_path: Path) -> None:
+    """The default vehicle name (no vehicle file) turns persistence off; a named vehicle's
+    node writes nothing until its state changed, then saves at shutdown."""
+    rclpy, msg_mod, nav_msgs, rclpy_parameter, node_mod = import_ros(
+        "rclpy",
+        "tire_estimation_msgs.msg",
+        "nav_msgs.msg",
+        "rclpy.parameter",
+        "tire_estimation.nodes.detector_node",
+    )
+    path = tmp_path / "deflation.json"
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    try:
+        params = _params(rclpy_parameter.Parameter, tmp_path, **{"vehicle.name": "vehicle"})
+        unnamed = node_mod.DetectorNode(context=context, parameter_overrides=params)
+        assert "no vehicle identity" in unnamed._persist_note
+        Feeder(msg_mod, nav_msgs.Odometry).drive(unnamed, 5.0, MU_CAL)
+        unnamed.save_on_shutdown()
+        assert not path.exists()
+        unnamed.destroy_node()
+
+        named = node_mod.DetectorNode(
+            context=context, parameter_overrides=_params(rclpy_parameter.Parameter, tmp_path)
+        )
+        named.save_on_shutdown()  # nothing changed: the prior is not written
+        assert not path.exists()
+        Feeder(msg_mod, nav_msgs.Odometry).drive(named, 5.0, MU_CAL)
+        named.save_on_shutdown()
+        assert path.is_file()
+        named.destroy_node()
+    finally:
+        rclpy.shutdown(context=context)

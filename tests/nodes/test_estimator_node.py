@@ -499,3 +499,117 @@ def test_each_wheel_says_whether_it_learns_and_why_not(ros: Any, tmp_path: Path)
         assert st.level == DiagnosticStatus.OK and st.message == "learning"
         assert float({kv.key: kv.value for kv in st.values}["learned_s"]) > 5.0
     node.destroy_node()
+
+
+def test_corrected_twist_wheel_radii_and_speed_scale_go_with_every_radii_message(
+    ros: Any, tmp_path: Path
+) -> None:
+    """``/tire_estimation/twist`` (base_link, vx and yaw rate with their covariance),
+    ``/tire_estimation/wheel_radii`` (position = effective radius, effort = multiplier) and
+    ``/tire_estimation/speed_scale_factor`` are published with each TireRadii."""
+    node = _node(ros, tmp_path, persistence_file="")
+    topics = {
+        "twist": node.pub_twist,
+        "wheel_radii": node.pub_wheel_radii,
+        "speed_scale_factor": node.pub_speed_scale,
+        "tire_radii": node.pub_radii,
+    }
+    assert {k: p.topic_name for k, p in topics.items()} == {
+        k: f"/tire_estimation/{k}" for k in topics
+    }
+    published: dict[str, list[Any]] = {k: [] for k in topics}
+    for key, pub in topics.items():
+        pub.publish = published[key].append  # capture instead of DDS
+    _drive(_callbacks(node), 1_000_000_000_000, 20.0, speed_m_s=15.0)
+    n = len(published["tire_radii"])
+    assert 190 <= n <= 200  # 10 Hz over 20 s of header time
+    assert all(len(published[k]) == n for k in topics)
+    nominal = node.vehicle.nominal_tire_radius_m
+    for twist, joints, scale, radii in zip(*published.values(), strict=True):
+        assert twist.header == joints.header == radii.header
+        assert twist.header.frame_id == "base_link"
+        assert list(joints.name) == list(radii.wheel_names) == ["wheel_rl", "wheel_rr"]
+        effective = [nominal + e for e in radii.radius_error_m]
+        np.testing.assert_allclose(joints.position, effective, rtol=1e-12)
+        np.testing.assert_allclose(joints.effort, np.array(effective) / nominal, rtol=1e-12)
+        assert len(joints.velocity) == 0
+        assert scale.data == pytest.approx(np.mean(effective) / nominal, rel=1e-12)
+    last = published["twist"][-1]
+    # eq. (6) with the wheel speeds of the drive and the learned radii
+    omega = 15.0 / 0.31
+    learned = published["wheel_radii"][-1].position
+    assert last.twist.twist.linear.x == pytest.approx(0.5 * omega * sum(learned), rel=1e-9)
+    assert last.twist.twist.angular.z == pytest.approx(
+        omega * (learned[1] - learned[0]) / node.vehicle.track_width_m, abs=1e-9
+    )
+    cov = np.asarray(last.twist.covariance).reshape(6, 6)
+    # vx and yaw rate measured (the straight drive's constant wheel speeds have no noise, so
+    # the floors and the radius uncertainty remain); the rest not measured
+    assert 0.05**2 <= cov[0, 0] < 0.1**2 and 0.03**2 <= cov[5, 5] < 0.05**2
+    assert cov[0, 5] == cov[5, 0]
+    assert all(cov[i, i] == 1e6 for i in (1, 2, 3, 4))
+    node.destroy_node()
+
+
+def test_no_vehicle_identity_means_no_persistence(ros: Any, tmp_path: Path) -> None:
+    """Without a vehicle file and with the default vehicle name the node neither restores nor
+    saves: two vehicles left at the defaults would share one file."""
+    path = tmp_path / "radii.json"
+    named = _node(ros, tmp_path, **{"vehicle.name": "vehicle"})
+    assert "no vehicle identity" in named._persist_note
+    assert "no vehicle identity" in _diag_values(named)["persistence"]
+    _drive(_callbacks(named), 1_000_000_000_000, 20.0)
+    named.save_on_shutdown()
+    assert not path.exists()
+    named.destroy_node()
+    # a saved state of the default identity is not restored either
+    saved = {"format_version": 1, "vehicle_name": "vehicle", "tire_set_id": "default"}
+    path.write_text(json.dumps({**saved, "saved_unix_s": 1.7e9, "state": {}}))
+    again = _node(ros, tmp_path, **{"vehicle.name": "vehicle"})
+    assert "no vehicle identity" in again._persist_note
+    again.destroy_node()
+
+
+def test_an_untouched_prior_is_never_saved(ros: Any, tmp_path: Path) -> None:
+    """A node with nothing learned does not write its prior at the save period or at
+    shutdown, nor after a reset; once it learned, it saves."""
+    from rclpy.executors import SingleThreadedExecutor
+    from std_srvs.srv import Trigger
+
+    _rclpy, context = ros
+    path = tmp_path / "radii.json"
+    node = _node(ros, tmp_path, persistence_period_s=0.1)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    for _ in range(10):  # about 0.5 s: several save periods
+        executor.spin_once(timeout_sec=0.05)
+    node.save_on_shutdown()
+    assert not path.exists()
+    _drive(_callbacks(node), 1_000_000_000_000, 20.0)
+    node.save_on_shutdown()
+    assert path.is_file()
+    node._on_reset(Trigger.Request(), Trigger.Response())
+    assert not path.exists()
+    node.save_on_shutdown()
+    assert not path.exists()
+    executor.remove_node(node)
+    executor.shutdown()
+    node.destroy_node()
+
+
+def test_the_robot_localization_example_fuses_the_twist_the_node_publishes(
+    ros: Any, tmp_path: Path
+) -> None:
+    import yaml
+
+    root = Path(__file__).resolve().parents[2]
+    example = root / "src/tire_estimation/config/ekf_wheel_odometry.yaml"
+    params = yaml.safe_load(example.read_text())["ekf_filter_node"]["ros__parameters"]
+    node = _node(ros, tmp_path, persistence_file="")
+    assert params["twist0"] == node.pub_twist.topic_name == "/tire_estimation/twist"
+    # the twist's frame, and only its measured components: vx (6) and yaw rate (11)
+    assert params["base_link_frame"] == "base_link" and params["world_frame"] == "odom"
+    config = params["twist0_config"]
+    assert len(config) == 15 and [i for i, on in enumerate(config) if on] == [6, 11]
+    assert "ekf_wheel_odometry.yaml" in (root / "docs/robot_localization.md").read_text()
+    node.destroy_node()

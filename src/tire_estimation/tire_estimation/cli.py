@@ -134,6 +134,25 @@ def _cmd_replay(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_export(args: argparse.Namespace) -> int:
+    from tire_estimation.atomic_io import atomic_write_text
+    from tire_estimation.core.vehicle import load_vehicle_yaml
+    from tire_estimation.export import read_learned_radii, render
+    from tire_estimation.paths import check_new_path
+
+    if args.out is not None:
+        check_new_path(args.out, "--out", overwrite=args.overwrite)
+    vehicle = load_vehicle_yaml(args.vehicle) if args.vehicle is not None else None
+    learned = read_learned_radii(args.source, vehicle, args.tire_set)
+    text = render(learned, args.format, args.controller)
+    if args.out is None:
+        print(text, end="")
+    else:
+        atomic_write_text(args.out, text)
+        print(f"wrote {args.out} ({args.format}, from the {learned.source} {args.source})")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser (exposed for tests and documentation)."""
     parser = Parser(
@@ -215,6 +234,47 @@ def build_parser() -> argparse.ArgumentParser:
         "configuration's stiffness_enabled says",
     )
     rep.set_defaults(func=_cmd_replay)
+
+    exp = sub.add_parser(
+        "export",
+        help="write the learned radii as diff_drive_controller or vehicle parameters (YAML)",
+    )
+    exp.add_argument(
+        "source", type=Path, help="a node's persistence file or a replay's metrics.json"
+    )
+    exp.add_argument(
+        "--vehicle",
+        type=Path,
+        default=None,
+        help="vehicle.yaml of the vehicle (nominal radius, name); required for a persistence "
+        "file, for a metrics.json the replayed bag's vehicle.yaml by default",
+    )
+    exp.add_argument(
+        "--tire-set",
+        default="default",
+        metavar="ID",
+        help="tire set the persisted radii must belong to (the node's tire_set_id; default "
+        "'default')",
+    )
+    exp.add_argument(
+        "--format",
+        choices=("diff_drive", "vehicle"),
+        default="diff_drive",
+        help="diff_drive: ros2_control diff_drive_controller parameters (wheel_radius, "
+        "left/right_wheel_radius_multiplier of wheel_rl/wheel_rr); vehicle: per-wheel "
+        "effective radius, std, multiplier and the speed scale factor (default diff_drive)",
+    )
+    exp.add_argument(
+        "--controller",
+        default="diff_drive_controller",
+        metavar="NAME",
+        help="with --format diff_drive: the controller's name, the YAML's top-level key",
+    )
+    exp.add_argument(
+        "--out", type=out_argument, default=None, help="YAML file to write (default: stdout)"
+    )
+    exp.add_argument("--overwrite", action="store_true", help="replace an existing --out")
+    exp.set_defaults(func=_cmd_export)
 
     try:  # measured-data converters (tire_estimation.convert) register their own sub-commands
         from tire_estimation.convert.cli import add_convert_parser

@@ -14,8 +14,10 @@ The estimator node, the bag replay and the campaigns push the same typed samples
 * the random streams (``default_rng(seed)`` for the radius MPF,
   ``default_rng([seed, STIFFNESS_RNG_KEY])`` for the stiffness MPF),
 * the outputs at their periods in header time, with the node's topics' meaning: odometry and
-  radii after wheel-speed samples, stiffness after IMU samples, the lateral state of the
-  tyre-force KF while it runs and of the stiffness MPF otherwise,
+  radii after wheel-speed samples (with each radii output the wheel odometry corrected with the
+  learned radii and the effective radii,
+  :mod:`~tire_estimation.core.radius.wheel_odometry`), stiffness after IMU samples, the
+  lateral state of the tyre-force KF while it runs and of the stiffness MPF otherwise,
 * the deflation detector (:class:`~tire_estimation.core.deflation.monitor.DeflationMonitor`)
   fed with the published odometry and radii, exactly as the detector node is fed by topics,
 * and exposes the radius MPF's check whether each axle's left-right split is observable
@@ -45,6 +47,13 @@ from tire_estimation.core.ordering import ReorderBuffer
 from tire_estimation.core.radius.axle_check import AxleCheck
 from tire_estimation.core.radius.config import RadiusEstimatorConfig
 from tire_estimation.core.radius.estimator import RadiusEstimate, RadiusEstimator
+from tire_estimation.core.radius.wheel_odometry import (
+    CorrectedTwist,
+    EffectiveRadii,
+    WheelSpeedNoise,
+    corrected_twist,
+    estimate_radii,
+)
 from tire_estimation.core.samples import (
     GnssFix,
     GnssVelocity,
@@ -65,6 +74,7 @@ from tire_estimation.core.validation import (
     require_positive,
 )
 from tire_estimation.core.vehicle import VehicleParams
+from tire_estimation.errors import InputError
 
 #: seed-sequence key of the stiffness MPF's generator: ``default_rng([seed, key])``
 STIFFNESS_RNG_KEY = 1
@@ -155,6 +165,17 @@ class RadiiOutput:
 
 
 @dataclass(frozen=True, slots=True)
+class WheelOdometryOutput:
+    """With every :class:`RadiiOutput`: the wheel odometry corrected with the learned radii
+    (published as TwistWithCovarianceStamped) and the effective radii, multipliers and speed
+    scale factor (published as JointState and Float64)."""
+
+    t_ns: int
+    twist: CorrectedTwist
+    radii: EffectiveRadii
+
+
+@dataclass(frozen=True, slots=True)
 class StiffnessOutput:
     """The stiffness MPF's estimate (published as TireStiffness)."""
 
@@ -179,7 +200,14 @@ class DeflationOutput:
     step: MonitorStep
 
 
-Output = OdometryOutput | RadiiOutput | StiffnessOutput | LateralOutput | DeflationOutput
+Output = (
+    OdometryOutput
+    | RadiiOutput
+    | WheelOdometryOutput
+    | StiffnessOutput
+    | LateralOutput
+    | DeflationOutput
+)
 
 
 class Observer(Protocol):
@@ -254,6 +282,8 @@ class EstimationPipeline:
                 config.radius, vehicle, np.random.default_rng(config.seed)
             )
             self.axles = self.radius.axles
+        #: per-sample noise of the rear wheel speeds, for the corrected twist's covariance
+        self.wheel_noise = WheelSpeedNoise()
         self.stiffness: StiffnessEstimator | None = None
         if config.stiffness is not None:
             rng = np.random.default_rng([config.seed, STIFFNESS_RNG_KEY])
@@ -368,6 +398,8 @@ class EstimationPipeline:
             for est in self._lateral_imu:
                 est.on_wheel_speeds(t, ws)
             if self.radius is not None:
+                if self.outputs:
+                    self.wheel_noise.push(t, ws)
                 self._radius_outputs(t, out)
         elif type(sample) is ImuSample:
             gyro, acc = sample.angular_velocity_rad_s, sample.linear_acceleration_m_s2
@@ -446,6 +478,7 @@ class EstimationPipeline:
             self._last_ns["radii"] = t_ns
             if self.outputs:
                 self._emit(RadiiOutput(t_ns, est), out)
+                self._wheel_odometry_output(t_ns, est, out)
             if monitor is not None:
                 radii = RadiusErrors(
                     t_ns,
@@ -457,6 +490,19 @@ class EstimationPipeline:
                 step = monitor.on_radii(radii)
                 if step is not None:
                     self._emit(DeflationOutput(t_ns, step), out)
+
+    def _wheel_odometry_output(self, t_ns: int, est: RadiusEstimate, out: list[Output]) -> None:
+        """The corrected twist and effective radii of ``est``; an estimate they cannot be
+        made of is counted as ``wheel_odometry:<kind>`` in the radius estimator's drops."""
+        try:
+            twist = corrected_twist(est, self.vehicle, self.wheel_noise.var_rad2_s2)
+            radii = estimate_radii(est, self.vehicle)
+        except InputError as exc:
+            assert self.radius is not None
+            key = f"wheel_odometry:{exc.kind}"
+            self.radius.stats[key] = self.radius.stats.get(key, 0) + 1
+            return
+        self._emit(WheelOdometryOutput(t_ns, twist, radii), out)
 
     def _stiffness_outputs(
         self, stiffness: StiffnessEstimator, t_ns: int, out: list[Output]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import re
 import sys
 from collections.abc import Callable, Sequence
@@ -16,9 +17,18 @@ from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 
 from tire_estimation.core.validation import unknown_key_reason
+from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.errors import ConfigError, TireEstimationError, one_line
 from tire_estimation.params import ParameterSpec
 from tire_estimation.persistence import Identity, restore, save_state
+
+#: the vehicle name a node has when neither a vehicle file nor ``vehicle.name`` gives one
+DEFAULT_VEHICLE_NAME = VehicleParams().name
+#: what /diagnostics says when a node does not persist for want of a vehicle identity
+NO_IDENTITY_NOTE = (
+    f"persistence off: no vehicle identity (set vehicle_file or a vehicle.name other than "
+    f"{DEFAULT_VEHICLE_NAME!r})"
+)
 
 
 def parameter_descriptor(spec: ParameterSpec) -> ParameterDescriptor:
@@ -126,3 +136,15 @@ def save_state_of(
         node.get_logger().warning(f"could not save the {what}: {exc}")
         return False
     return True
+
+
+def explicit_identity(vehicle_file: str, vehicle_name: str) -> bool:
+    """A vehicle file or a vehicle name other than the default says whose state a node holds;
+    without one a node does not persist (vehicles left at the defaults would share a file)."""
+    return bool(vehicle_file) or vehicle_name != DEFAULT_VEHICLE_NAME
+
+
+def state_text(target: Any) -> str:
+    """``target.state_dict()`` as canonical JSON: a save is due only when it changed since the
+    state was restored, saved or reset (a node never writes a prior it has not changed)."""
+    return json.dumps(target.state_dict(), sort_keys=True, default=str)

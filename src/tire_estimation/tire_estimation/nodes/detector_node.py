@@ -9,8 +9,9 @@ samples at least ``braking_window_s`` apart above ``braking_decel_m_s2``). Publi
 (std_srvs/Trigger) forgets the calibration and the latched alarms.
 
 The calibration, CUSUM sums and latched alarms persist across restarts in ``persistence_file``,
-keyed by vehicle name and ``tire_set_id``. Bad input never stops the node: it is dropped,
-counted by kind and shown on ``/diagnostics``.
+keyed by vehicle name and ``tire_set_id``, only under an explicit vehicle identity
+(``vehicle_file`` or a ``vehicle.name`` other than the default) and only when they changed.
+Bad input never stops the node: it is dropped, counted by kind and shown on ``/diagnostics``.
 """
 
 from __future__ import annotations
@@ -34,11 +35,14 @@ from tire_estimation.errors import InputError, TireEstimationError
 from tire_estimation.node_config import DetectorNodeOptions
 from tire_estimation.nodes import conversions as conv
 from tire_estimation.nodes.common import (
+    NO_IDENTITY_NOTE,
     declare_specs,
+    explicit_identity,
     reject_undeclared_overrides,
     restore_state,
     save_state_of,
     spin_node,
+    state_text,
 )
 from tire_estimation.nodes.detector_diagnostics import wheel_status
 from tire_estimation.params import (
@@ -81,7 +85,13 @@ class DetectorNode(Node):
         text = self.get_parameter("persistence_file").value
         self._persist_path = Path(text).expanduser() if text else None
         self._persist_note = "persistence disabled"
+        if self._persist_path is not None and not explicit_identity(
+            self.get_parameter("vehicle_file").value, vehicle_name
+        ):
+            self._persist_path, self._persist_note = None, NO_IDENTITY_NOTE
         self._restore()
+        #: the state as last restored or saved: a save writes only a change
+        self._saved_text = state_text(self.detector) if self._persist_path else ""
 
         # the guarded callbacks (public: tests feed long sequences without DDS)
         self.on_tire_radii = self._guard("tire_radii", self._on_radii)
@@ -128,14 +138,24 @@ class DetectorNode(Node):
 
     # --- persistence ------------------------------------------------------------------------
     def _restore(self) -> None:
+        if self._persist_path is None:
+            return
         self._persist_note = restore_state(
             self, self._persist_path, self._identity, self.detector, "detector state"
         )
 
     def _save(self) -> None:
-        if not save_state_of(
+        """Write the state when it changed since it was restored or saved."""
+        if self._persist_path is None:
+            return
+        text = state_text(self.detector)
+        if text == self._saved_text:
+            return
+        if save_state_of(
             self, self._persist_path, self._identity, self.detector, "detector state"
         ):
+            self._saved_text = text
+        else:
             self.dropped["persistence_write"] += 1
 
     def save_on_shutdown(self) -> None:

@@ -8,8 +8,17 @@ for vehicles without wheel speeds). Every message becomes a typed sample
 :class:`~tire_estimation.core.pipeline.EstimationPipeline` that the bag replay and the campaigns
 drive too; what the pipeline outputs is published on ``/tire_estimation/odometry``,
 ``/tire_estimation/tire_radii``, ``/tire_estimation/tire_stiffness`` and
-``/tire_estimation/lateral_state``, with ``/diagnostics``. Service ``~/reset``
-(std_srvs/Trigger) forgets the learned radii and stiffness.
+``/tire_estimation/lateral_state``, with ``/diagnostics``. With every radii message go the
+outputs for the rest of a ROS stack (``WheelOdometryOutput``,
+:mod:`tire_estimation.core.radius.wheel_odometry`):
+``/tire_estimation/twist`` (wheel odometry corrected with the learned radii, with its
+covariance), ``/tire_estimation/wheel_radii`` (effective radius and multiplier per wheel) and
+``/tire_estimation/speed_scale_factor``. Service ``~/reset`` (std_srvs/Trigger) forgets the
+learned radii and stiffness.
+
+The learned state persists only under an explicit vehicle identity (``vehicle_file`` or a
+``vehicle.name`` other than the default): without one the node neither restores nor saves, and
+it never saves a state it has not changed since it started, restored or was reset.
 
 Bad input never stops the node: the message is dropped, counted as ``<stream>:<kind>`` and
 shown on ``/diagnostics``.
@@ -29,6 +38,7 @@ from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, qos_profile_sensor_data
 from sensor_msgs.msg import Imu, JointState, NavSatFix
+from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
 from tire_estimation.core.clock import ClockGuardConfig
@@ -41,6 +51,7 @@ from tire_estimation.core.pipeline import (
     PipelineConfig,
     RadiiOutput,
     StiffnessOutput,
+    WheelOdometryOutput,
 )
 from tire_estimation.core.radius.config import RadiusEstimatorConfig
 from tire_estimation.core.samples import Sample
@@ -51,11 +62,14 @@ from tire_estimation.node_config import EstimatorNodeOptions, periods_of
 from tire_estimation.nodes import conversions as conv
 from tire_estimation.nodes import estimator_diagnostics, messages
 from tire_estimation.nodes.common import (
+    NO_IDENTITY_NOTE,
     declare_specs,
+    explicit_identity,
     reject_undeclared_overrides,
     restore_state,
     save_state_of,
     spin_node,
+    state_text,
 )
 from tire_estimation.params import ParameterSpec, build_config, estimator_sections, parameter_specs
 from tire_estimation.persistence import Identity, LearnedState, delete_state
@@ -110,9 +124,15 @@ class EstimatorNode(Node):
         self._persist_path = (
             Path(opts.persistence_file).expanduser() if opts.persistence_file else None
         )
-        self._learned = LearnedState({"radius": self.estimator, "stiffness": self.stiffness})
         self._persist_note = "persistence disabled"
+        if self._persist_path is not None and not explicit_identity(
+            opts.vehicle_file, self.vehicle.name
+        ):
+            self._persist_path, self._persist_note = None, NO_IDENTITY_NOTE
+        self._learned = LearnedState({"radius": self.estimator, "stiffness": self.stiffness})
         self._restore()
+        #: the learned state as last restored, saved or reset: a save writes only a change
+        self._saved_text = state_text(self._learned) if self._persist_path else ""
 
         qos = (
             qos_profile_sensor_data if opts.sensor_qos == "sensor_data" else QoSProfile(depth=100)
@@ -147,6 +167,15 @@ class EstimatorNode(Node):
         )
         self.pub_odom = self.create_publisher(Odometry, "/tire_estimation/odometry", 10)
         self.pub_radii = self.create_publisher(TireRadii, "/tire_estimation/tire_radii", 10)
+        self.pub_twist = self.create_publisher(
+            TwistWithCovarianceStamped, "/tire_estimation/twist", 10
+        )
+        self.pub_wheel_radii = self.create_publisher(
+            JointState, "/tire_estimation/wheel_radii", 10
+        )
+        self.pub_speed_scale = self.create_publisher(
+            Float64, "/tire_estimation/speed_scale_factor", 10
+        )
         self.pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self.create_service(Trigger, "~/reset", self._on_reset)
         self.create_timer(opts.diagnostics_period_s, self._publish_diag)
@@ -173,18 +202,29 @@ class EstimatorNode(Node):
     def _restore(self) -> None:
         # one file for the learned radii and (when the stiffness MPF runs) the learned
         # stiffness; each part is restored or rejected on its own
+        if self._persist_path is None:
+            return
         self._persist_note = restore_state(
             self, self._persist_path, self._identity, self._learned, "estimates"
         )
 
     def _save(self) -> None:
-        if not save_state_of(self, self._persist_path, self._identity, self._learned, "estimates"):
+        """Write the learned state when it changed since it was restored, saved or reset."""
+        if self._persist_path is None:
+            return
+        text = state_text(self._learned)
+        if text == self._saved_text:
+            return
+        if save_state_of(self, self._persist_path, self._identity, self._learned, "estimates"):
+            self._saved_text = text
+        else:
             self.dropped["persistence_write"] += 1
 
     def _on_reset(self, _: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
         self.pipeline.reset()
         if self._persist_path is not None:
             delete_state(self._persist_path)
+            self._saved_text = state_text(self._learned)
         response.success = True
         response.message = "learned tire radii and stiffness reset to the prior"
         self.get_logger().info(response.message)
@@ -224,6 +264,10 @@ class EstimatorNode(Node):
             elif type(out) is RadiiOutput:
                 nominal = self.vehicle.nominal_tire_radius_m
                 self.pub_radii.publish(messages.radii_msg(out.estimate, out.t_ns, nominal))
+            elif type(out) is WheelOdometryOutput:
+                self.pub_twist.publish(messages.twist_msg(out.twist))
+                self.pub_wheel_radii.publish(messages.wheel_radii_msg(out.radii, out.t_ns))
+                self.pub_speed_scale.publish(messages.speed_scale_msg(out.radii))
             elif type(out) is StiffnessOutput:
                 self.pub_stiffness.publish(messages.stiffness_msg(out.estimate, out.t_ns))
             elif type(out) is LateralOutput:

@@ -6,10 +6,14 @@ import math
 from typing import TypeVar
 
 import numpy as np
+from geometry_msgs.msg import TwistWithCovarianceStamped
 from nav_msgs.msg import Odometry
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64
 
 from tire_estimation.core.lateral.estimate import LateralEstimate
 from tire_estimation.core.radius.estimator import RadiusEstimate
+from tire_estimation.core.radius.wheel_odometry import CorrectedTwist, EffectiveRadii
 from tire_estimation.core.stiffness.estimator import StiffnessEstimate
 from tire_estimation.nodes.conversions import ns_to_stamp
 from tire_estimation_msgs.msg import LateralState, TireRadii, TireStiffness
@@ -29,6 +33,8 @@ _PLANAR = (0, 1, 5)
 #: twist covariance of the odometry: speed (0.1 m/s)^2, lateral and vertical speed (0.1 m/s)^2
 #: (planar, non-holonomic), roll/pitch rates unknown, yaw rate (0.01 rad/s)^2
 _TWIST_COV = np.diag([0.01, 0.01, 0.01, 1e6, 1e6, 1e-4]).reshape(36)
+#: variance of what the corrected wheel odometry does not measure (vy, vz, roll and pitch rate)
+UNMEASURED_VAR = 1e6
 
 M = TypeVar("M")
 
@@ -73,6 +79,35 @@ def radii_msg(est: RadiusEstimate, t_ns: int, nominal_radius_m: float) -> TireRa
     msg.state = _STATE.get(est.state, TireRadii.STATE_INITIALIZING)
     msg.state_reason = str(est.state_reason)
     return msg
+
+
+def twist_msg(twist: CorrectedTwist) -> TwistWithCovarianceStamped:
+    """Wheel odometry corrected with the learned radii, in base_link: vx and yaw rate with
+    their (2, 2) covariance at (x, x), (x, yaw), (yaw, yaw) of the 6x6 twist covariance; the
+    other components are not measured (0 with variance :data:`UNMEASURED_VAR`)."""
+    msg = _stamped(TwistWithCovarianceStamped(), twist.t_ns, "base_link")
+    msg.twist.twist.linear.x = float(twist.vx_m_s)
+    msg.twist.twist.angular.z = float(twist.yaw_rate_rad_s)
+    cov = np.diag([0.0, UNMEASURED_VAR, UNMEASURED_VAR, UNMEASURED_VAR, UNMEASURED_VAR, 0.0])
+    cov[np.ix_((0, 5), (0, 5))] = twist.covariance
+    msg.twist.covariance = cov.reshape(36)
+    return msg
+
+
+def wheel_radii_msg(radii: EffectiveRadii, t_ns: int) -> JointState:
+    """Per wheel (``name``): ``position`` = effective rolling radius, m (as on
+    ``/truth/wheel_radii``); ``effort`` = radius multiplier, effective over nominal radius, 1
+    (``diff_drive_controller``'s ``*_wheel_radius_multiplier``); ``velocity`` empty."""
+    msg = _stamped(JointState(), t_ns, "base_link")
+    msg.name = list(radii.wheels)
+    msg.position = [float(v) for v in radii.radius_m]
+    msg.effort = [float(v) for v in radii.multiplier]
+    return msg
+
+
+def speed_scale_msg(radii: EffectiveRadii) -> Float64:
+    """The speed scale factor: mean rear effective radius over the nominal radius, 1."""
+    return Float64(data=float(radii.speed_scale_factor))
 
 
 def stiffness_msg(est: StiffnessEstimate, t_ns: int) -> TireStiffness:

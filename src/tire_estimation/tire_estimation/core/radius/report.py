@@ -64,6 +64,9 @@ class RadiusEstimate:
         rear_brake_decel_m_s2: braking deceleration ``b = max(0, -f_x - a_0)``: the one of the
             latest wheel-speed sample when the rear brake slip is on, else computed at the pose
             time for the residual signature, m/s^2.
+        rear_radius_error_cov_m2: (2, 2) posterior covariance of the rear radius errors
+            (wheel_rl, wheel_rr; the diagonal is ``radius_error_std_m`` squared), m^2; None
+            when not given.
     """
 
     t_ns: int
@@ -83,6 +86,7 @@ class RadiusEstimate:
     baseline: BaselineEstimate | None = None
     road_grade_rad: float = 0.0
     rear_brake_decel_m_s2: float = 0.0
+    rear_radius_error_cov_m2: F64 | None = None
 
 
 #: wheel samples kept to align a GNSS velocity with the wheel speeds (2.56 s at 100 Hz)
@@ -174,6 +178,7 @@ class Reporting:
                 if self.config.rear_brake_slip_s2_per_m
                 else self.braking_decel_at(int(self._t_pose_ns or 0))
             ),
+            rear_radius_error_cov_m2=sanitize(mc, 1.0),
         )
         return out
 
