@@ -613,3 +613,21 @@ def test_the_robot_localization_example_fuses_the_twist_the_node_publishes(
     assert len(config) == 15 and [i for i, on in enumerate(config) if on] == [6, 11]
     assert "ekf_wheel_odometry.yaml" in (root / "docs/robot_localization.md").read_text()
     node.destroy_node()
+
+
+def test_the_datum_of_the_pose_is_published_once_with_the_map_frame(
+    ros: Any, tmp_path: Path
+) -> None:
+    """The ENU origin (the first fix) goes out on tire_estimation/datum, framed as the robot
+    names its map frame; other nodes can then place the pose on the globe."""
+    node = _node(ros, tmp_path, name_remaps=["map=odom"], stiffness_enabled=False)
+    datums: list[Any] = []
+    node.pub_datum.publish = datums.append
+    _drive(_callbacks(node), 1_000_000_000_000, 5.0)
+    assert len(datums) == 1
+    d = datums[0]
+    assert d.header.frame_id == "odom"
+    assert d.latitude == pytest.approx(LAT0, abs=1e-7)
+    assert d.longitude == pytest.approx(LON0, abs=1e-7)
+    assert d.header.stamp.sec == 1000
+    node.destroy_node()

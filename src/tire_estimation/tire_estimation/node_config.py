@@ -17,6 +17,7 @@ from tire_estimation.core.validation import (
     check_rules,
     one_of,
 )
+from tire_estimation.core.wheels import Names
 from tire_estimation.errors import ConfigError
 
 SENSOR_QOS = ("sensor_data", "reliable")
@@ -77,6 +78,12 @@ class EstimatorNodeOptions(PersistentNodeOptions):
         max_clock_jump_s: a sample stamped more than this before or after the newest one is
             held; five agreeing ones make a new clock (a clock reset), an isolated one is
             dropped as ``<stream>:clock_jump``, s. Default 5.
+        name_remaps: this robot's own joint and frame names for the contract's, as
+            ``contract_name=own_name`` entries (``wheel_fl=front_left_wheel_joint``,
+            ``front_wheel_angle=...``, ``base_link=base_footprint``, ``map=odom``); the wheel
+            speeds, steering and tyre forces are read by these joint names, the outputs carry
+            these frames and the wheel radii these joint names. Default empty: the contract's
+            names.
     """
 
     persistence_file: str = "~/.ros/tire_estimation/learned_radii.json"
@@ -90,6 +97,7 @@ class EstimatorNodeOptions(PersistentNodeOptions):
     sensor_qos: str = "sensor_data"
     reorder_delay_s: float = 0.05
     max_clock_jump_s: float = 5.0
+    name_remaps: tuple[str, ...] = ()
 
     RULES: ClassVar[dict[str, Rule]] = {
         **PersistentNodeOptions.RULES,
@@ -102,6 +110,15 @@ class EstimatorNodeOptions(PersistentNodeOptions):
         "diagnostics_period_s": POSITIVE,
         "sensor_qos": one_of(SENSOR_QOS),
     }
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        Names.from_remaps(self.name_remaps)  # raises ConfigError naming name_remaps
+
+    @property
+    def names(self) -> Names:
+        """The robot's joint and frame names."""
+        return Names.from_remaps(self.name_remaps)
 
 
 def periods_of(options: EstimatorNodeOptions) -> PublishPeriods:

@@ -140,7 +140,10 @@ def parameter_specs(cls: type, prefix: str) -> list[ParameterSpec]:
             kind = tuple
         if kind not in (bool, int, float, str, tuple):
             continue
-        if kind is tuple:
+        if kind is tuple and str in typing.get_args(hints.get(f.name)):
+            # a list of names (ROS string array)
+            kind, default = list, [str(v) for v in default]
+        elif kind is tuple:
             if not all(isinstance(v, (int, float)) for v in default):
                 continue
             default = [float(v) for v in default]
@@ -181,6 +184,11 @@ def build_config(cls: type[T], prefix: str, values: Mapping[str, Any]) -> T:
         value = values[spec.name]
         if spec.kind is float and isinstance(value, int) and not isinstance(value, bool):
             value = float(value)
+        if spec.kind is list:
+            if not isinstance(value, (list, tuple)) or not all(isinstance(v, str) for v in value):
+                raise ConfigError(spec.name, value, "must be a list of strings")
+            kwargs[spec.field] = tuple(value)
+            continue
         if spec.kind is tuple:
             if not isinstance(value, (list, tuple)) or not all(
                 isinstance(v, (int, float)) and not isinstance(v, bool) for v in value

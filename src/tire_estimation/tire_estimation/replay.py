@@ -437,7 +437,11 @@ def _run(
     run_stiffness = options.stiffness_enabled if stiffness is None else stiffness
 
     wall0 = time.perf_counter()
-    bag = read_bag(bag_path, topics=lambda infos: replay_topics(infos, run_stiffness))
+    bag = read_bag(
+        bag_path,
+        topics=lambda infos: replay_topics(infos, run_stiffness),
+        joints=options.names,
+    )
     has_wheels = bag.wheel_speeds is not None and bag.wheel_speeds.t_ns.size > 0
     has_gnss = bag.gnss is not None and bag.gnss.t_ns.size > 0
     has_speed = has_wheels or (

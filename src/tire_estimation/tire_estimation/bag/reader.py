@@ -40,7 +40,7 @@ from tire_estimation.core.arrays import F64, I64
 from tire_estimation.core.input_checks import drop_key, unique_names
 from tire_estimation.core.samples import STATUS_NO_FIX, GnssFix, GnssVelocity
 from tire_estimation.core.vehicle import VehicleParams, load_vehicle_yaml, vehicle_from_document
-from tire_estimation.core.wheels import STEERING_JOINT, WHEELS
+from tire_estimation.core.wheels import CONTRACT_NAMES, WHEELS, Names
 from tire_estimation.errors import BagError, InputError, VehicleConfigError
 from tire_estimation.sim.streams import (
     GnssStream,
@@ -345,7 +345,17 @@ def joint_arrays(
     what: str,
     log: ReadLog,
 ) -> JointArrays:
-    """A JointState topic's ``value`` field (position/velocity/effort) matched by name."""
+    """A JointState topic's ``value`` field (position/velocity/effort) matched by name.
+
+    Raises BagError when no message of an input topic names any of ``names`` (a robot's own
+    joint names that ``name_remaps`` does not map)."""
+    found = {n for b in batches for n in b.strings.get("name", ())}
+    if count and what in tp.INPUT_TOPICS and not found & set(names):
+        shown = ", ".join(sorted(found)[:6]) or "none"
+        raise BagError(
+            f"{what}: no joint named {', '.join(names)} (the bag names {shown}); map the "
+            "bag's names with the estimator parameter name_remaps"
+        )
     t = _all_stamps(batches, count)
     (values,), repeated = _by_name(batches, count, "name", [value], names)
     _drop_repeated(what, repeated, log)
@@ -465,13 +475,16 @@ def velocity_arrays(
     return t[keep], vel[keep], cov[keep]
 
 
-def tire_force_stream(batches: list[Batch], count: int, log: ReadLog) -> TireForceStream:
-    """``tire_estimation_msgs/TireForces`` by wheel name; absent wheels NaN and not valid."""
+def tire_force_stream(
+    batches: list[Batch], count: int, log: ReadLog, wheels: Sequence[str] = WHEELS
+) -> TireForceStream:
+    """``tire_estimation_msgs/TireForces`` by wheel name (``wheels``: the names of
+    ``wheel_fl`` ... ``wheel_rr``); absent wheels NaN and not valid."""
     t = _all_stamps(batches, count)
     (fx, fy, fz), repeated = _by_name(
-        batches, count, "wheel_names", ["fx_n", "fy_n", "fz_n"], WHEELS
+        batches, count, "wheel_names", ["fx_n", "fy_n", "fz_n"], wheels
     )
-    (valid,), _ = _by_name(batches, count, "wheel_names", ["valid"], WHEELS, fill=0.0)
+    (valid,), _ = _by_name(batches, count, "wheel_names", ["valid"], wheels, fill=0.0)
     _drop_repeated(tp.TIRE_FORCES_TOPIC, repeated, log)
     keep = _order(t, tp.TIRE_FORCES_TOPIC, log, repeated)
     return TireForceStream(t[keep], fx[keep], fy[keep], fz[keep], valid[keep] > 0.5)
@@ -576,6 +589,7 @@ def read_bag(
     topics: Iterable[str] | Callable[[Mapping[str, TopicInfo]], Iterable[str]] | None = None,
     require: Iterable[str] = (),
     fast: bool = True,
+    joints: Names = CONTRACT_NAMES,
 ) -> BagData:
     """Read a contract bag.
 
@@ -587,6 +601,7 @@ def read_bag(
             so that a caller decodes only what it will use.
         require: topics that must be present (BagError naming the first missing one).
         fast: decode with the bulk NumPy decoder (False: ``rosbags`` message by message).
+        joints: the bag's joint names for the contract's wheels and steering joint.
 
     Raises:
         BagError: missing path, not a bag, unreadable/corrupt bag, a required topic missing,
@@ -629,7 +644,7 @@ def read_bag(
     if files is not None:
         raw = read_raw_fast(path, files, selected)
 
-    streams = decode_topics(raw, fast=fast)
+    streams = decode_topics(raw, fast=fast, joints=joints)
     seed = config.get("seed")
     return BagData(
         path=path,
@@ -652,7 +667,9 @@ def _check_readable(selected: tuple[str, ...]) -> None:
         raise BagError(f"read_bag cannot decode topic {unknown[0]}")
 
 
-def decode_topics(raw: dict[str, RawTopic], *, fast: bool = True) -> dict[str, Any]:
+def decode_topics(
+    raw: dict[str, RawTopic], *, fast: bool = True, joints: Names = CONTRACT_NAMES
+) -> dict[str, Any]:
     """Decode raw topics into the stream fields of :class:`BagData` (plus ``notes`` and
     ``dropped``)."""
     store = bag_typestore(
@@ -669,10 +686,12 @@ def decode_topics(raw: dict[str, RawTopic], *, fast: bool = True) -> dict[str, A
 
     out: dict[str, Any] = {}
     if tp.WHEEL_SPEEDS in batches:
-        ja = joint_arrays(*batches[tp.WHEEL_SPEEDS], WHEELS, "velocity", tp.WHEEL_SPEEDS, log)
+        ja = joint_arrays(
+            *batches[tp.WHEEL_SPEEDS], joints.wheels, "velocity", tp.WHEEL_SPEEDS, log
+        )
         out["wheel_speeds"] = WheelSpeedStream(ja.t_ns, ja.values)
     if tp.STEERING in batches:
-        ja = joint_arrays(*batches[tp.STEERING], (STEERING_JOINT,), "position", tp.STEERING, log)
+        ja = joint_arrays(*batches[tp.STEERING], (joints.steering,), "position", tp.STEERING, log)
         out["steering"] = SteeringStream(ja.t_ns, ja.values[:, 0])
     if tp.IMU_DATA in batches:
         out["imu"] = imu_stream(*batches[tp.IMU_DATA], log)
@@ -683,7 +702,7 @@ def decode_topics(raw: dict[str, RawTopic], *, fast: bool = True) -> dict[str, A
     if tp.GNSS_FIX in batches:
         out["gnss"] = fix_stream(*batches[tp.GNSS_FIX], tp.GNSS_FIX, log, velocity)
     if tp.TIRE_FORCES_TOPIC in batches:
-        out["tire_forces"] = tire_force_stream(*batches[tp.TIRE_FORCES_TOPIC], log)
+        out["tire_forces"] = tire_force_stream(*batches[tp.TIRE_FORCES_TOPIC], log, joints.wheels)
     if tp.VEHICLE_VELOCITY in batches:
         t_v, vel, _ = velocity_arrays(*batches[tp.VEHICLE_VELOCITY], log, tp.VEHICLE_VELOCITY)
         out["vehicle_velocity"] = SpeedStream(t_v, np.ascontiguousarray(vel[:, 0]))

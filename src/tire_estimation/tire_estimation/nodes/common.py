@@ -11,10 +11,15 @@ from typing import Any
 
 import rclpy
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
-from rclpy.exceptions import InvalidParameterValueException, ParameterException
+from rclpy.exceptions import (
+    InvalidParameterValueException,
+    ParameterException,
+    ParameterUninitializedException,
+)
 from rclpy.executors import ExternalShutdownException
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 
 from tire_estimation.core.validation import unknown_key_reason
 from tire_estimation.core.vehicle import VehicleParams
@@ -57,13 +62,33 @@ def declare_specs(node: Node, specs: Sequence[ParameterSpec]) -> None:
     the allowed values (rclpy refuses it before the configuration is built).
     """
     for spec in specs:
+        # an empty list has no ROS type: declare a list of names by its type (unset until given)
+        value = (
+            Parameter.Type.STRING_ARRAY if spec.kind is list and not spec.default else spec.default
+        )
         try:
-            node.declare_parameter(spec.name, spec.default, parameter_descriptor(spec))
+            node.declare_parameter(spec.name, value, parameter_descriptor(spec))
         except InvalidParameterValueException as exc:
             # rclpy's message: "Invalid parameter value (VALUE) for parameter. Reason: ..."
             found = re.search(r"value \((.*)\) for parameter", str(exc.args[0]))
             value = found.group(1) if found else exc.args[0]
             raise ConfigError(spec.name, value, f"must be {spec.summary()}") from exc
+
+
+def parameter_values(node: Node, specs: Sequence[ParameterSpec]) -> dict[str, Any]:
+    """The values of the declared parameters of ``specs`` that are set, by name (a list of
+    names declared empty and never given is left out: its default applies)."""
+    out: dict[str, Any] = {}
+    for spec in specs:
+        if node.has_parameter(spec.name):
+            try:
+                value = node.get_parameter(spec.name).value
+            except ParameterUninitializedException:
+                continue
+            if value is None and spec.kind is list:
+                continue  # given as [] (no ROS type): the default, an empty list
+            out[spec.name] = value
+    return out
 
 
 def reject_undeclared_overrides(node: Node) -> None:

@@ -22,7 +22,7 @@ from tire_estimation.core.samples import (
     TireForces,
     WheelSpeeds,
 )
-from tire_estimation.core.wheels import STEERING_JOINT, WHEEL_INDEX, WHEELS
+from tire_estimation.core.wheels import CONTRACT_NAMES, Names
 from tire_estimation.errors import InputError
 
 
@@ -40,12 +40,13 @@ def ns_to_stamp(t_ns: int, stamp: Any) -> Any:
     return stamp
 
 
-def wheel_speeds_from_msg(msg: Any) -> WheelSpeeds:
+def wheel_speeds_from_msg(msg: Any, joints: Names = CONTRACT_NAMES) -> WheelSpeeds:
     """JointState -> :class:`WheelSpeeds` (NaN for a wheel the message does not name).
 
-    Names are matched, not positions (contract). Unknown names are ignored if at least one known
-    wheel is present; a message with no known wheel raises ``unknown_wheel``, one that names a
-    wheel twice ``duplicate_wheel``.
+    Names are matched, not positions (contract), against ``joints.wheels`` (the robot's own
+    names for ``wheel_fl`` ... ``wheel_rr``). Unknown names are ignored if at least one known
+    wheel is present; a message with no known wheel raises ``unknown_wheel`` (naming the
+    expected names), one that names a wheel twice ``duplicate_wheel``.
     """
     t_ns = stamp_ns(msg.header)
     names = list(msg.name)
@@ -57,25 +58,28 @@ def wheel_speeds_from_msg(msg: Any) -> WheelSpeeds:
             "wrong_length",
             f"wheel speed JointState has {len(names)} names but {len(velocity)} velocities",
         )
-    unique_names(names, WHEEL_INDEX, "duplicate_wheel")
+    index = joints.wheel_index
+    unique_names(names, index, "duplicate_wheel")
     out = np.full(4, np.nan)
     known = 0
     for name, value in zip(names, velocity, strict=True):
-        idx = WHEEL_INDEX.get(name)
+        idx = index.get(name)
         if idx is None:
             continue
         out[idx] = float(value)
         known += 1
     if known == 0:
-        raise InputError("unknown_wheel", f"no known wheel name in {names}; expected {WHEELS}")
+        raise InputError(
+            "unknown_wheel", f"no known wheel name in {names}; expected {joints.wheels}"
+        )
     if not np.all(np.isfinite(out[~np.isnan(out)])) or any(math.isnan(v) for v in velocity):
         raise InputError("nan", "a wheel speed is not finite")
     return WheelSpeeds.checked(t_ns, out)
 
 
-def steering_from_msg(msg: Any) -> Steering:
-    """JointState with ``front_wheel_angle`` -> :class:`Steering` (named twice:
-    ``duplicate_joint``)."""
+def steering_from_msg(msg: Any, joints: Names = CONTRACT_NAMES) -> Steering:
+    """JointState with ``joints.steering`` (contract ``front_wheel_angle``) -> :class:`Steering`
+    (named twice: ``duplicate_joint``)."""
     t_ns = stamp_ns(msg.header)
     names = list(msg.name)
     position = list(msg.position)
@@ -84,11 +88,11 @@ def steering_from_msg(msg: Any) -> Steering:
             "wrong_length",
             f"steering JointState has {len(names)} names but {len(position)} positions",
         )
-    unique_names(names, (STEERING_JOINT,), "duplicate_joint")
+    unique_names(names, (joints.steering,), "duplicate_joint")
     for name, value in zip(names, position, strict=True):
-        if name == STEERING_JOINT:
+        if name == joints.steering:
             return Steering.checked(t_ns, value)
-    raise InputError("unknown_joint", f"no '{STEERING_JOINT}' in steering names {names}")
+    raise InputError("unknown_joint", f"no '{joints.steering}' in steering names {names}")
 
 
 def imu_from_msg(msg: Any) -> ImuSample:
@@ -146,7 +150,7 @@ def gnss_from_msg(msg: Any) -> GnssFix:
     )
 
 
-def tire_forces_from_msg(msg: Any) -> TireForces:
+def tire_forces_from_msg(msg: Any, joints: Names = CONTRACT_NAMES) -> TireForces:
     """TireForces message -> :class:`TireForces` sample, arrays in WHEELS order.
 
     Wheels absent from the message are invalid; unknown names are ignored; mismatched array
@@ -161,17 +165,20 @@ def tire_forces_from_msg(msg: Any) -> TireForces:
             "wrong_length",
             f"TireForces has {len(names)} names but {[len(c) for c in cols]} values",
         )
-    unique_names(names, WHEEL_INDEX, "duplicate_wheel")
+    index = joints.wheel_index
+    unique_names(names, index, "duplicate_wheel")
     fx, fy, fz = np.zeros(4), np.zeros(4), np.zeros(4)
     valid = np.zeros(4, dtype=bool)
     known = 0
     for k, name in enumerate(names):
-        idx = WHEEL_INDEX.get(name)
+        idx = index.get(name)
         if idx is None:
             continue
         known += 1
         fx[idx], fy[idx], fz[idx] = float(cols[0][k]), float(cols[1][k]), float(cols[2][k])
         valid[idx] = bool(cols[3][k])
     if known == 0:
-        raise InputError("unknown_wheel", f"no known wheel name in {names}; expected {WHEELS}")
+        raise InputError(
+            "unknown_wheel", f"no known wheel name in {names}; expected {joints.wheels}"
+        )
     return TireForces.checked(t_ns, fx, fy, fz, valid)

@@ -29,6 +29,7 @@ from __future__ import annotations
 import time
 from collections import Counter
 from collections.abc import Callable, Sequence
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -36,7 +37,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import TwistWithCovarianceStamped
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
-from rclpy.qos import QoSProfile, qos_profile_sensor_data
+from rclpy.qos import DurabilityPolicy, QoSProfile, qos_profile_sensor_data
 from sensor_msgs.msg import Imu, JointState, NavSatFix
 from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
@@ -65,6 +66,7 @@ from tire_estimation.nodes.common import (
     NO_IDENTITY_NOTE,
     declare_specs,
     explicit_identity,
+    parameter_values,
     reject_undeclared_overrides,
     restore_state,
     save_state_of,
@@ -137,45 +139,65 @@ class EstimatorNode(Node):
         qos = (
             qos_profile_sensor_data if opts.sensor_qos == "sensor_data" else QoSProfile(depth=100)
         )
+        # the robot's own joint and frame names (parameter name_remaps)
+        names = self.names = opts.names
         subs: list[tuple[type, str, str, Callable[[Any], Sample]]] = [
-            (JointState, "/vehicle/wheel_speeds", "wheel_speeds", conv.wheel_speeds_from_msg),
-            (JointState, "/vehicle/steering", "steering", conv.steering_from_msg),
-            (Imu, "/imu/data", "imu", conv.imu_from_msg),
-            (NavSatFix, "/gnss/fix", "gnss_fix", conv.gnss_from_msg),
+            (
+                JointState,
+                "vehicle/wheel_speeds",
+                "wheel_speeds",
+                partial(conv.wheel_speeds_from_msg, joints=names),
+            ),
+            (
+                JointState,
+                "vehicle/steering",
+                "steering",
+                partial(conv.steering_from_msg, joints=names),
+            ),
+            (Imu, "imu/data", "imu", conv.imu_from_msg),
+            (NavSatFix, "gnss/fix", "gnss_fix", conv.gnss_from_msg),
         ]
         if self.config.gnss_velocity_enabled:
             subs.append(
-                (TwistWithCovarianceStamped, "/gnss/velocity", "gnss_velocity",
+                (TwistWithCovarianceStamped, "gnss/velocity", "gnss_velocity",
                  conv.gnss_velocity_from_msg)
             )  # fmt: skip
         if self.stiffness is not None:
             subs.append(
-                (TwistWithCovarianceStamped, "/vehicle/velocity", "velocity",
+                (TwistWithCovarianceStamped, "vehicle/velocity", "velocity",
                  conv.velocity_from_msg)
             )  # fmt: skip
         if self.lateral is not None:
             subs.append(
-                (TireForces, "/vehicle/tire_forces", "tire_forces", conv.tire_forces_from_msg)
+                (
+                    TireForces,
+                    "vehicle/tire_forces",
+                    "tire_forces",
+                    partial(conv.tire_forces_from_msg, joints=names),
+                )
             )
         for msg_type, topic, stream, convert in subs:
             self.create_subscription(msg_type, topic, self._callback(stream, convert), qos)
-        self.pub_lateral = self.create_publisher(
-            LateralState, "/tire_estimation/lateral_state", 10
-        )
+        self.pub_lateral = self.create_publisher(LateralState, "tire_estimation/lateral_state", 10)
         self.pub_stiffness = self.create_publisher(
-            TireStiffness, "/tire_estimation/tire_stiffness", 10
+            TireStiffness, "tire_estimation/tire_stiffness", 10
         )
-        self.pub_odom = self.create_publisher(Odometry, "/tire_estimation/odometry", 10)
-        self.pub_radii = self.create_publisher(TireRadii, "/tire_estimation/tire_radii", 10)
+        self.pub_odom = self.create_publisher(Odometry, "tire_estimation/odometry", 10)
+        self.pub_radii = self.create_publisher(TireRadii, "tire_estimation/tire_radii", 10)
         self.pub_twist = self.create_publisher(
-            TwistWithCovarianceStamped, "/tire_estimation/twist", 10
+            TwistWithCovarianceStamped, "tire_estimation/twist", 10
         )
-        self.pub_wheel_radii = self.create_publisher(
-            JointState, "/tire_estimation/wheel_radii", 10
-        )
+        self.pub_wheel_radii = self.create_publisher(JointState, "tire_estimation/wheel_radii", 10)
         self.pub_speed_scale = self.create_publisher(
-            Float64, "/tire_estimation/speed_scale_factor", 10
+            Float64, "tire_estimation/speed_scale_factor", 10
         )
+        # the ENU origin of the pose (the first fix), latched for late subscribers
+        self.pub_datum = self.create_publisher(
+            NavSatFix,
+            "tire_estimation/datum",
+            QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL),
+        )
+        self._datum: Any = None
         self.pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self.create_service(Trigger, "~/reset", self._on_reset)
         self.create_timer(opts.diagnostics_period_s, self._publish_diag)
@@ -189,9 +211,7 @@ class EstimatorNode(Node):
     # --- parameters -------------------------------------------------------------------------
     def _values(self, prefix: str) -> dict[str, Any]:
         specs: Sequence[ParameterSpec] = self._specs[prefix]
-        return {
-            s.name: self.get_parameter(s.name).value for s in specs if self.has_parameter(s.name)
-        }
+        return parameter_values(self, specs)
 
     def _load_vehicle(self) -> VehicleParams:
         if self.options.vehicle_file:
@@ -242,7 +262,8 @@ class EstimatorNode(Node):
             self.received[stream] += 1
             self._rate_window[stream] += 1
             try:
-                outputs = self.pipeline.push(convert(msg))
+                sample = convert(msg)
+                outputs = self.pipeline.push(sample)
             except InputError as exc:
                 self.dropped[f"{stream}:{exc.kind}"] += 1
                 return
@@ -253,25 +274,30 @@ class EstimatorNode(Node):
                 )
                 return
             self._publish(outputs)
+            datum = self.estimator.datum if self.estimator is not None else None
+            if datum is not None and datum is not self._datum:
+                self._datum = datum
+                self.pub_datum.publish(messages.datum_msg(datum, sample.t_ns, self.names))
 
         return callback
 
     # --- outputs ----------------------------------------------------------------------------
     def _publish(self, outputs: list[Output]) -> None:
+        names = self.names
         for out in outputs:
             if type(out) is OdometryOutput:
-                self.pub_odom.publish(messages.odometry_msg(out.estimate, out.t_ns))
+                self.pub_odom.publish(messages.odometry_msg(out.estimate, out.t_ns, names))
             elif type(out) is RadiiOutput:
                 nominal = self.vehicle.nominal_tire_radius_m
-                self.pub_radii.publish(messages.radii_msg(out.estimate, out.t_ns, nominal))
+                self.pub_radii.publish(messages.radii_msg(out.estimate, out.t_ns, nominal, names))
             elif type(out) is WheelOdometryOutput:
-                self.pub_twist.publish(messages.twist_msg(out.twist))
-                self.pub_wheel_radii.publish(messages.wheel_radii_msg(out.radii, out.t_ns))
+                self.pub_twist.publish(messages.twist_msg(out.twist, names))
+                self.pub_wheel_radii.publish(messages.wheel_radii_msg(out.radii, out.t_ns, names))
                 self.pub_speed_scale.publish(messages.speed_scale_msg(out.radii))
             elif type(out) is StiffnessOutput:
-                self.pub_stiffness.publish(messages.stiffness_msg(out.estimate, out.t_ns))
+                self.pub_stiffness.publish(messages.stiffness_msg(out.estimate, out.t_ns, names))
             elif type(out) is LateralOutput:
-                self.pub_lateral.publish(messages.lateral_msg(out.estimate, out.t_ns))
+                self.pub_lateral.publish(messages.lateral_msg(out.estimate, out.t_ns, names))
 
     def _publish_diag(self) -> None:
         now = time.monotonic()

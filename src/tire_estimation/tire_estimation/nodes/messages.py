@@ -8,13 +8,15 @@ from typing import TypeVar
 import numpy as np
 from geometry_msgs.msg import TwistWithCovarianceStamped
 from nav_msgs.msg import Odometry
-from sensor_msgs.msg import JointState
+from sensor_msgs.msg import JointState, NavSatFix
 from std_msgs.msg import Float64
 
+from tire_estimation.core.geodesy import LocalTangentPlane
 from tire_estimation.core.lateral.estimate import LateralEstimate
 from tire_estimation.core.radius.estimator import RadiusEstimate
 from tire_estimation.core.radius.wheel_odometry import CorrectedTwist, EffectiveRadii
 from tire_estimation.core.stiffness.estimator import StiffnessEstimate
+from tire_estimation.core.wheels import CONTRACT_NAMES, WHEELS, Names
 from tire_estimation.nodes.conversions import ns_to_stamp
 from tire_estimation_msgs.msg import LateralState, TireRadii, TireStiffness
 
@@ -46,10 +48,11 @@ def _stamped(msg: M, t_ns: int, frame_id: str) -> M:
     return msg
 
 
-def odometry_msg(est: RadiusEstimate, t_ns: int) -> Odometry:
-    """Pose of base_link in ``map`` (planar: z, roll, pitch unknown), twist in base_link."""
-    msg = _stamped(Odometry(), t_ns, "map")
-    msg.child_frame_id = "base_link"
+def odometry_msg(est: RadiusEstimate, t_ns: int, names: Names = CONTRACT_NAMES) -> Odometry:
+    """Pose of base_link in ``map`` (planar: z, roll, pitch unknown), twist in base_link (the
+    frames as ``names`` calls them)."""
+    msg = _stamped(Odometry(), t_ns, names.map_frame)
+    msg.child_frame_id = names.base_frame
     east, north, yaw = (float(v) for v in est.pose)
     msg.pose.pose.position.x = east
     msg.pose.pose.position.y = north
@@ -66,9 +69,11 @@ def odometry_msg(est: RadiusEstimate, t_ns: int) -> Odometry:
     return msg
 
 
-def radii_msg(est: RadiusEstimate, t_ns: int, nominal_radius_m: float) -> TireRadii:
+def radii_msg(
+    est: RadiusEstimate, t_ns: int, nominal_radius_m: float, names: Names = CONTRACT_NAMES
+) -> TireRadii:
     """Per-wheel radius error (estimate minus nominal) with its std."""
-    msg = _stamped(TireRadii(), t_ns, "base_link")
+    msg = _stamped(TireRadii(), t_ns, names.base_frame)
     msg.nominal_radius_m = float(nominal_radius_m)
     msg.wheel_names = list(est.wheels)
     msg.radius_error_m = [float(v) for v in est.radius_error_m]
@@ -81,11 +86,11 @@ def radii_msg(est: RadiusEstimate, t_ns: int, nominal_radius_m: float) -> TireRa
     return msg
 
 
-def twist_msg(twist: CorrectedTwist) -> TwistWithCovarianceStamped:
+def twist_msg(twist: CorrectedTwist, names: Names = CONTRACT_NAMES) -> TwistWithCovarianceStamped:
     """Wheel odometry corrected with the learned radii, in base_link: vx and yaw rate with
     their (2, 2) covariance at (x, x), (x, yaw), (yaw, yaw) of the 6x6 twist covariance; the
     other components are not measured (0 with variance :data:`UNMEASURED_VAR`)."""
-    msg = _stamped(TwistWithCovarianceStamped(), twist.t_ns, "base_link")
+    msg = _stamped(TwistWithCovarianceStamped(), twist.t_ns, names.base_frame)
     msg.twist.twist.linear.x = float(twist.vx_m_s)
     msg.twist.twist.angular.z = float(twist.yaw_rate_rad_s)
     cov = np.diag([0.0, UNMEASURED_VAR, UNMEASURED_VAR, UNMEASURED_VAR, UNMEASURED_VAR, 0.0])
@@ -94,12 +99,14 @@ def twist_msg(twist: CorrectedTwist) -> TwistWithCovarianceStamped:
     return msg
 
 
-def wheel_radii_msg(radii: EffectiveRadii, t_ns: int) -> JointState:
+def wheel_radii_msg(radii: EffectiveRadii, t_ns: int, names: Names = CONTRACT_NAMES) -> JointState:
     """Per wheel (``name``): ``position`` = effective rolling radius, m (as on
     ``/truth/wheel_radii``); ``effort`` = radius multiplier, effective over nominal radius, 1
-    (``diff_drive_controller``'s ``*_wheel_radius_multiplier``); ``velocity`` empty."""
-    msg = _stamped(JointState(), t_ns, "base_link")
-    msg.name = list(radii.wheels)
+    (``diff_drive_controller``'s ``*_wheel_radius_multiplier``); ``velocity`` empty. Wheels
+    carry the robot's joint names (``names``)."""
+    msg = _stamped(JointState(), t_ns, names.base_frame)
+    own = dict(zip(WHEELS, names.wheels, strict=True))
+    msg.name = [own.get(w, w) for w in radii.wheels]
     msg.position = [float(v) for v in radii.radius_m]
     msg.effort = [float(v) for v in radii.multiplier]
     return msg
@@ -110,9 +117,11 @@ def speed_scale_msg(radii: EffectiveRadii) -> Float64:
     return Float64(data=float(radii.speed_scale_factor))
 
 
-def stiffness_msg(est: StiffnessEstimate, t_ns: int) -> TireStiffness:
+def stiffness_msg(
+    est: StiffnessEstimate, t_ns: int, names: Names = CONTRACT_NAMES
+) -> TireStiffness:
     """Learned axle stiffness, its std, the nominal values and the IMU biases."""
-    msg = _stamped(TireStiffness(), t_ns, "base_link")
+    msg = _stamped(TireStiffness(), t_ns, names.base_frame)
     msg.names = list(est.names)
     msg.stiffness = [float(v) for v in est.stiffness]
     msg.stiffness_std = [float(v) for v in est.stiffness_std]
@@ -125,9 +134,9 @@ def stiffness_msg(est: StiffnessEstimate, t_ns: int) -> TireStiffness:
     return msg
 
 
-def lateral_msg(est: LateralEstimate, t_ns: int) -> LateralState:
+def lateral_msg(est: LateralEstimate, t_ns: int, names: Names = CONTRACT_NAMES) -> LateralState:
     """Lateral state of base_link; ``source`` names the estimator."""
-    msg = _stamped(LateralState(), t_ns, "base_link")
+    msg = _stamped(LateralState(), t_ns, names.base_frame)
     msg.source = str(est.source)
     msg.longitudinal_velocity_m_s = float(est.vx_m_s)
     msg.lateral_velocity_m_s = float(est.vy_m_s)
@@ -136,4 +145,15 @@ def lateral_msg(est: LateralEstimate, t_ns: int) -> LateralState:
     msg.covariance = [float(v) for v in np.asarray(est.covariance, dtype=float).ravel()]
     msg.axle_lateral_force_n = [float(v) for v in est.axle_lateral_force_n]
     msg.linearity = _LINEARITY.get(est.linearity, LateralState.LINEARITY_UNKNOWN)
+    return msg
+
+
+def datum_msg(datum: LocalTangentPlane, t_ns: int, names: Names = CONTRACT_NAMES) -> NavSatFix:
+    """The origin of the pose's ENU frame (``map``, as ``names`` calls it): latitude,
+    longitude (deg) and ellipsoidal height (m) of the first GNSS fix; covariance unknown."""
+    msg = _stamped(NavSatFix(), t_ns, names.map_frame)
+    msg.latitude = float(datum.origin_lat_deg)
+    msg.longitude = float(datum.origin_lon_deg)
+    msg.altitude = float(datum.origin_alt_m)
+    msg.position_covariance_type = NavSatFix.COVARIANCE_TYPE_UNKNOWN
     return msg

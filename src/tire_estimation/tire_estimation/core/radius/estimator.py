@@ -21,7 +21,7 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from scipy.special import chdtri
@@ -60,6 +60,10 @@ from tire_estimation.errors import InputError
 @dataclass
 class _Stream:
     last_t_ns: int | None = None
+
+
+if TYPE_CHECKING:
+    from tire_estimation.core.geodesy import LocalTangentPlane
 
 
 class RadiusEstimator(GnssHandling, Reporting, Gates):
@@ -182,6 +186,12 @@ class RadiusEstimator(GnssHandling, Reporting, Gates):
     def initialized(self) -> bool:
         """True once the pose is initialized (the estimate's state is not ``initializing``)."""
         return self._pose_ok
+
+    @property
+    def datum(self) -> LocalTangentPlane | None:
+        """The ENU frame of the pose (``map``): its origin is the first GNSS fix (None before
+        it, and again after :meth:`reset`)."""
+        return self._ltp
 
     def speed_m_s(self) -> float:
         """The estimate's ``speed_m_s`` without computing the rest of :meth:`estimate`."""
