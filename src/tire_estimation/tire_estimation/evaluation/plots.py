@@ -128,8 +128,12 @@ def plot_lateral_state(
     fig, axes = plt.subplots(2, 1, figsize=(11, 6), sharex=True)
     point = reference[4] if reference is not None else "cg"
     if reference is not None:
-        axes[0].plot(reference[0], np.degrees(reference[1]), color="k", lw=1.0, label=reference[3])
-        axes[1].plot(reference[0], np.degrees(reference[2]), color="k", lw=1.0, label=reference[3])
+        # the reference on top of the estimates (drawn first, it would be hidden under them)
+        for ax, values in zip(axes, (reference[1], reference[2]), strict=True):
+            ax.plot(
+                reference[0], np.degrees(values), color="k", lw=1.3, zorder=10,
+                label=reference[3],
+            )  # fmt: skip
     for i, (name, arr) in enumerate(series.items()):
         t_s = (np.asarray(arr["t_ns"], dtype=np.int64) - start_ns) * 1e-9
         vx = np.asarray(arr["vx_m_s"], dtype=float)
