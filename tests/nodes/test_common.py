@@ -1,7 +1,16 @@
-"""Node start-up: a parameter the node does not declare stops it with one line and exit 2."""
+"""Node start-up and stop: a parameter the node does not declare, or a value its configure
+rejects, stops it with one line and exit 2; Ctrl-C and SIGTERM stop the console scripts with
+exit 0, no traceback, and the learned state saved."""
 
 from __future__ import annotations
 
+import json
+import os
+import shutil
+import signal
+import subprocess
+import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -19,10 +28,10 @@ def _start(
     (module,) = import_ros(f"tire_estimation.nodes.{node}")
     from tire_estimation.nodes import common
 
-    def spin(_node: Any) -> None:
+    def spin(_node: Any, _stop: Any) -> None:
         raise AssertionError(f"{node} started with {ros_args}")
 
-    monkeypatch.setattr(common.rclpy, "spin", spin)
+    monkeypatch.setattr(common, "spin_until_stopped", spin)
     with pytest.raises(SystemExit) as exc:
         module.main(["--ros-args", "-p", "persistence_file:=''", *ros_args])
     captured = capsys.readouterr()
@@ -65,3 +74,171 @@ def test_an_unreadable_params_file_is_one_line(
     code, lines = _start("estimator_node", ["--params-file", str(missing)], monkeypatch, capsys)
     assert code == 2 and len(lines) == 1 and "Traceback" not in lines[0]
     assert lines[0].startswith("estimator_node: configuration error:") and "params" in lines[0]
+
+
+def test_a_bad_value_found_at_configure_stops_the_node(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: Any
+) -> None:
+    missing = tmp_path / "missing_vehicle.yaml"
+    code, lines = _start("estimator_node", ["-p", f"vehicle_file:={missing}"], monkeypatch, capsys)
+    assert code == 2 and len(lines) == 1 and "Traceback" not in lines[0]
+    assert lines[0].startswith("estimator_node: configuration error:")
+    assert "missing_vehicle.yaml" in lines[0] and "file not found" in lines[0]
+
+
+# --- the console scripts stopped by Ctrl-C or SIGTERM ---------------------------------------
+STATE_FILE = "state.json"
+
+
+def _launch(node: str, tmp_path: Path, *params: str) -> tuple[subprocess.Popen[bytes], Path]:
+    """Start the console script with a vehicle identity and a persistence file; wait until it
+    is up. Its log (stdout and stderr) goes to a file."""
+    exe = shutil.which(node)
+    assert exe is not None, f"{node} console script not on PATH (source env.sh)"
+    log = tmp_path / f"{node}.log"
+    with log.open("w") as out:
+        proc = subprocess.Popen(
+            [exe, "--ros-args", "-p", "vehicle.name:=test_car",
+             "-p", f"persistence_file:={tmp_path / STATE_FILE}", *params],
+            stdout=out, stderr=subprocess.STDOUT, env=os.environ.copy(),
+        )  # fmt: skip
+    deadline = time.monotonic() + 30.0
+    try:
+        while f"{node} up:" not in log.read_text():
+            assert proc.poll() is None, log.read_text()
+            assert time.monotonic() < deadline, f"{node} not up within 30 s"
+            time.sleep(0.05)
+    except AssertionError:
+        proc.kill()
+        proc.wait()
+        raise
+    return proc, log
+
+
+def _stop(proc: subprocess.Popen[bytes], sig: signal.Signals, log: Path) -> tuple[int, str]:
+    proc.send_signal(sig)
+    try:
+        code = proc.wait(timeout=15)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait()
+        raise AssertionError(f"no exit within 15 s of {sig.name}: {log.read_text()}") from None
+    return code, log.read_text()
+
+
+@pytest.mark.parametrize(
+    ("node", "sig"),
+    [("estimator_node", signal.SIGTERM), ("detector_node", signal.SIGINT)],
+    ids=["estimator_node-SIGTERM", "detector_node-SIGINT"],
+)
+def test_a_signal_stops_an_idle_node_cleanly(
+    node: str, sig: signal.Signals, tmp_path: Path
+) -> None:
+    """Nothing learned: exit 0, no traceback, and the log says why nothing was written."""
+    import_ros("rclpy")
+    proc, log = _launch(node, tmp_path)
+    code, text = _stop(proc, sig, log)
+    assert code == 0, text
+    assert "Traceback" not in text and "context is invalid" not in text, text
+    assert "unchanged since restored" in text
+    assert f"{tmp_path / STATE_FILE} not written" in text
+    assert not (tmp_path / STATE_FILE).exists()
+
+
+def _spin_until(executor: Any, cond: Callable[[], bool], proc: Any, timeout_s: float) -> None:
+    deadline = time.monotonic() + timeout_s
+    while not cond():
+        assert proc.poll() is None, "the node died"
+        assert time.monotonic() < deadline, "timed out"
+        executor.spin_once(timeout_sec=0.05)
+
+
+@pytest.mark.parametrize(
+    ("node", "sig"),
+    [("estimator_node", signal.SIGINT), ("detector_node", signal.SIGTERM)],
+    ids=["estimator_node-SIGINT", "detector_node-SIGTERM"],
+)
+def test_a_signal_saves_what_the_node_learned(
+    node: str, sig: signal.Signals, tmp_path: Path
+) -> None:
+    """Fed over DDS, then stopped: exit 0, no traceback, the learned state on disk under the
+    vehicle's identity."""
+    rclpy, executors, qos_mod = import_ros("rclpy", "rclpy.executors", "rclpy.qos")
+    params = ["-p", "sensor_qos:=reliable", "-p", "stiffness_enabled:=false"]
+    proc, log = _launch(node, tmp_path, *(params if node == "estimator_node" else []))
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    executor = executors.SingleThreadedExecutor(context=context)
+    try:
+        feeder = rclpy.create_node("shutdown_test_feeder", context=context)
+        executor.add_node(feeder)
+        feed = _estimator_feed if node == "estimator_node" else _detector_feed
+        feed(feeder, executor, qos_mod, proc)
+        code, text = _stop(proc, sig, log)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        executor.shutdown()
+        rclpy.shutdown(context=context)
+    assert code == 0, text
+    assert "Traceback" not in text and "context is invalid" not in text, text
+    saved = json.loads((tmp_path / STATE_FILE).read_text())
+    assert saved["vehicle_name"] == "test_car" and saved["state"]
+
+
+def _subscribed(*publishers: Any) -> bool:
+    return all(p.get_subscription_count() > 0 for p in publishers)
+
+
+def _estimator_feed(feeder: Any, executor: Any, qos_mod: Any, proc: Any) -> None:
+    """2.5 s of straight driving (wheel speeds 100 Hz, GNSS 10 Hz); waits for the odometry the
+    node publishes up to the last stamp."""
+    from nav_msgs.msg import Odometry
+    from sensor_msgs.msg import JointState, NavSatFix
+
+    from tests.nodes.test_estimator_node import _fix, _wheels
+
+    qos = qos_mod.QoSProfile(depth=1000, reliability=qos_mod.ReliabilityPolicy.RELIABLE)
+    wheels = feeder.create_publisher(JointState, "/vehicle/wheel_speeds", qos)
+    fixes = feeder.create_publisher(NavSatFix, "/gnss/fix", qos)
+    stamps: list[int] = []
+    feeder.create_subscription(
+        Odometry,
+        "/tire_estimation/odometry",
+        lambda m: stamps.append(m.header.stamp.sec * 10**9 + m.header.stamp.nanosec),
+        100,
+    )
+    _spin_until(executor, lambda: _subscribed(wheels, fixes), proc, 15.0)
+    t0_ns, t_ns = 1_000_000_000_000, 1_000_000_000_000
+    for k in range(250):
+        t_ns = t0_ns + k * 10_000_000
+        wheels.publish(_wheels(t_ns, [20.0 / 0.31] * 4))
+        if k % 10 == 0:
+            fixes.publish(_fix(t_ns, 20.0 * (t_ns - t0_ns) * 1e-9, 0.0))
+            executor.spin_once(timeout_sec=0.005)  # paced: the node's queue holds 100
+    last_odometry_ns = t_ns - 60_000_000  # the node holds the last 50 ms for ordering
+    _spin_until(executor, lambda: bool(stamps) and stamps[-1] >= last_odometry_ns, proc, 15.0)
+
+
+def _detector_feed(feeder: Any, executor: Any, qos_mod: Any, proc: Any) -> None:
+    """2 s of odometry and tire radii at 10 Hz; waits for the deflation status of each."""
+    from nav_msgs.msg import Odometry
+
+    from tests.nodes.test_detector_node import MU_CAL, Feeder
+    from tire_estimation_msgs import msg as msg_mod
+
+    qos = qos_mod.QoSProfile(depth=100, reliability=qos_mod.ReliabilityPolicy.RELIABLE)
+    odometry = feeder.create_publisher(Odometry, "/tire_estimation/odometry", qos)
+    radii = feeder.create_publisher(msg_mod.TireRadii, "/tire_estimation/tire_radii", qos)
+    statuses: list[Any] = []
+    feeder.create_subscription(
+        msg_mod.DeflationStatus, "/tire_estimation/deflation", statuses.append, 100
+    )
+    _spin_until(executor, lambda: _subscribed(odometry, radii), proc, 15.0)
+    feed = Feeder(msg_mod, Odometry)
+    for _ in range(20):
+        feed.t_ns += 100_000_000
+        odometry.publish(feed.odometry())
+        radii.publish(feed.radii(MU_CAL))
+        executor.spin_once(timeout_sec=0.005)
+    _spin_until(executor, lambda: len(statuses) >= 20, proc, 15.0)

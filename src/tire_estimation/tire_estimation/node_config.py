@@ -25,13 +25,15 @@ SENSOR_QOS = ("sensor_data", "reliable")
 
 @dataclass(frozen=True)
 class PersistentNodeOptions:
-    """What every node that saves its state to a file takes: the vehicle, the tire set and
-    the file (the subclasses document the fields and set the file's default)."""
+    """What every node that saves its state to a file takes: the vehicle, the tire set, the
+    file and the lifecycle start (the subclasses document the fields and set the file's
+    default)."""
 
     vehicle_file: str = ""
     tire_set_id: str = "default"
     persistence_file: str = ""
     persistence_period_s: float = 60.0
+    autostart: bool = True
 
     RULES: ClassVar[dict[str, Rule]] = {"persistence_period_s": FINITE}
 
@@ -53,6 +55,8 @@ class EstimatorNodeOptions(PersistentNodeOptions):
             MPF runs) are saved to and restored from; empty = off.
             Default ``~/.ros/tire_estimation/learned_radii.json``.
         persistence_period_s: save period, s; <= 0 saves only on shutdown. Default 60.
+        autostart: configure and activate the lifecycle node at start; false leaves it
+            unconfigured for a lifecycle manager (``ros2 lifecycle set``). Default true.
         odometry_publish_period_s: minimum period between Odometry messages (header time), s;
             0 publishes after every wheel-speed sample. Default 0.02.
         radii_publish_period_s: minimum period between TireRadii messages (header time), s.
@@ -145,6 +149,8 @@ class DetectorNodeOptions(MonitorConfig, PersistentNodeOptions):
             empty = off. Default ``~/.ros/tire_estimation/deflation_detector.json``.
         persistence_period_s: save period, s; <= 0 saves only on events and shutdown.
             Default 60.
+        autostart: configure and activate the lifecycle node at start; false leaves it
+            unconfigured for a lifecycle manager (``ros2 lifecycle set``). Default true.
         diagnostics_period_s: period of /diagnostics, s. Default 1.
         braking_decel_m_s2: deceleration above which the car counts as braking, m/s^2.
             Default 1.

@@ -1,10 +1,13 @@
-"""Pieces both nodes share: parameter descriptors from specs and the node lifecycle."""
+"""Pieces both nodes share: parameter descriptors from specs, persistence, and the process
+around a node (spin until Ctrl-C or SIGTERM, then its lifecycle shutdown)."""
 
 from __future__ import annotations
 
 import json
 import re
+import signal
 import sys
+import threading
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -16,10 +19,11 @@ from rclpy.exceptions import (
     ParameterException,
     ParameterUninitializedException,
 )
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.signals import SignalHandlerOptions
 
 from tire_estimation.core.validation import unknown_key_reason
 from tire_estimation.core.vehicle import VehicleParams
@@ -103,29 +107,73 @@ def reject_undeclared_overrides(node: Node) -> None:
             raise ConfigError(name, param.value, reason)
 
 
+#: how soon the spin loop sees a stop signal, s (a signal never interrupts a callback)
+STOP_POLL_PERIOD_S = 0.1
+
+
+class StopSignals:
+    """SIGINT (Ctrl-C) and SIGTERM as a request to stop, while the context is entered: the
+    handler only sets :attr:`requested`, so a signal never lands inside a callback and ROS
+    is still up for the node's shutdown transition (rclpy's own handlers shut the context
+    down first). The previous handlers come back on exit."""
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    def __init__(self) -> None:
+        self.requested = False
+        self._previous: dict[int, Any] = {}
+
+    def __enter__(self) -> StopSignals:
+        if threading.current_thread() is threading.main_thread():
+            for sig in self.SIGNALS:
+                self._previous[sig] = signal.signal(sig, self._on_signal)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        for sig, handler in self._previous.items():
+            signal.signal(sig, handler)
+
+    def _on_signal(self, signum: int, frame: Any) -> None:
+        self.requested = True
+
+
+def spin_until_stopped(node: Node, stop: StopSignals) -> None:
+    """Run the node's callbacks until a stop signal or the end of its context."""
+    executor = SingleThreadedExecutor(context=node.context)
+    executor.add_node(node)
+    try:
+        while not stop.requested and node.context.ok():
+            executor.spin_once(timeout_sec=STOP_POLL_PERIOD_S)
+    finally:
+        executor.remove_node(node)
+        executor.shutdown()
+
+
 def spin_node(name: str, factory: Callable[[], Any], args: list[str] | None = None) -> None:
-    """Create the node, spin it until interrupted, save its state, and shut down cleanly.
+    """Create the node, spin it until Ctrl-C or SIGTERM, run its lifecycle shutdown (which
+    saves its state) and shut down ROS: exit status 0.
 
     A configuration error (bad or unknown parameter, unreadable parameters file) ends the
     process with one line on stderr naming the parameter and exit status 2. The node must
-    have ``save_on_shutdown()``.
+    have ``finish()`` (:class:`tire_estimation.nodes.lifecycle.ManagedNode`).
     """
     node: Any = None
-    try:
-        rclpy.init(args=args)
-        node = factory()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):  # Ctrl-C, SIGTERM
-        pass
-    except (TireEstimationError, ParameterException, _rclpy.RCLError) as exc:
-        print(one_line(f"{name}: configuration error: {exc}"), file=sys.stderr)
-        raise SystemExit(2) from exc
-    finally:
-        if node is not None:
-            node.save_on_shutdown()
-            node.destroy_node()
-        if rclpy.ok():
-            rclpy.shutdown()
+    with StopSignals() as stop:
+        try:
+            rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+            node = factory()
+            spin_until_stopped(node, stop)
+        except (KeyboardInterrupt, ExternalShutdownException):
+            pass
+        except (TireEstimationError, ParameterException, _rclpy.RCLError) as exc:
+            print(one_line(f"{name}: configuration error: {exc}"), file=sys.stderr)
+            raise SystemExit(2) from exc
+        finally:
+            if node is not None:
+                node.finish()
+                node.destroy_node()
+            if rclpy.ok():
+                rclpy.shutdown()
 
 
 def restore_state(

@@ -23,7 +23,6 @@ from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from nav_msgs.msg import Odometry
-from rclpy.node import Node
 from std_srvs.srv import Trigger
 
 from tire_estimation.core.clock import ClockGuard
@@ -45,6 +44,7 @@ from tire_estimation.nodes.common import (
     state_text,
 )
 from tire_estimation.nodes.detector_diagnostics import wheel_status
+from tire_estimation.nodes.lifecycle import ManagedNode
 from tire_estimation.params import (
     ParameterSpec,
     build_config,
@@ -57,12 +57,19 @@ from tire_estimation_msgs.msg import DeflationStatus, TireRadii, WheelDeflation
 DETECTOR_PREFIX = "detector"
 
 
-class DetectorNode(Node):
-    """ROS wrapper: parameters -> DeflationDetectorConfig, TireRadii/Odometry -> detector."""
+class DetectorNode(ManagedNode):
+    """ROS wrapper: parameters -> DeflationDetectorConfig, TireRadii/Odometry -> detector. A
+    lifecycle node: configure builds everything below, inputs are processed and outputs
+    published only while active (``autostart``: both at start)."""
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("detector_node", **kwargs)
         self._declare_parameters()
+        self.start()
+
+    def _configure(self) -> None:
+        for prefix, cls, _ in detector_sections()[:2]:  # node options and vehicle identity
+            build_config(cls, prefix, self._values(parameter_specs(cls, prefix)))
         self.config = build_config(
             DeflationDetectorConfig, DETECTOR_PREFIX, self._values(self._specs)
         )
@@ -98,8 +105,10 @@ class DetectorNode(Node):
         self.on_odometry = self._guard("odometry", self._on_odometry)
         self.create_subscription(TireRadii, "tire_estimation/tire_radii", self.on_tire_radii, 50)
         self.create_subscription(Odometry, "tire_estimation/odometry", self.on_odometry, 50)
-        self.pub_status = self.create_publisher(DeflationStatus, "tire_estimation/deflation", 10)
-        self.pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self.pub_status = self.create_lifecycle_publisher(
+            DeflationStatus, "tire_estimation/deflation", 10
+        )
+        self.pub_diag = self.create_lifecycle_publisher(DiagnosticArray, "/diagnostics", 10)
         self.create_service(Trigger, "~/recalibrate", self._on_recalibrate)
         self.create_timer(self.get_parameter("diagnostics_period_s").value, self.publish_diag)
         period = self.get_parameter("persistence_period_s").value
@@ -117,7 +126,6 @@ class DetectorNode(Node):
         for prefix, cls, _ in sections[:2]:
             specs = parameter_specs(cls, prefix)
             declare_specs(self, specs)
-            build_config(cls, prefix, self._values(specs))  # validate the node options
         self._node_specs = parameter_specs(sections[0][1], sections[0][0])
         self._specs = parameter_specs(DeflationDetectorConfig, DETECTOR_PREFIX)
         declare_specs(self, self._specs)
@@ -159,7 +167,15 @@ class DetectorNode(Node):
             self.dropped["persistence_write"] += 1
 
     def save_on_shutdown(self) -> None:
-        """Write the calibration and alarms (called when the node stops)."""
+        """Write the calibration and alarms (when the node deactivates, cleans up or stops);
+        log why nothing is written."""
+        if self._persist_path is None:
+            self.get_logger().info(f"detector state not saved: {self._persist_note}")
+        elif state_text(self.detector) == self._saved_text:
+            self.get_logger().info(
+                f"detector state unchanged since restored or saved: {self._persist_path} "
+                "not written"
+            )
         self._save()
 
     def _on_recalibrate(self, _: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
@@ -179,6 +195,9 @@ class DetectorNode(Node):
 
         def callback(msg: Any) -> None:
             self.received[stream] += 1
+            if not self.active:
+                self.dropped[f"{stream}:inactive"] += 1
+                return
             try:
                 handler(msg)
             except InputError as exc:

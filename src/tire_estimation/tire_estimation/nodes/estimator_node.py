@@ -36,7 +36,6 @@ from typing import Any
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import TwistWithCovarianceStamped
 from nav_msgs.msg import Odometry
-from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, qos_profile_sensor_data
 from sensor_msgs.msg import Imu, JointState, NavSatFix
 from std_msgs.msg import Float64
@@ -73,6 +72,7 @@ from tire_estimation.nodes.common import (
     spin_node,
     state_text,
 )
+from tire_estimation.nodes.lifecycle import ManagedNode
 from tire_estimation.params import ParameterSpec, build_config, estimator_sections, parameter_specs
 from tire_estimation.persistence import Identity, LearnedState, delete_state
 from tire_estimation_msgs.msg import LateralState, TireForces, TireRadii, TireStiffness
@@ -80,9 +80,10 @@ from tire_estimation_msgs.msg import LateralState, TireForces, TireRadii, TireSt
 SECTIONS = estimator_sections()
 
 
-class EstimatorNode(Node):
+class EstimatorNode(ManagedNode):
     """ROS wrapper: parameters -> pipeline configuration, messages -> samples, outputs ->
-    messages."""
+    messages. A lifecycle node: configure builds everything below, inputs are processed and
+    outputs published only while active (``autostart``: both at start)."""
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("estimator_node", **kwargs)
@@ -90,6 +91,9 @@ class EstimatorNode(Node):
         for specs in self._specs.values():
             declare_specs(self, specs)
         reject_undeclared_overrides(self)
+        self.start()
+
+    def _configure(self) -> None:
         self.options = build_config(EstimatorNodeOptions, "", self._values(""))
         self.vehicle = self._load_vehicle()
         self.config = build_config(RadiusEstimatorConfig, "radius", self._values("radius"))
@@ -178,27 +182,33 @@ class EstimatorNode(Node):
             )
         for msg_type, topic, stream, convert in subs:
             self.create_subscription(msg_type, topic, self._callback(stream, convert), qos)
-        self.pub_lateral = self.create_publisher(LateralState, "tire_estimation/lateral_state", 10)
-        self.pub_stiffness = self.create_publisher(
+        self.pub_lateral = self.create_lifecycle_publisher(
+            LateralState, "tire_estimation/lateral_state", 10
+        )
+        self.pub_stiffness = self.create_lifecycle_publisher(
             TireStiffness, "tire_estimation/tire_stiffness", 10
         )
-        self.pub_odom = self.create_publisher(Odometry, "tire_estimation/odometry", 10)
-        self.pub_radii = self.create_publisher(TireRadii, "tire_estimation/tire_radii", 10)
-        self.pub_twist = self.create_publisher(
+        self.pub_odom = self.create_lifecycle_publisher(Odometry, "tire_estimation/odometry", 10)
+        self.pub_radii = self.create_lifecycle_publisher(
+            TireRadii, "tire_estimation/tire_radii", 10
+        )
+        self.pub_twist = self.create_lifecycle_publisher(
             TwistWithCovarianceStamped, "tire_estimation/twist", 10
         )
-        self.pub_wheel_radii = self.create_publisher(JointState, "tire_estimation/wheel_radii", 10)
-        self.pub_speed_scale = self.create_publisher(
+        self.pub_wheel_radii = self.create_lifecycle_publisher(
+            JointState, "tire_estimation/wheel_radii", 10
+        )
+        self.pub_speed_scale = self.create_lifecycle_publisher(
             Float64, "tire_estimation/speed_scale_factor", 10
         )
         # the ENU origin of the pose (the first fix), latched for late subscribers
-        self.pub_datum = self.create_publisher(
+        self.pub_datum = self.create_lifecycle_publisher(
             NavSatFix,
             "tire_estimation/datum",
             QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL),
         )
         self._datum: Any = None
-        self.pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self.pub_diag = self.create_lifecycle_publisher(DiagnosticArray, "/diagnostics", 10)
         self.create_service(Trigger, "~/reset", self._on_reset)
         self.create_timer(opts.diagnostics_period_s, self._publish_diag)
         if self._persist_path is not None and opts.persistence_period_s > 0:
@@ -251,7 +261,15 @@ class EstimatorNode(Node):
         return response
 
     def save_on_shutdown(self) -> None:
-        """Write the learned radii and stiffness (called when the node stops)."""
+        """Write the learned radii and stiffness (when the node deactivates, cleans up or
+        stops); log why nothing is written."""
+        if self._persist_path is None:
+            self.get_logger().info(f"estimates not saved: {self._persist_note}")
+        elif state_text(self._learned) == self._saved_text:
+            self.get_logger().info(
+                f"estimates unchanged since restored, saved or reset: {self._persist_path} "
+                "not written"
+            )
         self._save()
 
     # --- inputs -----------------------------------------------------------------------------
@@ -260,6 +278,9 @@ class EstimatorNode(Node):
 
         def callback(msg: Any) -> None:
             self.received[stream] += 1
+            if not self.active:
+                self.dropped[f"{stream}:inactive"] += 1
+                return
             self._rate_window[stream] += 1
             try:
                 sample = convert(msg)

@@ -17,6 +17,9 @@ from tire_estimation.core.arrays import F64
 from tire_estimation.core.radius.gnss_bias import GnssErrorSize
 from tire_estimation.core.radius.model import RL, RR, RadiusMotionModel, gnss_white_cov
 
+#: random walk of the radius errors in the AUG-KF baseline's state, m/sqrt(s)
+RADIUS_RANDOM_WALK_M_SQRT_S = 2e-5
+
 
 @dataclass(frozen=True)
 class AugKfUpdate:

@@ -42,7 +42,6 @@ _NON_NEGATIVE = (
     "position_process_noise_m_sqrt_s",
     "yaw_process_noise_rad_sqrt_s",
     "min_speed_m_s",
-    "aug_kf_radius_random_walk_m_sqrt_s",
 )
 _POSITIVE = (
     "gnss_default_std_m",
@@ -120,9 +119,9 @@ class RadiusEstimatorConfig:
             Default 1.0.
         wheels: ``rear`` (default, the paper) or ``all`` (adds the front radii, see
             ``radius_estimator``).
-        run_aug_kf: also run the AUG-KF baseline (eq. 10-11). Default False.
-        aug_kf_radius_random_walk_m_sqrt_s: random walk of the radius errors in the AUG-KF
-            state, m/sqrt(s). Default 2e-5.
+        run_aug_kf: also run the AUG-KF baseline (eq. 10-11; its radius random walk is
+            :data:`~tire_estimation.core.radius.aug_kf.RADIUS_RANDOM_WALK_M_SQRT_S`). Default
+            False.
         gnss_latency_s: compensated GNSS latency, s: a fix stamped ``t`` is taken to describe the
             antenna at ``t - gnss_latency_s`` (the measurement model extrapolates the pose back
             along the heading by ``speed * latency``). In [-1, 1]; default 0 (off).
@@ -190,7 +189,6 @@ class RadiusEstimatorConfig:
     braking_decel_m_s2: float = 1.0
     wheels: str = "rear"
     run_aug_kf: bool = False
-    aug_kf_radius_random_walk_m_sqrt_s: float = 2e-5
     gnss_latency_s: float = 0.0
     wheel_speed_time_offset_s: float = 0.0
     gnss_antenna_offset_x_m: float = 0.0

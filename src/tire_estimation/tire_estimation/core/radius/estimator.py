@@ -29,6 +29,9 @@ from scipy.special import chdtri
 from tire_estimation.core import niw
 from tire_estimation.core.arrays import F64
 from tire_estimation.core.input_checks import drop_key, stamp_after
+from tire_estimation.core.radius.aug_kf import (
+    RADIUS_RANDOM_WALK_M_SQRT_S as AUG_KF_RADIUS_RANDOM_WALK_M_SQRT_S,
+)
 from tire_estimation.core.radius.aug_kf import AugKf
 from tire_estimation.core.radius.axle_check import AxleCheck
 from tire_estimation.core.radius.config import RadiusEstimatorConfig
@@ -129,7 +132,7 @@ class RadiusEstimator(GnssHandling, Reporting, Gates):
                 np.zeros(2),
                 c.prior_radius_error_std_m,
                 PRIOR_RADIUS_NOISE_STD_M,
-                c.aug_kf_radius_random_walk_m_sqrt_s,
+                AUG_KF_RADIUS_RANDOM_WALK_M_SQRT_S,
                 c.position_process_noise_m_sqrt_s,
                 c.yaw_process_noise_rad_sqrt_s,
                 gnss_bias_std_m=c.gnss_bias_std_m,
