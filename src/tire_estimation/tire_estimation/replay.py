@@ -97,11 +97,15 @@ class ReplayReport:
                     f"  {w}: NEVER LEARNED: the estimate below is the prior (paused: {why})"
                 )
             std = r["final_radius_error_std_m"][w]
-            text = f"  {w}: radius error {1e3 * est:+.3f} mm ± {1e3 * std:.3f} mm"
+            # the learned rolling radius, its offset from nominal, and (with truth) the error
+            text = f"  {w}: offset from nominal {1e3 * est:+.3f} mm ± {1e3 * std:.3f} mm"
+            nominal = r.get("nominal_radius_m")
+            if nominal is not None:
+                text = f"  {w}: radius {1e3 * (nominal + est):.3f} mm, {text.split(': ', 1)[1]}"
             if final_truth.get(w) is not None:
                 true_err = est - final_truth[w]
                 text += (
-                    f" | truth {1e3 * true_err:+.3f} mm, final error {1e3 * final_truth[w]:+.3f}"
+                    f" | true offset {1e3 * true_err:+.3f} mm, error {1e3 * final_truth[w]:+.3f}"
                     f" mm, RMSE {1e3 * truth[w]:.3f} mm"
                 )
             lines.append(text)
@@ -148,7 +152,13 @@ class ReplayReport:
             lines.extend(_closed_loop_lines(loop))
         res = m["residuals"]
         if res["consistent"] is not None:
-            lines.append(f"  innovations consistent: {res['consistent']}")
+            meaning = (
+                "the GNSS innovations fit the filter's noise model: the reported std is honest"
+                if res["consistent"]
+                else "the GNSS innovations do not fit the filter's noise model: an effect the "
+                "model lacks, or wrong noise settings; the reported std may be too small"
+            )
+            lines.append(f"  innovations consistent: {res['consistent']} ({meaning})")
             lines.extend(f"    why: {why}" for why in res.get("why", []))
         elif res.get("tests", {}).get("note"):
             lines.append(f"  innovations not tested: {res['tests']['note']}")
@@ -654,6 +664,7 @@ def build_metrics(
             truth,
             nominal,
         )
+    radii["nominal_radius_m"] = nominal
     if axles is not None:
         radii["axles"] = {a: dataclasses.asdict(axles.status(a)) for a in ("front", "rear")}
     radii["learning"] = ev.learning_metrics(
@@ -1059,14 +1070,15 @@ def write_plots(out: Path, bag: BagData, trace: RadiusTrace) -> None:
     ltp = LocalTangentPlane(*trace.origin_lla) if trace.origin_lla is not None else None
     if ltp is not None and bag.gnss is not None:
         e, n, _ = ltp.to_enu(bag.gnss.lat_deg, bag.gnss.lon_deg, bag.gnss.alt_m)
-        truth_en = None
-        if bag.truth_fix is not None:
-            te, tn, _ = ltp.to_enu(
-                bag.truth_fix.lat_deg, bag.truth_fix.lon_deg, bag.truth_fix.alt_m
-            )
-            truth_en = np.column_stack([te, tn])
+        # the truth or the bag's reference at the estimate's times (as the position RMSE)
+        ref_en, against = _reference_positions(bag, arr["t_ns"], ltp)
         plots.plot_trajectory(
-            out / "trajectory.png", arr["pose"][:, :2], np.column_stack([e, n]), truth_en
+            out / "trajectory.png",
+            arr["pose"][:, :2],
+            np.column_stack([e, n]),
+            ref_en,
+            t_s=(arr["t_ns"] - bag.start_ns) * 1e-9,
+            reference_label=against,
         )
     if arr["innov_t_ns"].size:
         plots.plot_innovations(

@@ -66,14 +66,26 @@ def plot_radius_errors(
 
 
 def plot_trajectory(
-    path: Path, estimate_en_m: F64, gnss_en_m: F64, truth_en_m: F64 | None = None
+    path: Path,
+    estimate_en_m: F64,
+    gnss_en_m: F64,
+    reference_en_m: F64 | None = None,
+    t_s: F64 | None = None,
+    reference_label: str = "truth / reference",
 ) -> None:
-    """Estimated path vs GNSS fixes and the truth/reference, in the local ENU frame."""
-    fig, ax = plt.subplots(figsize=(8, 8))
+    """Left: the estimated path, the GNSS fixes and the reference, in the local ENU frame.
+    Right (with a reference at the estimate's times ``t_s``): the horizontal distance of the
+    estimate from the reference over time, which the path view cannot show at the scale of a
+    drive."""
+    with_error = reference_en_m is not None and t_s is not None and reference_en_m.size > 0
+    fig, axes = plt.subplots(
+        1, 2 if with_error else 1, figsize=(15 if with_error else 8, 7), squeeze=False
+    )
+    ax = axes[0, 0]
     if gnss_en_m.size:
         ax.plot(gnss_en_m[:, 0], gnss_en_m[:, 1], ".", ms=2, color="0.6", label="GNSS fixes")
-    if truth_en_m is not None and truth_en_m.size:
-        ax.plot(truth_en_m[:, 0], truth_en_m[:, 1], "k-", lw=1.0, label="truth / reference")
+    if reference_en_m is not None and reference_en_m.size:
+        ax.plot(reference_en_m[:, 0], reference_en_m[:, 1], "k-", lw=1.0, label=reference_label)
     if estimate_en_m.size:
         ax.plot(estimate_en_m[:, 0], estimate_en_m[:, 1], "C0-", lw=1.0, label="MPF estimate")
     ax.set_aspect("equal", adjustable="datalim")
@@ -82,6 +94,17 @@ def plot_trajectory(
     ax.grid(alpha=0.3)
     ax.legend(loc="best")
     ax.set_title("Trajectory in the local ENU frame")
+    if with_error:
+        assert reference_en_m is not None and t_s is not None
+        ax = axes[0, 1]
+        err = np.hypot(*(estimate_en_m - reference_en_m).T)
+        ax.plot(t_s, err, "C0-", lw=1.0, label="MPF estimate")
+        ax.set_xlabel("time since bag start [s]")
+        ax.set_ylabel(f"horizontal distance from {reference_label} [m]")
+        ax.set_ylim(bottom=0.0)
+        ax.grid(alpha=0.3)
+        ax.legend(loc="upper right")
+        ax.set_title("Position error over time")
     save_figure(fig, path)
 
 
