@@ -216,8 +216,12 @@ def _detection_lines(det: dict[str, Any], events: list[dict[str, Any]]) -> list[
     return lines
 
 
+#: a replay of at least this many samples (a few seconds of work) shows a progress bar
+PROGRESS_MIN_SAMPLES = 50_000
+
+
 def _progress_printer(total: int, enabled: bool) -> Any:
-    if not enabled or total < 200_000:
+    if not enabled or total < PROGRESS_MIN_SAMPLES:
         return None
     try:
         from tqdm import tqdm

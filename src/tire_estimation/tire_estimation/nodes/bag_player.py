@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import sys
 import time
 from collections.abc import Iterable, Sequence
 from pathlib import Path
@@ -47,8 +48,11 @@ class BagPlayer(Node):
         self.publishers_by_topic: dict[str, Any] = {}
         self.published = 0
 
-    def play(self, rate: float = 1.0, qos: QoSProfile = qos_profile_sensor_data) -> int:
-        """Publish every message of the chosen topics; return how many were published."""
+    def play(
+        self, rate: float = 1.0, qos: QoSProfile = qos_profile_sensor_data, progress: bool = False
+    ) -> int:
+        """Publish every message of the chosen topics; return how many were published
+        (``progress``: a progress bar on stderr)."""
         try:
             reader = Reader(self.bag)
             reader.open()
@@ -61,6 +65,12 @@ class BagPlayer(Node):
                     self.publishers_by_topic[conn.topic] = self.create_publisher(
                         message_class(conn.msgtype), conn.topic, qos
                     )
+            bar = None
+            if progress:
+                from tqdm import tqdm
+
+                total = sum(c.msgcount for c in conns)
+                bar = tqdm(total=total, unit="msg", unit_scale=True, desc="play", file=sys.stderr)
             wall0: float | None = None
             bag0 = 0
             clock = Clock()
@@ -75,6 +85,10 @@ class BagPlayer(Node):
                 self.clock_pub.publish(clock)
                 self.publishers_by_topic[conn.topic].publish(bytes(raw))
                 self.published += 1
+                if bar is not None and self.published % 1000 == 0:
+                    bar.update(1000)
+            if bar is not None:
+                bar.close()
         finally:
             reader.close()
         return self.published
@@ -86,12 +100,13 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser.add_argument("bag", type=Path)
     parser.add_argument("--rate", type=float, default=1.0, help="speed-up; 0 = no pacing")
     parser.add_argument("--topic", action="append", help="topic to play (default: inputs)")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     args, ros_args = parser.parse_known_args(argv)
     rclpy.init(args=ros_args)
     try:
         player = BagPlayer(args.bag, args.topic or DEFAULT_TOPICS)
         time.sleep(0.5)  # let discovery match subscribers before the first message
-        count = player.play(rate=args.rate)
+        count = player.play(rate=args.rate, progress=not args.no_progress)
         print(f"bag_player: published {count} messages from {args.bag}")
         player.destroy_node()
     except BagError as exc:
