@@ -1039,12 +1039,16 @@ def write_lateral_plots(out: Path, bag: BagData, traces: dict[str, ImuLateralTra
     stiff = traces.get("stiffness_mpf")
     if stiff is not None and stiff.stiffness:
         arr = stiff.arrays()
+        truth = bag.truth_stiffness
         plots.plot_stiffness(
             out / "stiffness.png",
             (arr["t_ns"] - bag.start_ns) * 1e-9,
             stiff.stiffness_names,
             arr["stiffness"],
             arr["stiffness_std"],
+            None
+            if truth is None or truth.t_ns.size == 0
+            else ((truth.t_ns - bag.start_ns) * 1e-9, tuple(truth.names), truth.values),
         )
 
 

@@ -176,8 +176,16 @@ def plot_lateral_state(
     save_figure(fig, path)
 
 
-def plot_stiffness(path: Path, t_s: F64, names: tuple[str, ...], stiffness: F64, std: F64) -> None:
-    """Learned stiffness per name (kN per unit slip or kN/rad) with a +-2 std band."""
+def plot_stiffness(
+    path: Path,
+    t_s: F64,
+    names: tuple[str, ...],
+    stiffness: F64,
+    std: F64,
+    truth: tuple[F64, tuple[str, ...], F64] | None = None,
+) -> None:
+    """Learned stiffness per name (kN per unit slip or kN/rad) with a +-2 std band, and the
+    truth when the bag has it (``truth`` = (t_s, names, values (T, K)))."""
     n = len(names)
     fig, axes = plt.subplots(n, 1, figsize=(10, 2.4 * n), sharex=True, squeeze=False)
     for j, name in enumerate(names):
@@ -186,6 +194,11 @@ def plot_stiffness(path: Path, t_s: F64, names: tuple[str, ...], stiffness: F64,
         band = 2e-3 * std[:, j]
         ax.fill_between(t_s, k - band, k + band, color="C0", alpha=0.2, label="±2σ")
         ax.plot(t_s, k, color="C0", lw=1.0, label=name)
+        if truth is not None and name in truth[1]:
+            ax.step(
+                truth[0], 1e-3 * truth[2][:, truth[1].index(name)], where="post", color="k",
+                lw=1.2, zorder=10, label="truth",
+            )  # fmt: skip
         unit = "kN/unit slip" if name.startswith("cx") else "kN/rad"
         ax.set_ylabel(f"{name} [{unit}]")
         ax.grid(True, alpha=0.3)
