@@ -1,5 +1,6 @@
-"""Benchmarks (``make bench``): filter step time (radius MPF, stiffness MPF), replay real-time
-factor, node latency over DDS and the node's own callback time (in-process, no DDS).
+"""Benchmarks (``make bench``): filter step time (radius MPF, stiffness MPF, and the two side by
+side per sample), replay real-time factor (radius only, and the default replay with every
+estimator), node latency over DDS and the node's own callback time (in-process, no DDS).
 
 Not part of the tests: numbers depend on the machine and its load. Results are printed as JSON
 (and written to ``--out`` if given); docs/results.md quotes them with the command.
@@ -73,7 +74,10 @@ def stiffness_step_time_ms(
     """Wall time per IMU step of the stiffness MPF (issue 5: under 1 ms at N = 500), in ms.
 
     A simulated ``asphalt_sine`` drive is fed through :class:`StiffnessEstimator`; the steps of
-    the ``seconds`` after its sine steering starts (at about 20 s; learning active) are timed.
+    the ``seconds`` after its sine steering starts (at about 20 s; learning active) are timed:
+    the whole ``on_imu`` and, ``mpf_*``, the filter's share (its predict and update, without the
+    front-end's input checks and activation). On a shared machine the median is the cost of a
+    step that no other job interrupted.
     """
     from tire_estimation.core.stiffness.config import StiffnessEstimatorConfig
     from tire_estimation.core.stiffness.estimator import StiffnessEstimator
@@ -84,10 +88,22 @@ def stiffness_step_time_ms(
     est = StiffnessEstimator(
         StiffnessEstimatorConfig(n_particles=n_particles), sim.vehicle, np.random.default_rng(seed)
     )
+    filt = est.filter
+    mpf_ns = [0]
+
+    def timed(fn: Any) -> Any:
+        def call(*args: Any) -> None:
+            t0 = time.perf_counter_ns()
+            fn(*args)
+            mpf_ns[0] += time.perf_counter_ns() - t0
+
+        return call
+
+    filt.predict, filt.update = timed(filt.predict), timed(filt.update)  # type: ignore[method-assign]
     ws, st, imu = sim.wheel_speeds, sim.steering, sim.imu
     iw = np.searchsorted(ws.t_ns, imu.t_ns, side="right") - 1
     ist = np.searchsorted(st.t_ns, imu.t_ns, side="right") - 1
-    times, active = [], 0
+    times, mpf_times, active = [], [], 0
     warm = int(np.searchsorted(imu.t_ns, imu.t_ns[0] + round(settle_s * 1e9)))
     for k in range(imu.t_ns.size):
         t = int(imu.t_ns[k])
@@ -95,24 +111,52 @@ def stiffness_step_time_ms(
             est.on_wheel_speeds(int(ws.t_ns[iw[k]]), ws.wheel_speed_rad_s[iw[k]])
         if ist[k] >= 0:
             est.on_steering(int(st.t_ns[ist[k]]), float(st.angle_rad[ist[k]]))
-        start = time.perf_counter()
+        mpf_ns[0] = 0
+        start = time.perf_counter_ns()
         est.on_imu(t, imu.angular_velocity_rad_s[k], imu.linear_acceleration_m_s2[k])
         if k >= warm:
-            times.append(time.perf_counter() - start)
+            times.append(time.perf_counter_ns() - start)
+            mpf_times.append(mpf_ns[0])
             active += int(est.estimate().active)
-    arr = np.asarray(times) * 1e3
+    arr = np.asarray(times) * 1e-6
+    mpf = np.asarray(mpf_times) * 1e-6
     return {"mean_ms": float(arr.mean()), "median_ms": float(np.median(arr)),
-            "p99_ms": float(np.quantile(arr, 0.99)),
+            "p99_ms": float(np.quantile(arr, 0.99)), "mpf_mean_ms": float(mpf.mean()),
+            "mpf_median_ms": float(np.median(mpf)),
             "learning_fraction": active / max(len(times), 1)}  # fmt: skip
 
 
-def replay_rtf(n_particles: int, bag: Path = DEMO_BAG) -> dict[str, float]:
-    """Replay the demo bag (decoding included, no plots); real-time factor and split."""
+def per_sample_costs(particles: list[int]) -> dict[str, dict[str, float]]:
+    """Per-sample cost side by side, µs, one run: the radius MPF per wheel-speed sample
+    (:func:`step_time_us`, GNSS included) and the stiffness MPF per IMU sample
+    (:func:`stiffness_step_time_ms`: the whole ``on_imu`` and the filter alone), at each N."""
+    out: dict[str, dict[str, float]] = {}
+    for n in particles:
+        radius = step_time_us(n)
+        stiff = stiffness_step_time_ms(n)
+        out[str(n)] = {
+            "radius_mean_us": radius["mean_us"], "radius_median_us": radius["median_us"],
+            "stiffness_on_imu_mean_us": 1e3 * stiff["mean_ms"],
+            "stiffness_on_imu_median_us": 1e3 * stiff["median_ms"],
+            "stiffness_mpf_mean_us": 1e3 * stiff["mpf_mean_ms"],
+            "stiffness_mpf_median_us": 1e3 * stiff["mpf_median_ms"],
+        }  # fmt: skip
+    return out
+
+
+def replay_rtf(
+    n_particles: int | None, bag: Path = DEMO_BAG, stiffness: bool = False
+) -> dict[str, float]:
+    """Replay ``bag`` (decoding included, no plots); real-time factor and split.
+
+    ``n_particles`` None: the default configuration (radius MPF N = 500, stiffness MPF N = 200);
+    ``stiffness``: with the stiffness MPF and its linear-KF baseline (the default replay runs
+    every estimator)."""
     from tire_estimation.replay import run_replay
 
+    cfg = None if n_particles is None else RadiusEstimatorConfig(n_particles=n_particles)
     with tempfile.TemporaryDirectory() as out:
-        cfg = RadiusEstimatorConfig(n_particles=n_particles)
-        report = run_replay(bag, out, config=cfg, plots=False, progress=False, stiffness=False)
+        report = run_replay(bag, out, config=cfg, plots=False, progress=False, stiffness=stiffness)
     m = report.metrics
     return {"duration_s": m["duration_s"], "wall_s": m["wall_s"],
             "realtime_factor": m["realtime_factor"], "read_s": m["timing_s"]["read"],
@@ -263,6 +307,13 @@ def main(argv: list[str] | None = None) -> int:
     """Run all benchmarks and print JSON."""
     parser = argparse.ArgumentParser(description="tire_estimation benchmarks")
     parser.add_argument("--particles", type=int, nargs="+", default=[100, 500, 2000])
+    parser.add_argument(
+        "--per-sample-particles",
+        type=int,
+        nargs="+",
+        default=[100, 200, 500],
+        help="N of the side-by-side per-sample costs of the radius and the stiffness MPF",
+    )
     parser.add_argument("--latency-seconds", type=float, default=20.0)
     parser.add_argument("--skip-node", action="store_true", help="no DDS latency benchmark")
     parser.add_argument("--out", type=Path, default=None, help="also write the JSON here")
@@ -278,7 +329,10 @@ def main(argv: list[str] | None = None) -> int:
     results: dict[str, Any] = {"machine": {"cpus": os.cpu_count(), "load": os.getloadavg()}}
     results["step_time"] = {str(n): step_time_us(n) for n in args.particles}
     results["stiffness_step_time"] = {str(n): stiffness_step_time_ms(n) for n in args.particles}
+    results["per_sample"] = per_sample_costs(args.per_sample_particles)
     results["replay"] = {str(n): replay_rtf(n, args.replay_bag) for n in args.particles}
+    # the default replay: every estimator (stiffness MPF and its linear-KF baseline included)
+    results["replay_default"] = replay_rtf(None, args.replay_bag, stiffness=True)
     if not args.skip_node:
         results["node_callback"] = node_callback_time()
         results["node_latency"] = node_latency(args.latency_seconds)

@@ -10,7 +10,6 @@ import numpy as np
 import pytest
 
 from tire_estimation.core import niw
-from tire_estimation.core.stiffness import kernels as sk
 from tire_estimation.core.stiffness.config import StiffnessEstimatorConfig
 from tire_estimation.core.stiffness.model import SingleTrackParams
 from tire_estimation.core.stiffness.mpf import StiffnessMpf
@@ -95,11 +94,7 @@ def test_information_fraction_is_the_variance_share_the_measurement_removes() ->
     beta = information_fraction(lp.w_shape, d, lp.shape_inv, comps)
     np.testing.assert_allclose(beta, (removed[:, 1, 1] + removed[:, 2, 2]) / 2, rtol=1e-9)
     assert np.all((beta > 0.0) & (beta < 1.0))
-    # the compiled kernel: the weighted mean of the same
-    wts = rng.dirichlet(np.ones(n))
-    w_fac = (1.0 + float(st.gamma)) / nu
-    got = sk.information_fraction(d, st.scale, lp.shape_inv, w_fac, comps, wts)
-    assert got == pytest.approx(float(wts @ beta), rel=1e-12)
+    # the compiled filter's weighted mean of the same: test_kernels.py (information_share)
     # an uninformative measurement (d = 0) explains nothing
     lp0 = likelihood_params(st, np.zeros((n, 3, 3)), np.eye(3), np.zeros((n, 3, 3)))
     assert np.all(
@@ -222,14 +217,15 @@ def test_held_statistics_end_the_drift_after_the_excitation_on_snow() -> None:
 
 
 def test_the_tyres_own_curve_removes_the_tanh_offset_on_snow() -> None:
-    # snow drive 17 from 75 %: the tanh tyre ends 2.0 / 2.7 % high (front / rear), the
+    # snow drive 11 from 75 %: the tanh tyre ends 2.2 / 3.0 % high (front / rear), the
     # simulator's own Magic Formula shape (C 1.3, E -0.5, ``tyre_shape``) within 0.5 %
-    # (docs/results.md section 6, "Snow and asphalt sine")
+    # (docs/results.md section 6, "Snow and asphalt sine": +1.1 / +1.3 % and 0.0 / +0.1 % over
+    # 50 drives)
     overrides = {"niw_update": "rao_blackwellized", "friction_coefficient": 0.3}
     err = {}
     for shape in ("tanh", "magic_formula"):
         res = sine_study(
-            "snow_sine", 0.75, 1, n=200, first_seed=17,
+            "snow_sine", 0.75, 1, n=200, first_seed=11,
             overrides={**overrides, "tyre_shape": shape, "magic_formula_curvature_e": -0.5},
         )  # fmt: skip
         err[shape] = np.array(res["per_run"][0]["steady_mean_rel_error"][1:])

@@ -1,32 +1,24 @@
 """The compiled stiffness-MPF kernels against their NumPy reference (``reference_mpf``, with the
-functions of ``core.stiffness.student_t``)."""
+functions of ``core.stiffness.model``, ``student_t``, ``niw`` and ``resampling``)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from tests.core.stiffness.reference_mpf import NumpyMpf
-from tire_estimation.core import niw, resampling
+from tests.core.stiffness.reference_mpf import NumpyMpf, jitter_normals
+from tire_estimation.core.kernel_random import kernel_state
 from tire_estimation.core.stiffness import kernels as sk
+from tire_estimation.core.stiffness import mpf as stiffness_mpf
 from tire_estimation.core.stiffness.config import StiffnessEstimatorConfig
 from tire_estimation.core.stiffness.estimator import StiffnessEstimator
+from tire_estimation.core.stiffness.frontend import single_track_params
 from tire_estimation.core.stiffness.model import SingleTrackParams
 from tire_estimation.core.stiffness.mpf import StiffnessMpf
-from tire_estimation.core.stiffness.student_t import (
-    bias_update,
-    conditional_predictive,
-    freeze_component,
-    likelihood_params,
-    log_likelihood,
-    sample_student_t,
-    yaw_rate_nis,
-)
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.sim import simulate
 
 N = 64
-NU, GAMMA = 11.3, 0.37
 
 
 def _spd(rng: np.random.Generator, n: int, scale: float) -> np.ndarray:
@@ -34,189 +26,117 @@ def _spd(rng: np.random.Generator, n: int, scale: float) -> np.ndarray:
     return scale * (a @ np.swapaxes(a, 1, 2) + 0.3 * np.eye(3))
 
 
-def _inputs(seed: int) -> dict[str, np.ndarray]:
-    """Random per-particle inputs of the sizes of the filter (stiffness ~1e5, IMU ~1)."""
-    rng = np.random.default_rng(seed)
-    d = rng.standard_normal((N, 3, 3)) * 1e-5
-    d[:, 2] = 0.0  # the gyro row carries no d w (eq. 12)
-    return {
-        "y": rng.standard_normal(3),
-        "h": rng.standard_normal((N, 3)),
-        "b": rng.standard_normal((N, 3)) * 0.05,
-        "d": d,
-        "a": rng.standard_normal((N, 3, 3)) * 1e-5,
-        "rate": rng.standard_normal((N, 3)),
-        "x": rng.standard_normal((N, 3)) + np.array([20.0, 0.0, 0.0]),
-        "mean": rng.standard_normal((N, 3)) * 1e4,
-        "scale": _spd(rng, N, 1e8),
-        "r_cov": _spd(rng, N, 1e-3),
-        "p_bias": _spd(rng, N, 1e-4),
-        "weights": rng.dirichlet(np.ones(N)),
-        "log_w": rng.standard_normal(N),
-    }
+def test_predict_matches_the_numpy_reference() -> None:
+    rng = np.random.default_rng(9)
+    x = rng.standard_normal((N, 3)) + np.array([20.0, 0.0, 0.0])
+    x[:3, 0] = -1e-3  # clipped at vX = 0
+    rate = rng.standard_normal((N, 3))
+    p, scale = _spd(rng, N, 1e-4), _spd(rng, N, 1e8)
+    q = np.diag([1e-6, 2e-6, 3e-7])
+    jitter = np.array([0.015, 0.006, 0.0006])
+    gamma, dof = np.array(0.7), np.array(11.0)
+    x_ref, p_ref, scale_ref = x + 0.01 * rate, p + q * 0.01, scale * 0.99
+    x_ref += jitter_normals(np.random.default_rng(4), N) * (jitter * np.sqrt(0.01))
+    x_ref[:, 0] = np.maximum(x_ref[:, 0], 0.0)
+    kept = np.empty(N)
+    s00 = scale[:, 0, 0].copy()
+    words = kernel_state(np.random.default_rng(4))
+    sk.predict(x, rate, p, q, 0.01, jitter, words, scale, gamma, dof, True, 0.99, kept)
+    np.testing.assert_allclose(x, x_ref, rtol=1e-14, atol=1e-15)
+    np.testing.assert_array_equal(p, p_ref)
+    np.testing.assert_array_equal(scale, scale_ref)
+    np.testing.assert_array_equal(kept, s00)
+    assert float(gamma) == 0.7 / 0.99 and float(dof) == 11.0 * 0.99
+    # not learning: the statistics stay; no jitter: no draws
+    x0, scale0 = x.copy(), scale.copy()
+    sk.predict(x, rate, p, q, 0.0, np.zeros(3), words, scale, gamma, dof, False, 0.99, kept)
+    np.testing.assert_array_equal(x, x0)
+    np.testing.assert_array_equal(scale, scale0)
 
 
-def _stats(inp: dict[str, np.ndarray]) -> niw.NiwStats:
-    return niw.NiwStats(
-        mean=inp["mean"].copy(),
-        gamma=np.array(GAMMA),
-        dof=np.array(NU),
-        scale=inp["scale"].copy(),
-    )
+def _pair(seed: int, **cfg: object) -> tuple[StiffnessMpf, NumpyMpf]:
+    """The compiled and the NumPy filter in one random, not collapsed state (N particles)."""
+    config = StiffnessEstimatorConfig(n_particles=N, **cfg)  # type: ignore[arg-type]
+    params = single_track_params(config, VehicleParams())
+    out = []
+    for cls in (StiffnessMpf, NumpyMpf):
+        rng = np.random.default_rng(seed)
+        mpf = cls(config, params, np.random.default_rng(seed + 1))
+        mpf.initialize(np.array([20.0, 0.0, 0.1]), np.array([0.3, 0.3, 0.02]))
+        mpf.x = mpf.x.copy()
+        mpf.b = rng.standard_normal((N, 3)) * np.array([0.05, 0.05, 0.002])
+        mpf.p_bias = _spd(rng, N, 1e-4)
+        mpf.rate = rng.standard_normal((N, 3)) * 0.1
+        st = mpf.stats
+        st.mean[...] = rng.standard_normal((N, 3)) * 0.05 * mpf.nominal
+        st.scale[...] = _spd(rng, N, 1e7)
+        st.gamma[...] = 2.0
+        st.dof[...] = 12.0
+        w = rng.dirichlet(np.ones(N))
+        mpf.weights, mpf.log_w = w, np.log(w)
+        mpf.yaw_rate_nis_mean = 2.0
+        out.append(mpf)
+    return out[0], out[1]  # type: ignore[return-value]
 
 
-def _log_const(nu_t: float) -> float:
-    return float(niw.student_t_log_density(np.zeros(1), np.zeros(1), nu_t, 3)[0])
-
-
-def _likelihood(inp: dict[str, np.ndarray]) -> tuple:
-    return sk.likelihood_weights(
-        inp["y"], inp["h"], inp["b"], inp["d"], inp["mean"], inp["scale"], inp["r_cov"],
-        inp["p_bias"], GAMMA, NU, _log_const(NU - 2.0), inp["weights"], inp["log_w"],
-    )  # fmt: skip
-
-
-@pytest.mark.parametrize("seed", [0, 1, 2])
-def test_likelihood_weights_matches_the_numpy_reference(seed: int) -> None:
-    inp = _inputs(seed)
-    log_w0 = inp["log_w"].copy()
-    log_w0[3] = -np.inf  # a particle with zero weight stays at zero
-    inp["log_w"] = log_w0.copy()
-    e_bar, z, shape_inv, logdet, maha, w, nis, log_pred, n_eff = _likelihood(inp)
-    # reference: the reference filter's NumPy steps
-    st = _stats(inp)
-    lp = likelihood_params(st, inp["d"], inp["r_cov"], inp["p_bias"])
-    e_ref = inp["y"][None, :] - inp["h"] - inp["b"]
-    ll = log_likelihood(e_ref, lp)
-    w_ref, log_pred_ref = resampling.normalize_log_weights(log_w0 + ll)
-    np.testing.assert_allclose(e_bar, e_ref, rtol=1e-14, atol=0)
-    np.testing.assert_allclose(z, e_ref - lp.loc, rtol=1e-12, atol=1e-15)
-    np.testing.assert_allclose(shape_inv, lp.shape_inv, rtol=1e-10)
-    np.testing.assert_allclose(logdet, lp.logdet, rtol=1e-12)
-    np.testing.assert_allclose(
-        maha,
-        np.sum((e_ref - lp.loc) * np.einsum("nij,nj->ni", lp.shape_inv, e_ref - lp.loc), 1),
-        rtol=1e-10,
-    )
-    np.testing.assert_allclose(inp["log_w"], log_w0 + ll, rtol=1e-12)
-    np.testing.assert_allclose(w, w_ref, rtol=1e-10, atol=1e-300)
-    assert w[3] == 0.0
-    assert np.isclose(log_pred, log_pred_ref, rtol=1e-12)
-    assert np.isclose(n_eff, resampling.ess(w_ref), rtol=1e-12)
-    assert np.isclose(nis, yaw_rate_nis(e_ref, lp, inp["weights"]), rtol=1e-12)
-
-
-def test_likelihood_weights_without_finite_weight_is_uniform() -> None:
-    inp = _inputs(3)
-    inp["log_w"] = np.full(N, -np.inf)
-    w, log_pred, n_eff = _likelihood(inp)[5:6] + _likelihood(inp)[7:9]
-    np.testing.assert_array_equal(w, np.full(N, 1.0 / N))
-    assert log_pred == -np.inf and n_eff == N
-
-
-def _posterior_reference(
-    inp: dict[str, np.ndarray],
-    idx: np.ndarray,
-    learn: bool,
-    freeze: bool,
-    bias_on: bool,
-    lower: np.ndarray,
-    upper: np.ndarray,
-    rng: np.random.Generator,
-) -> tuple[np.ndarray, ...]:
-    """The reference filter's update after resampling."""
-    st = _stats(inp)
-    before = st.copy()
-    lp = likelihood_params(st, inp["d"], inp["r_cov"], inp["p_bias"])
-    e_bar = inp["y"][None, :] - inp["h"] - inp["b"]
-    maha = np.sum((e_bar - lp.loc) * np.einsum("nij,nj->ni", lp.shape_inv, e_bar - lp.loc), 1)
-    # line 8-10 copy by ancestor (`before` too, as in update())
-    st.take(idx)
-    before.take(idx)
-    d, a, rate_n, r_cov = inp["d"][idx], inp["a"][idx], inp["rate"][idx], inp["r_cov"][idx]
-    x, b, p = inp["x"][idx], inp["b"][idx].copy(), inp["p_bias"][idx].copy()
-    e_bar, lp, maha = e_bar[idx], lp.take(idx), maha[idx]
-    cp = conditional_predictive(st, d, e_bar, lp, maha)
-    w = np.clip(sample_student_t(cp, rng), lower, upper)
-    if learn:
-        niw.measurement_update(st, w)
-        np.clip(st.mean, lower, upper, out=st.mean)
-        if freeze:
-            freeze_component(st, before, 0)
-    sigma = st.scale / (float(st.dof) - 4.0)
-    extra = d @ sigma @ np.swapaxes(d, 1, 2)
-    resid = e_bar - np.einsum("nij,nj->ni", d, st.mean)
-    if bias_on:
-        bias_update(b, p, resid, extra, r_cov, lp.dof)
-    rate = rate_n + np.einsum("nij,nj->ni", a, w)
-    return x, b, p, rate, st.mean, st.scale, w
+def _state(mpf: StiffnessMpf) -> list[np.ndarray]:
+    st = mpf.stats
+    scalars = [
+        mpf.n_eff, mpf.log_evidence, mpf.resample_count, mpf.information_share,
+        mpf.yaw_rate_nis, mpf.yaw_rate_nis_mean, float(mpf.bias_updated), float(st.gamma),
+        float(st.dof),
+    ]  # fmt: skip
+    return [mpf.x, mpf.b, mpf.p_bias, mpf.rate, st.mean, st.scale, mpf.weights, np.array(scalars)]
 
 
 @pytest.mark.parametrize(
-    ("learn", "freeze", "bias_on", "resampled"),
+    ("learn", "learn_cx", "cfg", "vx_m_s", "resample"),
     [
-        (True, False, True, True),
-        (True, True, True, True),
-        (True, False, False, False),
-        (False, False, True, True),
-        (True, True, False, False),
+        (True, True, {}, None, True),
+        (True, False, {}, None, True),
+        (True, False, {"niw_update": "rao_blackwellized"}, None, True),
+        (True, True, {"niw_update": "rao_blackwellized"}, None, False),
+        (False, False, {}, None, False),
+        (True, True, {"friction_coefficient": 0.3}, None, True),
+        (True, True, {"friction_coefficient": 0.5, "tyre_shape": "magic_formula"}, None, True),
+        (True, False, {"rolling_resistance_n": 177.0, "drag_n_s2_m2": 0.4}, 20.3, True),
+        (True, True, {"imu_bias_states": False}, None, True),
     ],
 )
-def test_posterior_step_matches_the_numpy_reference(
-    learn: bool, freeze: bool, bias_on: bool, resampled: bool
+def test_update_matches_the_numpy_reference(
+    monkeypatch: pytest.MonkeyPatch,
+    learn: bool,
+    learn_cx: bool,
+    cfg: dict,
+    vx_m_s: float | None,
+    resample: bool,
 ) -> None:
-    inp = _inputs(7)
-    rng0 = np.random.default_rng(8)
-    idx = np.sort(rng0.integers(0, N, N)) if resampled else np.arange(N)
-    nominal = np.array([1.5e5, 1.0e5, 1.2e5])
-    # tight bounds on the second component: the projection is exercised
-    lower = np.array([-0.9, -0.05, -0.9]) * nominal
-    upper = np.array([4.0, 0.05, 4.0]) * nominal
-    rng_ref = np.random.default_rng(5)
-    ref = _posterior_reference(inp, idx, learn, freeze, bias_on, lower, upper, rng_ref)
-    e_bar, z, shape_inv, _, maha = _likelihood(dict(inp, log_w=inp["log_w"].copy()))[:5]
-    empty = np.empty(0)
-    mean0, scale00 = empty, empty
-    if freeze:
-        ratio = (NU + 1.0 - 4.0) / (NU - 4.0)
-        mean0, scale00 = inp["mean"][:, 0].copy(), inp["scale"][:, 0, 0] * ratio
-    rng = np.random.default_rng(5)
-    got = sk.posterior_step(
-        idx, inp["x"], inp["b"], inp["p_bias"], inp["mean"], inp["scale"], GAMMA, NU, inp["d"],
-        inp["a"], inp["rate"], inp["r_cov"], e_bar, z, shape_inv, maha, lower, upper, learn,
-        mean0, scale00, bias_on, empty, rng,
-    )  # fmt: skip
-    names = ("x", "b", "p_bias", "rate", "mean", "scale", "w")
-    for name, g, r in zip(names, got, ref, strict=True):
-        np.testing.assert_allclose(g, r, rtol=1e-9, atol=1e-12 * np.abs(r).max(), err_msg=name)
-    # the projection bites, and both drew the same number of variates
-    assert np.any(got[6][:, 1] == upper[1]) or np.any(got[6][:, 1] == lower[1])
-    assert rng.random() == rng_ref.random()
-    if not bias_on:
-        np.testing.assert_array_equal(got[1], inp["b"][idx])
+    if not resample:
+        monkeypatch.setattr(stiffness_mpf, "RESAMPLE_THRESHOLD", 0.0)
+    fast, ref = _pair(3, **cfg)
+    y, delta, wheels = np.array([0.4, 2.5, 0.12]), 0.05, (20.6, 20.2)
+    for mpf in (fast, ref):
+        mpf.predict(0.01, learn, learn_cx)
+        mpf.update(y, delta, wheels, learn, vx_m_s, learn_cx)
+    assert fast.resample_count == ref.resample_count == int(resample)
+    names = ("x", "b", "p_bias", "rate", "mean", "scale", "weights", "scalars")
+    for name, got, want in zip(names, _state(fast), _state(ref), strict=True):
+        np.testing.assert_allclose(
+            got, want, rtol=1e-9, atol=1e-12 * np.abs(want).max(), err_msg=name
+        )
+    # the projection to the bounds and the Cx freeze are exercised by these states
+    if learn and not learn_cx:
+        assert np.all(fast.stats.scale[:, 0, 1:] == 0.0)
+    # both drew the same number of variates
+    assert fast.rng.random() == ref.rng.random()
 
 
-def test_predict_states_matches_the_numpy_reference() -> None:
-    inp = _inputs(9)
-    x, p = inp["x"].copy(), inp["p_bias"].copy()
-    x[:3, 0] = -1e-3  # clipped at vX = 0
-    q = np.diag([1e-8, 2e-8, 3e-9])
-    jitter = np.array([0.015, 0.006, 0.0006])
-    x_ref, p_ref = x.copy(), p.copy()
-    rng, rng_ref = np.random.default_rng(4), np.random.default_rng(4)
-    sk.predict_states(x, inp["rate"], p, q, 0.01, jitter, rng)
-    # the reference filter's predict
-    x_ref += 0.01 * inp["rate"]
-    x_ref += rng_ref.standard_normal((N, 3)) * (jitter * np.sqrt(0.01))
-    x_ref[:, 0] = np.maximum(x_ref[:, 0], 0.0)
-    p_ref += q
-    np.testing.assert_allclose(x, x_ref, rtol=1e-14, atol=1e-15)
-    np.testing.assert_array_equal(p, p_ref)
-    assert rng.random() == rng_ref.random()
-    # no jitter: no draws
-    rng = np.random.default_rng(4)
-    sk.predict_states(x, inp["rate"], p, q, 0.01, np.zeros(3), rng)
-    assert rng.random() == np.random.default_rng(4).random()
+def test_update_without_finite_weight_is_uniform() -> None:
+    fast, _ = _pair(5)
+    fast.log_w[:] = -np.inf
+    fast.update(np.array([0.4, 2.5, 0.12]), 0.05, (20.6, 20.2), True)
+    np.testing.assert_array_equal(fast.weights, np.full(N, 1.0 / N))
+    assert fast.n_eff == N and fast.log_evidence == 0.0 and fast.evidence_steps == 0
 
 
 def _filter_run(compiled: bool, scenario: str, **cfg: object) -> np.ndarray:

@@ -260,7 +260,8 @@ class StiffnessFrontEnd(Generic[F]):
         try:
             t = self._check_stamp(stream, t_ns)
             v = finite_vector(value, n, stream)
-            if np.any(np.abs(v) > _LIMITS[stream]):
+            # (finite values: the largest magnitude of these few, without NumPy temporaries)
+            if max(map(abs, v.tolist())) > _LIMITS[stream]:
                 raise InputError("out_of_range", f"{stream}: |value| above {_LIMITS[stream]}")
         except (InputError, TypeError, ValueError) as exc:
             self._drop(stream, _drop_kind(exc))
@@ -416,8 +417,8 @@ class StiffnessFrontEnd(Generic[F]):
     def _published(
         self, e: FilterEstimate, mean_log_predictive: float | None = None
     ) -> StiffnessEstimate:
-        vx, vy, r = (float(v) for v in e.state)
-        bias = np.zeros(3) if e.bias is None else np.asarray(e.bias, dtype=float)
+        vx, vy, r = np.asarray(e.state, dtype=float).tolist()
+        bias = (0.0, 0.0, 0.0) if e.bias is None else np.asarray(e.bias, dtype=float).tolist()
         return StiffnessEstimate(
             t_ns=self._t_ns,
             names=NAMES,

@@ -39,12 +39,15 @@ particles are replaced by their weighted moment match (``niw.collapse``), so tha
 resampling for the lateral state do not move the stiffness estimate while nothing is learned
 (the paper runs Algorithm 1 only while the stiffness is observable, Sec. V).
 
-The per-particle algebra after the linearization runs in the compiled kernels of
-:mod:`.kernels`; with ``state_proposal`` = ``measured`` (:mod:`.proposal`) the step runs the
-NumPy functions of :mod:`.student_t`.
+The IMU step runs in two compiled kernels of :mod:`.kernels` (the model, the likelihood, the
+resampling and the per-particle updates included); with ``state_proposal`` = ``measured``
+(:mod:`.proposal`) the measurement part runs the NumPy functions of :mod:`.model` and
+:mod:`.student_t`.
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 from numpy.typing import NDArray
@@ -55,6 +58,7 @@ from tire_estimation.core.stiffness import kernels as stiffness_kernels
 from tire_estimation.core.stiffness import mat3
 from tire_estimation.core.stiffness.config import StiffnessEstimatorConfig
 from tire_estimation.core.stiffness.model import (
+    WHEEL_SPEED_NOISE_STD_M_S,
     Linearized,
     SingleTrackParams,
     kinematic_speed_row,
@@ -105,6 +109,11 @@ BIAS_GATE_WINDOW_S = 1.0
 #: Deviation (x): time constant tau of the bias update, s (``stiffness_step`` with IMU biases:
 #: 1 of 40 drives ran away per filter seed with 2 s, 5-9 with eq. (30) as printed, tau = 0).
 BIAS_AVERAGE_S = 2.0
+
+
+#: components of ``w`` learned (the moment match of deviation xi): all, or all but a frozen Cx
+_ALL_COMPONENTS = np.arange(NW)
+_WITHOUT_CX = np.arange(1, NW)
 
 
 def imu_bias_covariances(config: StiffnessEstimatorConfig) -> tuple[F64, F64]:
@@ -188,11 +197,24 @@ class StiffnessMpf:
         self._before_learning: niw.NiwStats | None = None
         #: deviation (xi): whether the last update learned, and which components
         self._learned_last_step = False
-        self._last_learned_components = np.arange(NW)
-        # ancestors without resampling, "no freeze", constant of eq. (35)
-        self._identity = np.arange(self.n, dtype=np.intp)
-        self._no_freeze = np.empty(0)
-        self._log_const: tuple[float, float] = (np.nan, np.nan)
+        self._last_learned_components = _ALL_COMPONENTS
+        # the compiled step (kernels.update): model constants, scratch, the ancestors, and
+        # Lambda_00 before eq. (20) for the Cx freeze (kernels.predict) with its nu
+        self._constants = stiffness_kernels.model_constants(
+            params, np.diag(self.r_cov), WHEEL_SPEED_NOISE_STD_M_S, c.speed_noise_std_m_s**2,
+            self.lower, self.upper,
+        )  # fmt: skip
+        self._work = np.empty(stiffness_kernels.scratch_size(self.n))
+        self._work2 = np.empty(stiffness_kernels.scratch_size(self.n))
+        self._ancestors = np.empty(self.n, dtype=np.intp)
+        self._scale00_before = np.empty(self.n)
+        self._no_scale00 = np.empty(0)
+        self._freeze_dof: float | None = None
+        self._niw_mode = (
+            stiffness_kernels.NIW_SAMPLED
+            if c.niw_update == "sampled"
+            else stiffness_kernels.NIW_RAO_BLACKWELLIZED
+        )
 
     def prior_stats(self) -> niw.NiwStats:
         """Prior NiW statistics: mean at the initial guess, E[Sigma] and gamma from config."""
@@ -221,18 +243,30 @@ class StiffnessMpf:
         ``learn`` applies (20); ``learn_cx`` False (default ``learn``) keeps the statistics
         before (20) for the Cx freeze of the following :meth:`update`.
         """
-        # jitter (iii) of the states whose random walk update() does not draw
-        jitter = np.where(self._drawn_in_update, 0.0, self.jitter)
-        # eq. (9) with the stored rate, jitter (iii), vX >= 0 and eq. (29) P += Q Ts
-        stiffness_kernels.predict_states(
-            self.x, self.rate, self.p_bias, self.q_rate * dt_s, dt_s, jitter, self.rng
-        )
+        st = self.stats
         self._before_learning = None
-        if learn:
-            if learn_cx is False:
-                self._before_learning = self.stats.copy()
-            # eq. (20) gamma/lambda, mu, lambda nu, lambda Lambda
-            niw.time_update(self.stats, self.config.forgetting)
+        self._freeze_dof = None
+        keep = self._no_scale00
+        if learn and learn_cx is False:
+            if self.measured_proposal:
+                self._before_learning = st.copy()
+            else:
+                # kernels.predict keeps Lambda_00 before eq. (20) (eq. 20 keeps the mean)
+                keep = self._scale00_before
+                self._freeze_dof = float(st.dof)
+        # jitter (iii) of the states whose random walk update() does not draw
+        jitter = (
+            np.where(self._drawn_in_update, 0.0, self.jitter)
+            if self.measured_proposal
+            else self.jitter
+        )
+        # eq. (9) with the stored rate, jitter (iii), vX >= 0, eq. (29) P += Q Ts and, learning,
+        # eq. (20) gamma/lambda, mu, lambda nu, lambda Lambda
+        stiffness_kernels.predict(
+            self.x, self.rate, self.p_bias, self.q_rate, dt_s, jitter,
+            self.rng.bit_generator.random_raw(4), st.scale, st.gamma, st.dof, learn,
+            self.config.forgetting, keep,
+        )  # fmt: skip
         self._dt_s = dt_s
 
     def bias_gate_open(self, learn: bool) -> bool:
@@ -262,16 +296,16 @@ class StiffnessMpf:
         self._step_dt_s = self._dt_s
         freeze_cx = learn and learn_cx is False
         self._hold_statistics(learn, freeze_cx)
+        if not self.measured_proposal:
+            self._update_compiled(y, delta_rad, wheel_speed_m_s, learn, vx_m_s, freeze_cx)
+            return
         before = self._before_learning
         if freeze_cx and before is None:
             before = self.stats.copy()
         self._before_learning = None
-        measured = self._propose_measured(y, vx_m_s) if self.measured_proposal else None
+        measured = self._propose_measured(y, vx_m_s)
         lin, y, r_cov = self._linearize(y, delta_rad, wheel_speed_m_s, vx_m_s)
-        if measured is None:
-            self._update_compiled(y, lin, r_cov, learn, before if freeze_cx else None)
-        else:
-            self._update_measured(y, lin, r_cov, learn, before if freeze_cx else None, measured)
+        self._update_measured(y, lin, r_cov, learn, before if freeze_cx else None, measured)
 
     def _propose_measured(self, y: F64, vx_m_s: float | None) -> Measured:
         """``state_proposal`` = ``measured``: draw the random walk of the yaw rate (gyro) and,
@@ -326,7 +360,7 @@ class StiffnessMpf:
 
     def _add_evidence(self, log_pred: float) -> None:
         """The predictive density p(y_k | y_1:k-1) (model evidence increment)."""
-        if np.isfinite(log_pred):
+        if math.isfinite(log_pred):
             self.log_evidence += log_pred
             self.evidence_steps += 1
 
@@ -349,72 +383,50 @@ class StiffnessMpf:
     def _update_compiled(
         self,
         y: F64,
-        lin: Linearized,
-        r_cov: F64,
+        delta_rad: float,
+        wheel_speed_m_s: tuple[float, float],
         learn: bool,
-        freeze_before: niw.NiwStats | None,
+        vx_m_s: float | None,
+        freeze_cx: bool,
     ) -> None:
-        """The measurement part of :meth:`update` in the compiled kernels of :mod:`.kernels`.
-
-        ``freeze_before``: the statistics whose Cx part is kept (``freeze_component``), or
-        ``None``. Shared ``gamma`` and ``nu`` (``niw.init_stats(shared=True)``).
+        """The measurement part of :meth:`update` in one compiled call (:func:`.kernels.update`):
+        eq. (1)-(12) at the particles, eq. (35)-(36), lines 6-10, eq. (39)-(41), (19), (30) and
+        the derivative of eq. (9). Shared ``gamma`` and ``nu`` (``niw.init_stats(shared=True)``).
         """
         st = self.stats
-        gamma, nu = float(st.gamma), float(st.dof)
-        # eq. (21) nu~ = nu - d + 1
-        log_const = self._student_t_log_const(nu - NW + 1.0)
-        # Algorithm 1 line 3: eq. (35)-(36), normalize and N_eff (lines 6-7), yaw-rate NIS
-        e_bar, z, shape_inv, _, maha, weights, nis, log_pred, n_eff = (
-            stiffness_kernels.likelihood_weights(
-                y, lin.h, self.b, lin.d, st.mean, st.scale, r_cov, self.p_bias, gamma, nu,
-                log_const, self.weights, self.log_w,
-            )
+        freeze_ratio = 0.0
+        if freeze_cx:
+            nu = float(st.dof)
+            nu_before = self._freeze_dof
+            if nu_before is None:
+                # no eq. (20) since the statistics to keep: they are the present ones
+                self._scale00_before[:] = st.scale[:, 0, 0]
+                nu_before = nu
+            # freeze_component: E[Sigma_00] = Lambda_00 / (nu - 4) (eq. 27b) unchanged
+            freeze_ratio = (((nu + 1.0) - NW) - 1.0) / ((nu_before - NW) - 1.0)
+        self._freeze_dof = None
+        # deviation (x): R_b = R + (tau / Ts) P  ->  K = P (P + R_b)^-1 <= Ts / (tau + Ts)
+        step_dt = self._step_dt_s
+        bias_fac = BIAS_AVERAGE_S / step_dt if step_dt > 0.0 else 0.0
+        log_pred, n_eff, resampled, beta, bias_on, nis, nis_mean = stiffness_kernels.update(
+            self.x, self.b, self.p_bias, self.rate, st.mean, st.scale, st.gamma, st.dof,
+            self.weights, self.log_w, self._work, self._work2, self._ancestors, self._constants, y,
+            math.cos(delta_rad), math.sin(delta_rad), delta_rad, wheel_speed_m_s[0],
+            wheel_speed_m_s[1], math.nan if vx_m_s is None else vx_m_s, learn, freeze_ratio,
+            self._scale00_before, self._niw_mode, self._gamma0, self.yaw_rate_nis_mean,
+            min(1.0, self._dt_s / BIAS_GATE_WINDOW_S), BIAS_GATE_SIGMA**2, bias_fac,
+            RESAMPLE_THRESHOLD, self.rng.bit_generator.random_raw(4),
         )  # fmt: skip
-        self._track_yaw_rate_nis(nis)
-        self.weights = weights
+        # deviation (v): the yaw-rate NIS and its exponential mean (BIAS_GATE_WINDOW_S)
+        self.yaw_rate_nis = nis
+        self.yaw_rate_nis_mean = nis_mean
+        self._dt_s = 0.0
         self._add_evidence(log_pred)
         self.n_eff = n_eff
-        # line 8-10: resample (the kernel below reads each particle's ancestor)
-        idx = self._resample_if_needed()
-        # eq. (30) on straight driving; while learning only when the particles' yaw rate plus
-        # bias agrees with the gyro (else the bias filters absorb the yaw-rate model error)
-        self.bias_updated = self.bias_gate_open(learn)
-        mean0 = scale00 = gains = self._no_freeze
-        g_new = gamma / (1.0 + gamma)
-        if learn and self.config.niw_update != "sampled":
-            # the share of the predictive variance of w this measurement explains
-            beta = stiffness_kernels.information_fraction(
-                lin.d, st.scale, shape_inv, (1.0 + gamma) / (nu - NW + 1.0),
-                self._learned_components(freeze_before is not None), weights,
-            )  # fmt: skip
-            g_loc, g_w, g_new = self._niw_gains(gamma, beta)
-            gains = np.array([g_loc, g_w])
-        if learn and freeze_before is not None:
-            # freeze_component: E[Sigma_00] = Lambda_00 / (nu - 4) (eq. 27b) unchanged
-            ratio = ((np.asarray(st.dof, dtype=float) + 1.0) - NW - 1.0) / (
-                np.asarray(freeze_before.dof, dtype=float) - NW - 1.0
-            )
-            mean0 = np.ascontiguousarray(freeze_before.mean[:, 0])
-            scale00 = freeze_before.scale[:, 0, 0] * ratio
-        # lines 17, 4, 15, 18: eq. (39)-(41) draw, projection, eq. (19), eq. (30), eq. (9) rate;
-        # the kernel reads r_cov only in eq. (30): R plus the deviation (x) term, per ancestor
-        x, b, p_bias, rate, mean, scale, _ = stiffness_kernels.posterior_step(
-            self._identity if idx is None else idx, self.x, self.b, self.p_bias, st.mean,
-            st.scale, gamma, nu, lin.d, lin.a, lin.rate, self._bias_noise(r_cov), e_bar, z,
-            shape_inv, maha, self.lower, self.upper, learn, mean0, scale00, self.bias_updated,
-            gains, self.rng,
-        )  # fmt: skip
-        self.x, self.b, self.p_bias, self.rate = x, b, p_bias, rate
-        st.mean, st.scale = mean, scale
-        if learn:
-            if self.config.niw_update == "sampled":
-                # eq. (19) shared scalars: gamma_{k|k} = gamma / (1 + gamma), nu_{k|k} = nu + 1
-                c = 1.0 / (1.0 + st.gamma)
-                st.gamma[...] = st.gamma * c
-            else:
-                # niw_mean_gains (capped at the prior gamma_0); nu as eq. (19)
-                st.gamma[...] = g_new
-            st.dof += 1.0
+        self.resample_count += resampled
+        self.bias_updated = bias_on
+        if learn and self._niw_mode == stiffness_kernels.NIW_RAO_BLACKWELLIZED:
+            self.information_share = beta
 
     def _update_measured(
         self,
@@ -502,20 +514,12 @@ class StiffnessMpf:
         # line 18 (first half): derivative for eq. (9), applied in predict()
         self.rate = lin.rate + np.einsum("nij,nj->ni", lin.a, w)
 
-    def _student_t_log_const(self, nu_t: float) -> float:
-        """``lgamma((nu~+3)/2) - lgamma(nu~/2) - 3/2 log(nu~ pi)`` of eq. (35), cached on nu~."""
-        if self._log_const[0] != nu_t:
-            # the NumPy expression at maha = 0, logdet = 0 (same rounding)
-            c = niw.student_t_log_density(np.zeros(1), np.zeros(1), nu_t, NE)
-            self._log_const = (nu_t, float(c[0]))
-        return self._log_const[1]
-
     def _hold_statistics(self, learn: bool, freeze_cx: bool) -> None:
         """Deviation (xi): at the first step without learning after a learning phase, every
         particle takes the weighted moment match of the statistics (:func:`niw.collapse`; the
         learned components set ``gamma``): the estimate (27) stays at its last learned value."""
         if learn:
-            self._last_learned_components = np.flatnonzero(self._learned_components(freeze_cx))
+            self._last_learned_components = _WITHOUT_CX if freeze_cx else _ALL_COMPONENTS
         elif self._learned_last_step:
             niw.collapse(self.stats, self.weights, self._last_learned_components)
         self._learned_last_step = learn
@@ -559,28 +563,21 @@ class StiffnessMpf:
         self.stats.take(idx)
 
     def estimate(self) -> MpfEstimate:
-        """Estimates (27) of the stiffness and (42) of the state."""
-        q = self.weights
+        """Estimates (27) of the stiffness and (42) of the state (:func:`.kernels.estimate`)."""
         st = self.stats
-        # eq. (27a) mu_hat = sum q_i mu_i
-        mu = q @ st.mean
-        dev = st.mean - mu
-        nu = np.broadcast_to(np.asarray(st.dof, dtype=float), (self.n,))
-        gam = np.broadcast_to(np.asarray(st.gamma, dtype=float), (self.n,))
-        spread = np.einsum("n,ni,nj->ij", q, dev, dev)
-        # eq. (27b) Sigma_hat = sum q_i (Lambda_i / (nu - 4) + dev dev^T)
-        e_sigma = np.einsum("n,nij->ij", q / (nu - NW - 1.0), st.scale)
-        sigma_hat = e_sigma + spread
-        mean_cov = np.einsum("n,nij->ij", q * gam / (nu - NW - 1.0), st.scale) + spread
-        # eq. (42) weighted mean of the state
-        xm = q @ self.x
-        dx = self.x - xm
+        out = np.empty(24)
+        stiffness_kernels.estimate(
+            self.weights, st.mean, st.scale, self.x, self.b, float(st.gamma), float(st.dof),
+            self.nominal, out,
+        )  # fmt: skip
         return MpfEstimate(
-            stiffness=self.nominal + mu,
-            stiffness_std=np.sqrt(np.maximum(np.diag(sigma_hat), 0.0)),
-            mean_std=np.sqrt(np.maximum(np.diag(mean_cov), 0.0)),
-            state=xm,
-            state_cov=np.einsum("n,ni,nj->ij", q, dx, dx),
-            bias=q @ self.b,
+            # eq. (27a) C_n + sum q_i mu_i; eq. (27b) Sigma_hat = sum q_i (Lambda_i / (nu - 4) +
+            # dev dev^T); eq. (42) weighted mean of the state
+            stiffness=out[0:3],
+            stiffness_std=out[3:6],
+            mean_std=out[6:9],
+            state=out[9:12],
+            state_cov=out[12:21].reshape(3, 3),
+            bias=out[21:24],
             n_eff=float(self.n_eff),
         )

@@ -220,6 +220,13 @@ def sample_student_t(cp: ConditionalPredictive, rng: np.random.Generator) -> F64
         if half.ndim == 0 or np.all(half == half.flat[0])
         else rng.standard_gamma(half)
     )
+    return student_t_draw(cp, z, chi2)
+
+
+def student_t_draw(cp: ConditionalPredictive, z: F64, chi2: F64) -> F64:
+    """The draws of St(loc, shape, dof) (eq. 39) from normals ``z`` (N, 3) and ``chi2`` (N,)
+    chi-square variates with ``dof`` degrees of freedom, (N, 3)."""
+    dim = cp.loc.shape[1]
     shape = mat3.soa(cp.shape)
     # a relative 1e-9 ridge keeps the factorization of a (numerically) singular shape finite
     shape += (1e-9 * (shape[0, 0] + shape[1, 1] + shape[2, 2])) * np.eye(dim)[:, :, None]
