@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from tire_estimation.cli import _parse_option
+from tire_estimation.cli import parse_key_value
 from tire_estimation.core import yamlio
 from tire_estimation.replay_config import load_radius_config
 
@@ -47,7 +47,7 @@ def test_special_values_and_documents() -> None:
 
 def test_cli_option_and_replay_config_take_exponents(tmp_path: Path) -> None:
     key = "radius_random_walk_m_sqrt_s"
-    assert _parse_option(f"{key}=2e-5") == (key, 2e-5)
+    assert parse_key_value(f"{key}=2e-5") == (key, 2e-5)
     cfg = tmp_path / "cfg.yaml"
     cfg.write_text("radius:\n  radius_random_walk_m_sqrt_s: 3e-5\n")
     assert load_radius_config(cfg).radius_random_walk_m_sqrt_s == 3e-5

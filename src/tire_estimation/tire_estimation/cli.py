@@ -54,7 +54,7 @@ def _option_strings(parser: argparse.ArgumentParser) -> Iterator[str]:
                 yield from _option_strings(sub)
 
 
-def _parse_option(text: str) -> tuple[str, Any]:
+def parse_key_value(text: str) -> tuple[str, Any]:
     """``key=value`` with the value parsed as YAML (numbers, booleans, lists)."""
 
     if "=" not in text:
@@ -170,14 +170,14 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument(
         "--option",
         action="append",
-        type=_parse_option,
+        type=parse_key_value,
         metavar="KEY=VALUE",
         help="scenario option, repeatable (e.g. deflate_wheel=wheel_rr)",
     )
     sim.add_argument(
         "--sensor",
         action="append",
-        type=_parse_option,
+        type=parse_key_value,
         metavar="KEY=VALUE",
         help="sensor setting (SensorConfig field), repeatable (e.g. gnss_rate_hz=1)",
     )

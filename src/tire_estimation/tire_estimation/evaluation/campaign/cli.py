@@ -10,9 +10,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import yaml
-
-from tire_estimation.core import yamlio
+from tire_estimation.cli import parse_key_value
 from tire_estimation.core.validation import reject_unknown_keys
 from tire_estimation.errors import ConfigError, TireEstimationError, one_line
 from tire_estimation.evaluation.campaign.spec import (
@@ -81,22 +79,11 @@ def _add_sensor_arg(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--sensor",
         action="append",
-        type=_key_value,
+        type=parse_key_value,
         metavar="KEY=VALUE",
         help="SensorConfig override of the simulated drives, e.g. gnss_velocity_enabled=true "
         "(repeatable)",
     )
-
-
-def _key_value(text: str) -> tuple[str, Any]:
-
-    if "=" not in text:
-        raise argparse.ArgumentTypeError(f"expected key=value, got {text!r}")
-    key, raw = text.split("=", 1)
-    try:
-        return key.strip(), yamlio.safe_load(raw)
-    except yaml.YAMLError as exc:
-        raise argparse.ArgumentTypeError(f"{key.strip()}: {yamlio.describe(exc)}") from exc
 
 
 def _float_list(text: str) -> tuple[float, ...]:
@@ -138,7 +125,7 @@ def _add_exec_args(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--estimator",
         action="append",
-        type=_key_value,
+        type=parse_key_value,
         metavar="KEY=VALUE",
         help="RadiusEstimatorConfig override (repeatable)",
     )
@@ -343,7 +330,7 @@ def add_campaign_parser(subparsers: Any) -> argparse.ArgumentParser:
     red.add_argument("--out", type=out_argument, required=True, help="result directory")
     red.add_argument(
         "--detector",
-        type=_key_value,
+        type=parse_key_value,
         action="append",
         metavar="KEY=VALUE",
         help="DeflationDetectorConfig override (repeatable)",
