@@ -41,6 +41,13 @@ def test_truth_odometry_only_for_lateral_estimators(
     assert {tp.WHEEL_SPEEDS, tp.GNSS_FIX, tp.TRUTH_FIX, tp.REFERENCE_ODOMETRY} <= set(chosen)
 
 
+def test_the_measured_velocity_only_without_wheel_speeds() -> None:
+    """A bag with wheel speeds never feeds /vehicle/velocity: it is not decoded."""
+    with_wheels = replay_topics(_infos(*LATERAL, tp.VEHICLE_VELOCITY), True)
+    without = replay_topics(_infos(tp.VEHICLE_VELOCITY, tp.IMU_DATA, tp.STEERING), True)
+    assert tp.VEHICLE_VELOCITY not in with_wheels and tp.VEHICLE_VELOCITY in without
+
+
 def test_replay_feeds_the_gnss_velocity_when_switched_on(tmp_path) -> None:
     """A simulated bag with /gnss/velocity: decoded by the replay, used only with
     ``gnss_velocity_enabled`` (the radii then differ), and the MPF's estimate stays close."""

@@ -117,20 +117,53 @@ def _cmd_info(args: argparse.Namespace) -> int:
 
 
 def _cmd_replay(args: argparse.Namespace) -> int:
+    from tire_estimation.fleet import is_fleet
     from tire_estimation.replay import run_replay
 
-    report = run_replay(
+    options = {
+        "config_path": args.config,
+        "plots": not args.no_plots,
+        "stiffness": False if args.no_stiffness else None,
+        "rank_effects": args.rank_effects,
+        "rank_seeds": args.rank_seeds,
+        "write_config": args.write_config,
+    }
+    if is_fleet(args.bag):
+        return _replay_fleet(args, options)
+    if args.scheduler is not None or args.workers is not None:
+        option = "--scheduler" if args.scheduler is not None else "--workers"
+        return fail(f"{option} replays a fleet: give several bags or a directory of bags")
+    report = run_replay(args.bag[0], args.out, progress=not args.no_progress, **options)
+    print(report.summary())
+    return 0
+
+
+def _replay_fleet(args: argparse.Namespace, options: dict[str, Any]) -> int:
+    from tire_estimation.fleet import run_fleet
+
+    def progress(row: dict[str, Any], done: int, total: int) -> None:
+        if args.no_progress:
+            return
+        if row["status"] == "ok":
+            what = f"ok ({row['duration_s']:.0f} s of data in {row['wall_s']:.1f} s)"
+        else:
+            what = f"FAILED: {row['error']}"
+        print(f"[{done}/{total}] {row['bag']}: {what}", flush=True)
+
+    if args.workers is not None and args.workers < 1:
+        return fail(f"--workers={args.workers}: must be >= 1")
+    result = run_fleet(
         args.bag,
         args.out,
-        config_path=args.config,
-        plots=not args.no_plots,
-        progress=not args.no_progress,
-        stiffness=False if args.no_stiffness else None,
-        rank_effects=args.rank_effects,
-        rank_seeds=args.rank_seeds,
-        write_config=args.write_config,
+        options,
+        scheduler=args.scheduler,
+        n_workers=args.workers,
+        progress=progress,
     )
-    print(report.summary())
+    print(f"pooled table: {result.files[1]} ({result.files[0].name})")
+    if result.failed:
+        failed = f"{len(result.failed)} of {len(result.rows)} bags failed"
+        return fail(f"{failed} (see {result.files[1]})")
     return 0
 
 
@@ -191,8 +224,16 @@ def build_parser() -> argparse.ArgumentParser:
     info.add_argument("bag", type=Path)
     info.set_defaults(func=_cmd_info)
 
-    rep = sub.add_parser("replay", help="run the estimators over a bag and write a report")
-    rep.add_argument("bag", type=Path)
+    rep = sub.add_parser(
+        "replay", help="run the estimators over a bag (or a fleet's bags) and write a report"
+    )
+    rep.add_argument(
+        "bag",
+        type=Path,
+        nargs="+",
+        help="a bag; several bags, or a directory of bags, replay a fleet on Dask: a report "
+        "per bag in a subdirectory of --out, and the pooled fleet.csv and fleet.md",
+    )
     rep.add_argument(
         "--out",
         required=True,
@@ -232,6 +273,21 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="do not run the stiffness MPF (and its linear-KF baseline), whatever the "
         "configuration's stiffness_enabled says",
+    )
+    rep.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="ADDRESS",
+        help="fleet: a running Dask scheduler (e.g. tcp://host:8786; connect only to "
+        "schedulers you trust) instead of a local cluster on 127.0.0.1",
+    )
+    rep.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        metavar="N",
+        help="fleet: worker processes of the local cluster (default: one per bag, at most "
+        "one per CPU)",
     )
     rep.set_defaults(func=_cmd_replay)
 

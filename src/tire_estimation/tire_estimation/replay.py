@@ -1,7 +1,8 @@
 """``tire-estimation replay BAG --out DIR``: run the estimators over a bag, write a report.
 
-The bag is decoded once (only the topics used), its streams are fed in header-stamp order to
-the same :class:`~tire_estimation.core.radius.estimator.RadiusEstimator` the node uses, and
+The bag is read, decoded and estimated in one pass, in windows of log time (only the topics
+used; memory does not grow with the drive), its streams are fed in header-stamp order to the
+same :class:`~tire_estimation.core.pipeline.EstimationPipeline` the node uses, and
 ``DIR/metrics.json`` (contract v1) plus PNG plots are written. A run first removes the report
 of an earlier run from ``DIR`` (``metrics.json`` and the plots, :data:`REPORT_FILES`), removes
 what it wrote if it fails, and writes ``metrics.json`` last and atomically: a report in ``DIR``
@@ -14,8 +15,9 @@ import contextlib
 import dataclasses
 import math
 import sys
+import tempfile
 import time
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -25,7 +27,8 @@ import yaml
 
 from tire_estimation.atomic_io import atomic_write_json, atomic_write_text
 from tire_estimation.bag import topics
-from tire_estimation.bag.reader import BagData, TopicInfo, read_bag
+from tire_estimation.bag.reader import TopicInfo
+from tire_estimation.bag.stream import WINDOW_S, BagStream, stream_bag
 from tire_estimation.core import yamlio
 from tire_estimation.core.deflation.config import DeflationDetectorConfig
 from tire_estimation.core.geodesy import LocalTangentPlane
@@ -36,6 +39,7 @@ from tire_estimation.core.pipeline import EstimationPipeline, Observer, Pipeline
 from tire_estimation.core.radius.axle_check import AxleCheck
 from tire_estimation.core.radius.config import RadiusEstimatorConfig
 from tire_estimation.core.stiffness.config import StiffnessEstimatorConfig
+from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.errors import BagError, ConfigError
 from tire_estimation.evaluation import metrics as ev
 from tire_estimation.evaluation.residuals import analyze_trace as analyze_residuals
@@ -48,7 +52,6 @@ from tire_estimation.evaluation.runner import (
     RadiusRecorder,
     RadiusTrace,
     TyreForceRecorder,
-    run_radius,
 )
 from tire_estimation.node_config import EstimatorNodeOptions, periods_of
 from tire_estimation.paths import REPLAY_REPORT_FILES, check_new_path, prepare_out_dir
@@ -57,7 +60,15 @@ from tire_estimation.replay_config import (
     load_config_sections,
     section_config,
 )
-from tire_estimation.sources import bag_samples, sample_count
+from tire_estimation.replay_lateral import (
+    imu_lateral_metrics,
+    lateral_metrics,
+    stiffness_metrics,
+    write_lateral_plots,
+)
+from tire_estimation.replay_streams import ReportBag
+from tire_estimation.sources import bag_samples
+from tire_estimation.spill import CHUNK_ROWS, Spill, Spilled, decimated, drain, plot_index, rows_of
 
 #: what a run writes in its output directory (and removes from it first)
 REPORT_FILES = REPLAY_REPORT_FILES
@@ -247,14 +258,16 @@ def _with_progress(samples: Iterator[Any], update: Any) -> Iterator[Any]:
         yield sample
 
 
-def _truth_radius_error(bag: BagData) -> tuple[np.ndarray, tuple[str, ...], np.ndarray] | None:
-    tr = bag.truth_wheel_radii
-    if tr is None or tr.t_ns.size == 0:
+def _truth_radius_error(
+    bag: ReportBag,
+) -> tuple[np.ndarray, tuple[str, ...], np.ndarray] | None:
+    if bag.truth_wheel_radii is None:
         return None
+    tr = bag.truth_wheel_radii.read()
     return tr.t_ns, tuple(tr.names), tr.values
 
 
-def _reference_origin(bag: BagData) -> tuple[float, float, float] | None:
+def _reference_origin(bag: ReportBag) -> tuple[float, float, float] | None:
     """ENU origin of ``/reference/odometry`` (contract): the metadata key
     ``tire_estimation.reference_origin_lla`` ("lat lon alt") when the bag has it, else the
     bag's first ``/gnss/fix``."""
@@ -271,36 +284,47 @@ def _reference_origin(bag: BagData) -> tuple[float, float, float] | None:
                 "'lat lon alt'"
             ) from exc
         return lat, lon, alt
-    if bag.gnss is not None and bag.gnss.t_ns.size:
-        return float(bag.gnss.lat_deg[0]), float(bag.gnss.lon_deg[0]), float(bag.gnss.alt_m[0])
+    if bag.gnss is not None:
+        first = bag.gnss.read(0, 1)
+        return float(first.lat_deg[0]), float(first.lon_deg[0]), float(first.alt_m[0])
     return None
 
 
+def _by_chunks(t_ns: np.ndarray, values_at: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
+    """``values_at`` over ``t_ns`` (sorted) a chunk of times at a time, joined."""
+    parts = [values_at(t_ns[a : a + CHUNK_ROWS]) for a in range(0, t_ns.size, CHUNK_ROWS)]
+    return np.concatenate(parts)
+
+
 def _reference_positions(
-    bag: BagData, trace_t_ns: np.ndarray, ltp: LocalTangentPlane | None
+    bag: ReportBag, trace_t_ns: np.ndarray, ltp: LocalTangentPlane | None
 ) -> tuple[np.ndarray | None, str]:
     """Truth (or reference) base_link east/north at the trace times in the estimator frame."""
     if ltp is None or trace_t_ns.size == 0:
         return None, "none"
     fix = bag.truth_fix
-    if fix is not None and fix.t_ns.size:
-        e, n, _ = ltp.to_enu(fix.lat_deg, fix.lon_deg, fix.alt_m)
-        en = np.column_stack(
-            [np.interp(trace_t_ns, fix.t_ns, e), np.interp(trace_t_ns, fix.t_ns, n)]
-        )
-        return en, topics.TRUTH_FIX
+    if fix is not None:
+
+        def truth_at(t: np.ndarray) -> np.ndarray:
+            w = fix.window(t[0], t[-1])
+            e, n, _ = ltp.to_enu(w.lat_deg, w.lon_deg, w.alt_m)
+            return np.column_stack([np.interp(t, w.t_ns, e), np.interp(t, w.t_ns, n)])
+
+        return _by_chunks(trace_t_ns, truth_at), topics.TRUTH_FIX
     ref = bag.reference_odometry
     origin = _reference_origin(bag)
-    if ref is not None and ref.t_ns.size and origin is not None:
+    if ref is not None and origin is not None:
         ref_ltp = LocalTangentPlane(*origin)
-        lat, lon, alt = ref_ltp.to_lla(
-            ref.position_m[:, 0], ref.position_m[:, 1], ref.position_m[:, 2]
-        )
-        e, n, _ = ltp.to_enu(lat, lon, alt)
-        en = np.column_stack(
-            [np.interp(trace_t_ns, ref.t_ns, e), np.interp(trace_t_ns, ref.t_ns, n)]
-        )
-        return en, topics.REFERENCE_ODOMETRY
+
+        def reference_at(t: np.ndarray) -> np.ndarray:
+            w = ref.window(t[0], t[-1])
+            lat, lon, alt = ref_ltp.to_lla(
+                w.position_m[:, 0], w.position_m[:, 1], w.position_m[:, 2]
+            )
+            e, n, _ = ltp.to_enu(lat, lon, alt)
+            return np.column_stack([np.interp(t, w.t_ns, e), np.interp(t, w.t_ns, n)])
+
+        return _by_chunks(trace_t_ns, reference_at), topics.REFERENCE_ODOMETRY
     return None, "none"
 
 
@@ -334,8 +358,9 @@ def _clean(obj: Any) -> Any:
 
 def replay_topics(infos: Mapping[str, TopicInfo], run_stiffness: bool) -> tuple[str, ...]:
     """The topics a replay decodes, given the bag's topics: the inputs, the truth and reference
-    it evaluates against, and the truth odometry (75 000 messages in a 25-min simulated bag)
-    only when a lateral estimator will run, the one user of its velocities."""
+    it evaluates against, the truth odometry (75 000 messages in a 25-min simulated bag) only
+    when a lateral estimator will run, the one user of its velocities, and the measured velocity
+    only when the bag has no wheel speeds."""
 
     def present(topic: str) -> bool:
         return topic in infos and infos[topic].count > 0
@@ -346,13 +371,15 @@ def replay_topics(infos: Mapping[str, TopicInfo], run_stiffness: bool) -> tuple[
         and present(topics.STEERING)
         and (present(topics.WHEEL_SPEEDS) or present(topics.VEHICLE_VELOCITY))
     )
+    # the measured velocity is an input only of a vehicle without wheel speeds
+    velocity = () if present(topics.WHEEL_SPEEDS) else (topics.VEHICLE_VELOCITY,)
     return (
         topics.WHEEL_SPEEDS,
         topics.STEERING,
         topics.IMU_DATA,
         topics.GNSS_FIX,
         topics.GNSS_VELOCITY,
-        topics.VEHICLE_VELOCITY,
+        *velocity,
         topics.TRUTH_FIX,
         topics.TRUTH_WHEEL_RADII,
         topics.TRUTH_TIRE_STIFFNESS,
@@ -375,6 +402,7 @@ def run_replay(
     rank_seeds: int = 1,
     observers: Sequence[Observer] = (),
     write_config: Path | None = None,
+    window_s: float = WINDOW_S,
 ) -> ReplayReport:
     """Replay ``bag_path`` through the estimators; write ``out_dir/metrics.json`` + PNGs.
 
@@ -385,6 +413,11 @@ def run_replay(
     beside it as the lateral baseline). A bag that feeds none of them is an error. The
     deflation detector runs on the radius MPF's published radii and odometry, as the detector
     node does (``detector`` section of the configuration).
+
+    The bag is read, decoded and estimated in one pass, ``window_s`` of log time decoded at a
+    time (:mod:`tire_estimation.bag.stream`; ``math.inf``: the whole bag at once); the traces
+    and the reference streams the report needs over the whole drive are kept on disk in a
+    temporary directory, so that memory does not grow with the length of the bag.
 
     ``observers`` see every sample and output of the pipeline (what the node publishes).
 
@@ -398,15 +431,36 @@ def run_replay(
     out = prepare_out_dir(Path(out_dir))
     _remove_report(out)
     try:
-        return _run(
-            bag_path, out, config_path, config, plots, progress, stiffness, rank_effects,
-            rank_seeds, observers, write_config,
-        )  # fmt: skip
+        with tempfile.TemporaryDirectory(prefix="tire_estimation_replay_") as tmp:
+            return _run(
+                bag_path, out, config_path, config, plots, progress, stiffness, rank_effects,
+                rank_seeds, observers, write_config, window_s, Spill(Path(tmp)),
+            )  # fmt: skip
     except BaseException:
         # a failed run leaves no report, not even the plots it had written
         with contextlib.suppress(ConfigError):
             _remove_report(out)
         raise
+
+
+#: the input topics (progress counts their messages)
+_INPUT_TOPICS = (
+    topics.WHEEL_SPEEDS,
+    topics.STEERING,
+    topics.IMU_DATA,
+    topics.GNSS_FIX,
+    topics.GNSS_VELOCITY,
+    topics.TIRE_FORCES_TOPIC,
+    topics.VEHICLE_VELOCITY,
+)
+#: what the radius MPF's re-runs (``--rank-effects``) read
+_RADIUS_TOPICS = (
+    topics.WHEEL_SPEEDS,
+    topics.STEERING,
+    topics.IMU_DATA,
+    topics.GNSS_FIX,
+    topics.GNSS_VELOCITY,
+)
 
 
 def _run(
@@ -421,6 +475,8 @@ def _run(
     rank_seeds: int,
     observers: Sequence[Observer],
     write_config: Path | None,
+    window_s: float,
+    spill: Spill,
 ) -> ReplayReport:
     """:func:`run_replay` once ``out`` is ready and empty of an earlier report."""
     if not isinstance(rank_seeds, int) or isinstance(rank_seeds, bool) or rank_seeds < 1:
@@ -451,28 +507,28 @@ def _run(
     run_stiffness = options.stiffness_enabled if stiffness is None else stiffness
 
     wall0 = time.perf_counter()
-    bag = read_bag(
+    stream = stream_bag(
         bag_path,
         topics=lambda infos: replay_topics(infos, run_stiffness),
+        window_s=window_s,
         joints=options.names,
     )
-    has_wheels = bag.wheel_speeds is not None and bag.wheel_speeds.t_ns.size > 0
-    has_gnss = bag.gnss is not None and bag.gnss.t_ns.size > 0
-    has_speed = has_wheels or (
-        bag.vehicle_velocity is not None and bag.vehicle_velocity.t_ns.size > 0
-    )
-    has_lateral_inputs = (
-        bag.imu is not None
-        and bag.imu.t_ns.size > 0
-        and bag.steering is not None
-        and bag.steering.t_ns.size > 0
-        and has_speed
-    )
-    has_forces = bag.tire_forces is not None and bag.tire_forces.t_ns.size > 0
+    meta = stream.meta
+    t_open = time.perf_counter() - wall0
+
+    def has(topic: str) -> bool:
+        return topic in stream.topics and topic in meta.topics and meta.topics[topic].count > 0
+
+    has_wheels = has(topics.WHEEL_SPEEDS)
+    has_gnss = has(topics.GNSS_FIX)
+    has_speed = has_wheels or has(topics.VEHICLE_VELOCITY)
+    has_lateral_inputs = has(topics.IMU_DATA) and has(topics.STEERING) and has_speed
+    has_forces = has(topics.TIRE_FORCES_TOPIC)
     # a bag with wheel speeds is a radius bag: it needs its GNSS. Without wheel speeds (a
     # measured-velocity export such as the Revs data) only the lateral estimators run.
+    no_gnss = f"{bag_path}: no usable GNSS fix on {topics.GNSS_FIX}"
     if has_wheels and not has_gnss:
-        raise BagError(f"{bag_path}: no usable GNSS fix on {topics.GNSS_FIX}")
+        raise BagError(no_gnss)
     if not has_wheels and not ((run_stiffness and has_lateral_inputs) or has_forces):
         need = [topics.WHEEL_SPEEDS, topics.GNSS_FIX]
         if run_stiffness:
@@ -482,7 +538,6 @@ def _run(
             f"{topics.WHEEL_SPEEDS} and {topics.GNSS_FIX}; the stiffness MPF alone needs "
             f"{topics.IMU_DATA}, {topics.STEERING} and {topics.VEHICLE_VELOCITY})"
         )
-    t_read = time.perf_counter()
 
     run_radius_mpf = has_wheels and has_gnss
     run_stiffness_mpf = run_stiffness and has_lateral_inputs
@@ -497,10 +552,10 @@ def _run(
     )
     baselines: dict[str, Any] = {}
     if run_stiffness_mpf:
-        baselines["linear_kf"] = LinearLateralKF(lin_cfg, bag.vehicle)
+        baselines["linear_kf"] = LinearLateralKF(lin_cfg, meta.vehicle)
     # the node's outputs are made only for observers that want them (the detector is fed the
     # same values either way)
-    pipeline = EstimationPipeline(pipe_cfg, bag.vehicle, baselines, outputs=bool(observers))
+    pipeline = EstimationPipeline(pipe_cfg, meta.vehicle, baselines, outputs=bool(observers))
     radius_rec, force_rec, detect_rec = RadiusRecorder(), TyreForceRecorder(), DeflationRecorder()
     imu_recs: dict[str, ImuLateralRecorder] = {}
     if pipeline.stiffness is not None:
@@ -509,25 +564,62 @@ def _run(
         imu_recs[name] = ImuLateralRecorder(est)
     pipeline.observers.extend([radius_rec, force_rec, detect_rec, *imu_recs.values()])
     pipeline.observers.extend(observers)
-    total = sample_count(
-        bag.wheel_speeds, bag.steering, bag.imu, bag.gnss, bag.gnss_velocity, bag.tire_forces
-    )
+
+    # what the report needs over the whole drive goes to disk block by block
+    bag = ReportBag(meta, spill)
+    held: list[tuple[Any, str, tuple[str, ...]]] = [
+        (radius_rec.trace, spill.prefix("radius"), ()),
+        (force_rec.trace, spill.prefix("tyre_force"), ()),
+        (detect_rec, spill.prefix("detection"), ("alarms",)),
+        *((rec.trace, spill.prefix(name), ()) for name, rec in imu_recs.items()),
+    ]
+
+    def drain_all() -> None:
+        for obj, prefix, keep in held:
+            drain(obj, spill, prefix, keep)
+
+    def samples() -> Iterator[Any]:
+        for block in stream.blocks():
+            bag.add(block)
+            drain_all()
+            yield from bag_samples(block)
+
+    total = sum(meta.topics[t].count for t in _INPUT_TOPICS if has(t))
     update = _progress_printer(total, progress)
-    samples = bag_samples(bag)
-    if update is not None:
-        samples = _with_progress(samples, update)
-    pipeline.push_ordered(samples)
+    fed = samples() if update is None else _with_progress(samples(), update)
+    pipeline.push_ordered(fed)
+    radius_rec.flush(pipeline)
+    drain_all()
     t_est = time.perf_counter()
+    t_read = t_open + stream.read_s
+    if run_radius_mpf and not pipeline.received["gnss_fix"]:
+        raise BagError(no_gnss)  # every fix refused by the input checks
+    bag.meta = dataclasses.replace(meta, dropped=stream.dropped, notes=stream.notes)
+    radius_rec.trace = Spilled(radius_rec.trace, spill, held[0][1])  # type: ignore[assignment]
+    force_rec.trace = Spilled(force_rec.trace, spill, held[1][1])  # type: ignore[assignment]
+    detection_view = Spilled(detect_rec, spill, held[2][1])
+    for rec, (_, prefix, _) in zip(imu_recs.values(), held[3:], strict=True):
+        rec.trace = Spilled(rec.trace, spill, prefix)  # type: ignore[assignment]
     trace = radius_rec.finish(pipeline)
     lateral = force_rec.finish(pipeline) if pipeline.tyre_force is not None else None
-    imu_lateral = {name: rec.finish(t_est - t_read) for name, rec in imu_recs.items()}
-    detection = _detection_metrics(bag, pipeline, detect_rec)
+    estimate_s = t_est - wall0 - t_read
+    imu_lateral = {name: rec.finish(estimate_s) for name, rec in imu_recs.items()}
+    detection = _detection_metrics(bag, pipeline, detection_view)
+
+    def rerun(config: RadiusEstimatorConfig) -> RadiusTrace:
+        radius_stream = stream_bag(
+            bag_path, topics=[t for t in _RADIUS_TOPICS if t in stream.topics], window_s=window_s
+        )
+        return _radius_run(config, meta.vehicle, radius_stream, spill)
+
     residual_report = None
     closed_loop = None
-    if rank_effects and trace.innov_t_ns:
-        residual_report = _assess_effects(bag, cfg, trace, rank_seeds)
+    if rank_effects and len(trace.innov_t_ns):
+        residual_report = _assess_effects(cfg, trace, rerun, rank_seeds)
         if write_config is not None:
-            closed_loop = _close_loop(bag, cfg, trace, residual_report, rank_seeds, write_config)
+            closed_loop = _close_loop(
+                bag, cfg, trace, residual_report, rank_seeds, write_config, rerun
+            )
     t_run = time.perf_counter()
     metrics = build_metrics(
         bag, trace, cfg, lateral, imu_lateral, residual_report, detection, pipeline.axles
@@ -535,11 +627,11 @@ def _run(
     if closed_loop is not None:
         metrics["closed_loop"] = closed_loop
     metrics["wall_s"] = time.perf_counter() - wall0
-    metrics["timing_s"] = {"read": t_read - wall0, "estimate": t_run - t_read}
+    metrics["timing_s"] = {"read": t_read, "estimate": t_run - wall0 - t_read}
     metrics["realtime_factor"] = metrics["duration_s"] / max(metrics["wall_s"], 1e-9)
     if plots:
         write_plots(out, bag, trace)
-        write_detection_plot(out, bag, detect_rec, det_cfg)
+        write_detection_plot(out, bag, detection_view, det_cfg)
         if "stiffness_mpf" in imu_lateral:
             write_lateral_plots(out, bag, imu_lateral)
     metrics["plots"] = sorted(p.name for p in out.glob("*.png")) if plots else []
@@ -547,8 +639,31 @@ def _run(
     return ReplayReport(out, _clean(metrics))
 
 
+def _radius_run(
+    config: RadiusEstimatorConfig, vehicle: VehicleParams, stream: BagStream, spill: Spill
+) -> RadiusTrace:
+    """The radius MPF alone (seed ``config.seed``) over the bag of ``stream``: its trace,
+    kept on disk as the replay's."""
+    recorder = RadiusRecorder()
+    pipeline = EstimationPipeline(
+        PipelineConfig(seed=config.seed, radius=config), vehicle, observers=[recorder]
+    )
+    prefix = spill.prefix("rerun")
+
+    def samples() -> Iterator[Any]:
+        for block in stream.blocks():
+            drain(recorder.trace, spill, prefix)
+            yield from bag_samples(block, radius_only=True)
+
+    pipeline.push_ordered(samples())
+    recorder.flush(pipeline)
+    drain(recorder.trace, spill, prefix)
+    recorder.trace = Spilled(recorder.trace, spill, prefix)  # type: ignore[assignment]
+    return recorder.finish(pipeline)
+
+
 def _detection_metrics(
-    bag: BagData, pipeline: EstimationPipeline, rec: DeflationRecorder
+    bag: ReportBag, pipeline: EstimationPipeline, rec: DeflationRecorder | Spilled
 ) -> dict[str, Any] | None:
     """What the deflation detector did: its alarms, whether each wheel's calibration
     completed, and the largest CUSUM statistic over its threshold (None: it did not run)."""
@@ -559,7 +674,7 @@ def _detection_metrics(
     cfg = monitor.detector.config
     wheels: dict[str, Any] = {}
     ratio = np.full(len(rec.wheel_names), np.nan)
-    if rec.t_ns:
+    if len(rec.t_ns):
         with np.errstate(invalid="ignore", divide="ignore"):
             r = np.asarray(rec.cusum_m) / np.asarray(rec.threshold_m)
         calibrated = np.asarray(rec.calibration_state) == 2
@@ -606,21 +721,23 @@ def _detection_metrics(
 
 
 def write_detection_plot(
-    out: Path, bag: BagData, rec: DeflationRecorder, cfg: DeflationDetectorConfig
+    out: Path, bag: ReportBag, rec: DeflationRecorder | Spilled, cfg: DeflationDetectorConfig
 ) -> None:
     """detection.png: the CUSUM statistic per wheel against its threshold."""
     from tire_estimation.evaluation import plots
 
-    if not rec.t_ns:
+    t_ns = np.asarray(rec.t_ns)
+    if not t_ns.size:
         return
-    t_s = (np.asarray(rec.t_ns) - bag.start_ns) * 1e-9
+    shown = plot_index(t_ns.size)
+    t_s = (t_ns[shown] - bag.start_ns) * 1e-9
     done = rec.calibration_done_t_ns
     plots.plot_detection(
         out / "detection.png",
         t_s,
         rec.wheel_names,
-        np.asarray(rec.cusum_m, dtype=float),
-        np.asarray(rec.threshold_m, dtype=float),
+        np.asarray(rec.cusum_m, dtype=float)[shown],
+        np.asarray(rec.threshold_m, dtype=float)[shown],
         None if done is None else (done - bag.start_ns) * 1e-9,
         [(w, (t - bag.start_ns) * 1e-9) for w, t in rec.alarms],
         [(e.t_s, e.kind) for e in bag.events],
@@ -628,7 +745,7 @@ def write_detection_plot(
 
 
 def build_metrics(
-    bag: BagData,
+    bag: ReportBag,
     trace: RadiusTrace,
     cfg: RadiusEstimatorConfig,
     lateral: LateralTrace | None = None,
@@ -707,9 +824,9 @@ def build_metrics(
     residual_report["why"] = explain_residuals(residual_report)
     by_source: dict[str, Any] = {}
     if lateral is not None:
-        by_source["tyre_force_kf"] = _lateral_metrics(bag, lateral)
+        by_source["tyre_force_kf"] = lateral_metrics(bag, lateral)
     for name, imu_trace in imu_lateral.items():
-        by_source[name] = _imu_lateral_metrics(bag, name, imu_trace)
+        by_source[name] = imu_lateral_metrics(bag, name, imu_trace)
     primary = by_source.get("tyre_force_kf") or by_source.get("stiffness_mpf")
     stiff = imu_lateral.get("stiffness_mpf")
     return {
@@ -722,7 +839,7 @@ def build_metrics(
         "position": {"rmse_m": pos_rmse, "against": against},
         "detection": detection
         or {"ran": False, "armed": False, "alarms": [], "note": "the radius MPF did not run"},
-        "stiffness": _stiffness_metrics(bag, stiff) if stiff is not None else None,
+        "stiffness": stiffness_metrics(bag, stiff) if stiff is not None else None,
         "lateral": primary,
         "lateral_by_source": by_source or None,
         "residuals": residual_report,
@@ -738,38 +855,11 @@ def build_metrics(
     }
 
 
-def _lateral_metrics(bag: BagData, lateral: LateralTrace | None) -> dict[str, Any] | None:
-    if lateral is None:
-        return None
-    arr = lateral.arrays()
-    ref = bag.truth_odometry if bag.truth_odometry is not None else bag.reference_odometry
-    out: dict[str, Any] = {"source": "tyre_force_kf", "dropped_samples": lateral.dropped}
-    if ref is None:
-        out.update({"vy_rmse_m_s": None, "sideslip_rmse_deg": None, "yaw_rate_rmse_deg_s": None})
-        return out
-    out["against"] = (
-        topics.TRUTH_ODOMETRY if bag.truth_odometry is not None else topics.REFERENCE_ODOMETRY
-    )
-    out.update(
-        ev.lateral_metrics(
-            arr["t_ns"],
-            arr["vy_m_s"],
-            arr["yaw_rate_rad_s"],
-            arr["sideslip_rad"],
-            arr["relay"],
-            ref.t_ns,
-            ref.linear_velocity_m_s,
-            ref.angular_velocity_rad_s[:, 2],
-        )
-    )
-    return out
-
-
 #: at most this many effects are added to the model by ``--write-config``
 MAX_CLOSED_LOOP_EFFECTS = 3
 
 
-def _fit_summary(bag: BagData, trace: RadiusTrace, report: dict[str, Any]) -> dict[str, Any]:
+def _fit_summary(bag: ReportBag, trace: RadiusTrace, report: dict[str, Any]) -> dict[str, Any]:
     """What a run of the radius MPF says: final radii, position RMSE, consistency, fit."""
     from tire_estimation.evaluation.residuals import neg_log_likelihood
 
@@ -794,12 +884,13 @@ def _fit_summary(bag: BagData, trace: RadiusTrace, report: dict[str, Any]) -> di
 
 
 def _close_loop(
-    bag: BagData,
+    bag: ReportBag,
     cfg: RadiusEstimatorConfig,
     trace: RadiusTrace,
     report: dict[str, Any],
     n_seeds: int,
     path: Path,
+    rerun: Callable[[RadiusEstimatorConfig], RadiusTrace],
 ) -> dict[str, Any]:
     """Add the most significant effect to the model at its profile estimate, rank the rest
     again against that model, and repeat (at most :data:`MAX_CLOSED_LOOP_EFFECTS`, while an
@@ -838,8 +929,8 @@ def _close_loop(
             {**{k: top[k] for k in ("effect", "score", "estimate", "unit")}, "field": field}
         )
         cfg_k = RadiusEstimatorConfig.from_dict({**cfg_k.to_dict(), field: top["estimate"]})
-        trace_k = run_radius(cfg_k, bag.vehicle, bag_samples(bag, radius_only=True))
-        report_k = _assess_effects(bag, cfg_k, trace_k, n_seeds)
+        trace_k = rerun(cfg_k)
+        report_k = _assess_effects(cfg_k, trace_k, rerun, n_seeds)
     # the whole radius section that differs from the defaults (the run's own settings and the
     # added effects), so that --config FILE alone reproduces the "after" run
     defaults = RadiusEstimatorConfig().to_dict()
@@ -868,21 +959,23 @@ def _close_loop(
 
 
 def _assess_effects(
-    bag: BagData, cfg: RadiusEstimatorConfig, trace: RadiusTrace, n_seeds: int = 1
+    cfg: RadiusEstimatorConfig,
+    trace: RadiusTrace,
+    run_config: Callable[[RadiusEstimatorConfig], RadiusTrace],
+    n_seeds: int = 1,
 ) -> dict[str, Any]:
     """Residual analysis with the profile-likelihood ranking of the switchable effects.
 
-    The base model and every re-run use the ``n_seeds`` filter seeds from ``cfg.seed`` on
-    (``trace`` is the base run of ``cfg.seed``); the profile is their mean NLL.
+    The base model and every re-run (``run_config``: the radius MPF alone over the bag) use
+    the ``n_seeds`` filter seeds from ``cfg.seed`` on (``trace`` is the base run of
+    ``cfg.seed``); the profile is their mean NLL.
     """
     from tire_estimation.evaluation import residuals
 
-    assert bag.wheel_speeds is not None and bag.gnss is not None
     seeds = [cfg.seed + k for k in range(n_seeds)]
 
     def run(values: dict[str, Any], seed: int) -> RadiusTrace:
-        config = RadiusEstimatorConfig.from_dict({**values, "seed": seed})
-        return run_radius(config, bag.vehicle, bag_samples(bag, radius_only=True))
+        return run_config(RadiusEstimatorConfig.from_dict({**values, "seed": seed}))
 
     def rerun(effect: str, value: float) -> list[RadiusTrace]:
         values = {**cfg.to_dict(), **residuals.effect_overrides(effect, value)}
@@ -890,7 +983,7 @@ def _assess_effects(
 
     base = [trace] + [run(cfg.to_dict(), seed) for seed in seeds[1:]]
     grids = dict(residuals.DEFAULT_GRIDS)
-    if not trace.vel_t_ns:
+    if not len(trace.vel_t_ns):
         # the velocity latency is a candidate only when the run used the GNSS velocity
         grids.pop("gnss_velocity_latency")
     # the value each candidate has in the configured model (its grid point of the base runs)
@@ -900,163 +993,16 @@ def _assess_effects(
     return report
 
 
-def _imu_lateral_reference(
-    bag: BagData, t_ns: np.ndarray
-) -> tuple[dict[str, np.ndarray], str, str] | None:
-    """Reference at ``t_ns``: (``vx``, ``vy``, ``r`` arrays, topic, point) or None.
-
-    ``/reference/lateral_state`` gives the CG (point ``cg``); truth or reference odometry gives
-    ``base_link`` (the rear-axle centre).
-    """
-    lat = bag.reference_lateral
-    if lat is not None and lat.t_ns.size:
-        col = {n: i for i, n in enumerate(lat.names)}
-        ref = {
-            key: np.interp(t_ns, lat.t_ns, lat.values[:, col[name]])
-            for key, name in (("vx", "vx_cg"), ("vy", "vy_cg"), ("r", "yaw_rate"))
-        }
-        return ref, topics.REFERENCE_LATERAL_STATE, "cg"
-    odo, topic = bag.truth_odometry, topics.TRUTH_ODOMETRY
-    if odo is None:
-        odo, topic = bag.reference_odometry, topics.REFERENCE_ODOMETRY
-    if odo is None or odo.t_ns.size == 0:
-        return None
-    ref = {
-        "vx": np.interp(t_ns, odo.t_ns, odo.linear_velocity_m_s[:, 0]),
-        "vy": np.interp(t_ns, odo.t_ns, odo.linear_velocity_m_s[:, 1]),
-        "r": np.interp(t_ns, odo.t_ns, odo.angular_velocity_rad_s[:, 2]),
-    }
-    return ref, topic, "base_link"
-
-
-def _imu_lateral_metrics(bag: BagData, name: str, trace: ImuLateralTrace) -> dict[str, Any]:
-    """RMSE of vy, sideslip and yaw rate of an IMU-driven lateral estimator vs the reference.
-
-    The estimators estimate the CG's velocity; against a base_link reference it is moved to
-    the rear axle (``vy - lr r``, rigid body). Every recorded sample is scored.
-    """
-    arr = trace.arrays()
-    out: dict[str, Any] = {
-        "source": name,
-        "dropped_samples": trace.dropped,
-        "steps": trace.steps,
-        "vy_rmse_m_s": None,
-        "sideslip_rmse_deg": None,
-        "yaw_rate_rmse_deg_s": None,
-    }
-    t = arr["t_ns"]
-    found = _imu_lateral_reference(bag, t) if t.size else None
-    if found is None:
-        return out
-    ref, topic, point = found
-    vx, vy, r = arr["vx_m_s"], arr["vy_m_s"], arr["yaw_rate_rad_s"]
-    if point == "base_link":
-        vy = vy - bag.vehicle.lr_m * r
-    e_vy = vy - ref["vy"]
-    e_beta = np.degrees(
-        np.arctan2(vy, np.maximum(vx, 0.1)) - np.arctan2(ref["vy"], np.maximum(ref["vx"], 0.1))
-    )
-    e_r = np.degrees(r - ref["r"])
-    out.update(
-        {
-            "against": topic,
-            "point": point,
-            "vy_rmse_m_s": float(np.sqrt(np.mean(e_vy**2))),
-            "sideslip_rmse_deg": float(np.sqrt(np.mean(e_beta**2))),
-            "yaw_rate_rmse_deg_s": float(np.sqrt(np.mean(e_r**2))),
-            "sideslip_max_abs_error_deg": float(np.max(np.abs(e_beta))),
-            "samples": int(t.size),
-        }
-    )
-    return out
-
-
-def _stiffness_metrics(bag: BagData, trace: ImuLateralTrace) -> dict[str, Any]:
-    """Final stiffness per name (and std, nominal), learning fraction, relative RMSE vs
-    ``/truth/tire_stiffness`` over the second half of the run (when the bag has it)."""
-    arr = trace.arrays()
-    names = trace.stiffness_names
-    out: dict[str, Any] = {
-        "source": "stiffness_mpf",
-        "final": None,
-        "rel_rmse_vs_truth": None,
-        "dropped_samples": trace.dropped,
-    }
-    if not names or arr["stiffness"].shape[0] == 0:
-        return out
-    c = arr["stiffness"]
-    out["final"] = dict(zip(names, c[-1].tolist(), strict=True))
-    out["final_std"] = dict(zip(names, arr["stiffness_std"][-1].tolist(), strict=True))
-    if trace.nominal is not None:
-        out["nominal"] = dict(zip(names, trace.nominal.tolist(), strict=True))
-    out["learning_active_fraction"] = float(np.mean(arr["active"]))
-    out["final_gyro_bias_rad_s"] = float(arr["gyro_bias_rad_s"][-1])
-    # truth-free fit of the configuration to the measured IMU data (model selection)
-    out["mean_log_predictive"] = trace.mean_log_predictive
-    truth = bag.truth_stiffness
-    if truth is not None and truth.t_ns.size:
-        t = arr["t_ns"]
-        half = t >= t[0] + (t[-1] - t[0]) // 2
-        rel: dict[str, float] = {}
-        for j, n in enumerate(names):
-            if n not in truth.names:
-                continue
-            true_c = np.interp(t[half], truth.t_ns, truth.values[:, truth.names.index(n)])
-            rel[n] = float(np.sqrt(np.mean((c[half, j] / true_c - 1.0) ** 2)))
-        out["rel_rmse_vs_truth"] = rel
-        out["rel_rmse_window"] = "second half of the run"
-    return out
-
-
-def write_lateral_plots(out: Path, bag: BagData, traces: dict[str, ImuLateralTrace]) -> None:
-    """lateral_state.png (sideslip and yaw rate of each estimator against the reference) and
-    stiffness.png (learned stiffness with its std band)."""
+def write_plots(out: Path, bag: ReportBag, trace: RadiusTrace) -> None:
+    """radius_errors.png, trajectory.png, innovations.png in ``out`` (series of more than
+    :data:`~tire_estimation.spill.PLOT_POINTS` points shown every k-th)."""
     from tire_estimation.evaluation import plots
 
-    series = {}
-    for name, trace in traces.items():
-        arr = trace.arrays()
-        if arr["t_ns"].size:
-            series[name] = arr
-    if not series:
-        return
-    ref = None
-    any_t = next(iter(series.values()))["t_ns"]
-    found = _imu_lateral_reference(bag, any_t)
-    if found is not None:
-        ref_vals, topic, point = found
-        vy = ref_vals["vy"]
-        ref = (
-            (any_t - bag.start_ns) * 1e-9,
-            np.arctan2(vy, np.maximum(ref_vals["vx"], 0.1)),
-            ref_vals["r"],
-            f"{topic} ({point})",
-            point,
-        )
-    plots.plot_lateral_state(
-        out / "lateral_state.png", bag.start_ns, bag.vehicle.lr_m, series, ref
-    )
-    stiff = traces.get("stiffness_mpf")
-    if stiff is not None and stiff.stiffness:
-        arr = stiff.arrays()
-        truth = bag.truth_stiffness
-        plots.plot_stiffness(
-            out / "stiffness.png",
-            (arr["t_ns"] - bag.start_ns) * 1e-9,
-            stiff.stiffness_names,
-            arr["stiffness"],
-            arr["stiffness_std"],
-            None
-            if truth is None or truth.t_ns.size == 0
-            else ((truth.t_ns - bag.start_ns) * 1e-9, tuple(truth.names), truth.values),
-        )
-
-
-def write_plots(out: Path, bag: BagData, trace: RadiusTrace) -> None:
-    """radius_errors.png, trajectory.png, innovations.png in ``out``."""
-    from tire_estimation.evaluation import plots
-
-    arr = trace.arrays()
+    keys = ["t_ns", "radius_error_m", "radius_error_std_m", "pose"]
+    with_baseline = rows_of(trace, "baseline_radius_error_m") == rows_of(trace, "t_ns")
+    if with_baseline:
+        keys.append("baseline_radius_error_m")
+    arr = decimated(trace, keys)
     t_s = (arr["t_ns"] - bag.start_ns) * 1e-9
     nominal = bag.vehicle.nominal_tire_radius_m
     truth = _truth_radius_error(bag)
@@ -1072,12 +1018,13 @@ def write_plots(out: Path, bag: BagData, trace: RadiusTrace) -> None:
             arr["radius_error_m"],
             arr["radius_error_std_m"],
             truth_plot,
-            arr["baseline_radius_error_m"] if arr["baseline_radius_error_m"].size else None,
+            arr["baseline_radius_error_m"] if with_baseline and t_s.size else None,
             events,
         )
     ltp = LocalTangentPlane(*trace.origin_lla) if trace.origin_lla is not None else None
     if ltp is not None and bag.gnss is not None:
-        e, n, _ = ltp.to_enu(bag.gnss.lat_deg, bag.gnss.lon_deg, bag.gnss.alt_m)
+        fixes = bag.gnss.decimated()
+        e, n, _ = ltp.to_enu(fixes.lat_deg, fixes.lon_deg, fixes.alt_m)
         # the truth or the bag's reference at the estimate's times (as the position RMSE)
         ref_en, against = _reference_positions(bag, arr["t_ns"], ltp)
         plots.plot_trajectory(
@@ -1088,12 +1035,13 @@ def write_plots(out: Path, bag: BagData, trace: RadiusTrace) -> None:
             t_s=(arr["t_ns"] - bag.start_ns) * 1e-9,
             reference_label=against,
         )
-    if arr["innov_t_ns"].size:
+    innov = decimated(trace, ["innov_t_ns", "innov_m", "innov_cov_m2", "nis", "accepted"])
+    if innov["innov_t_ns"].size:
         plots.plot_innovations(
             out / "innovations.png",
-            (arr["innov_t_ns"] - bag.start_ns) * 1e-9,
-            arr["innov_m"],
-            arr["innov_cov_m2"],
-            arr["nis"],
-            arr["accepted"],
+            (innov["innov_t_ns"] - bag.start_ns) * 1e-9,
+            innov["innov_m"],
+            innov["innov_cov_m2"],
+            innov["nis"],
+            innov["accepted"],
         )

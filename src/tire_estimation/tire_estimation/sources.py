@@ -2,7 +2,9 @@
 
 The bag reader and the simulator produce whole-stream arrays (:mod:`tire_estimation.sim.streams`,
 checked as a whole there; the bag reader drops and counts the input messages the node's checks
-refuse, :attr:`~tire_estimation.bag.reader.BagData.dropped`); these functions turn them into the
+refuse, :attr:`~tire_estimation.bag.reader.BagData.dropped`), or blocks of them in stamp order
+(:mod:`tire_estimation.bag.stream`: the samples of the blocks one after the other are those of
+the whole bag); these functions turn them into the
 typed samples of :mod:`tire_estimation.core.samples`, merged in the pipeline's ``(stamp,
 priority)`` order, so that the replay and the campaigns feed
 :class:`~tire_estimation.core.pipeline.EstimationPipeline` the way the node does.

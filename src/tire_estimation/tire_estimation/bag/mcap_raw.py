@@ -17,15 +17,20 @@ index entry covers (Schema and Channel records) are walked record by record; oth
 chunk is walked (about 1 µs per message). Messages of a topic that all have one length are
 returned as one ``(M, length)`` uint8 array (:attr:`RawMessages.rows`), which
 :func:`tire_estimation.bag.cdr.decode` takes without copying each message.
+
+The file is read one record at a time: :func:`iter_mcap` hands over the messages chunk by chunk
+(memory: one chunk), :func:`read_mcap` joins them.
 """
 
 from __future__ import annotations
 
+import os
 import struct
 import sys
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import BinaryIO
 
 import numpy as np
 from lz4.frame import decompress as lz4_decompress  # type: ignore[import-untyped]
@@ -195,8 +200,9 @@ class _Scanner:
                 self.parts[self.wanted[cid]].append(_part(self.buffer, starts, lengths, logs))
         self.loose = {}
 
-    def records(self, buf: bytes, start: int, end: int, top: bool) -> None:
-        """Walk the records of ``buf[start:end]`` (top level or a decompressed chunk)."""
+    def records(self, buf: bytes, start: int, end: int) -> None:
+        """Walk the records of ``buf[start:end]`` (top-level records other than chunks, or the
+        content of a chunk); ``buf`` is :attr:`buffer`, where the messages found are read."""
         pos = start
         rec_unpack = _REC.unpack_from
         msg_unpack = _REC_MSG.unpack_from
@@ -223,47 +229,32 @@ class _Scanner:
                 raise McapFormatError("record exceeds the data")
             if op == OP_MESSAGE:
                 raise McapFormatError("truncated message record")
-            elif op == OP_CHUNK and top:
-                nxt = self._chunk(buf, body, nxt, end)
             elif op == OP_SCHEMA:
                 self._schema(buf, body)
             elif op == OP_CHANNEL:
                 self._channel(buf, body)
-            elif op == OP_DATA_END and top:
-                return
             pos = nxt
-        if top:
-            raise McapFormatError("no DataEnd record (file truncated?)")
 
-    def _chunk(self, buf: bytes, body: int, nxt: int, end: int) -> int:
-        """Read the chunk whose content starts at ``body`` and the MessageIndex records after
-        it; returns the position after those records."""
-        _, _, size, _ = _CHUNK_HEAD.unpack_from(buf, body)
-        compression, p = _string(buf, body + 28)
-        (clen,) = _U64.unpack_from(buf, p)
+    def walk(self, buf: bytes) -> None:
+        """Read a run of top-level records other than chunks."""
+        self.buffer = buf
+        self.records(buf, 0, len(buf))
+        self._flush()
+
+    def chunk(self, content: bytes, index: list[tuple[int, bytes]]) -> None:
+        """Read a Chunk record's content with the MessageIndex records that followed it
+        (``(channel id, entries)``)."""
+        _, _, size, _ = _CHUNK_HEAD.unpack_from(content, 0)
+        compression, p = _string(content, 28)
+        (clen,) = _U64.unpack_from(content, p)
         p += 8
-        if p + clen > nxt:
+        if p + clen > len(content):
             raise McapFormatError("chunk data exceeds its record")
-        inner = _decompress(compression, buf[p : p + clen], size)
-        index: list[tuple[int, bytes]] = []
-        pos = nxt
-        while pos + 9 <= end and buf[pos] == OP_MESSAGE_INDEX:
-            (length,) = _U64.unpack_from(buf, pos + 1)
-            if pos + 9 + length > end or length < 6:
-                raise McapFormatError("message index record exceeds the data")
-            (cid,) = _U16.unpack_from(buf, pos + 9)
-            (n,) = _U32.unpack_from(buf, pos + 11)
-            if 6 + n > length or n % 16:
-                raise McapFormatError("malformed message index record")
-            index.append((cid, buf[pos + 15 : pos + 15 + n]))
-            pos += 9 + length
-        self._flush()  # messages walked so far belong to the enclosing buffer
+        inner = _decompress(compression, content[p : p + clen], size)
         self.buffer = inner
         if not (index and self._indexed(inner, index)):
-            self.records(inner, 0, len(inner), top=False)
+            self.records(inner, 0, len(inner))
             self._flush()
-        self.buffer = buf  # back in the enclosing (top-level) buffer
-        return pos
 
     def _indexed(self, inner: bytes, index: list[tuple[int, bytes]]) -> bool:
         """Locate the chunk's messages from its MessageIndex records; walk only the bytes
@@ -301,7 +292,7 @@ class _Scanner:
         gap_end = np.concatenate([s_sorted, [size]])
         for a, b in zip(gap_start.tolist(), gap_end.tolist(), strict=True):
             if b > a:
-                self.records(inner, a, b, top=False)
+                self.records(inner, a, b)
         extra: dict[int, tuple[I64, I64, I64]] = {}
         for cid in np.unique(cids).tolist():
             if cid in self.wanted:
@@ -314,14 +305,17 @@ class _Scanner:
         self._flush(extra)
         return True
 
-    def result(self) -> dict[str, RawMessages]:
-        """The messages per wanted topic present in the file."""
+    def take(self, empty: bool = False) -> dict[str, RawMessages]:
+        """The messages found since the last call, per wanted topic; topics without any are
+        left out, or (``empty``) given with none when the file has their channel."""
         self._flush()
         out: dict[str, RawMessages] = {}
         for topic, parts in self.parts.items():
-            name, encoding, text = self.msgtypes[topic]
-            out[topic] = assemble(name, parts)
-            out[topic].schema = (encoding, text)
+            if parts or empty:
+                name, encoding, text = self.msgtypes[topic]
+                out[topic] = assemble(name, parts)
+                out[topic].schema = (encoding, text)
+            self.parts[topic] = []
         return out
 
 
@@ -340,6 +334,94 @@ def assemble(msgtype: str, parts: Sequence[_Part | RawMessages]) -> RawMessages:
     return RawMessages(msgtype, log_ns, data=data)
 
 
+#: top-level records other than chunks are read in runs of about this many bytes
+LOOSE_BYTES = 4 << 20
+
+
+def _check_magic(f: BinaryIO, path: Path) -> int:
+    """Check both magic strings; return where the data section ends (the closing magic)."""
+    size = os.fstat(f.fileno()).st_size
+    head = f.read(len(MAGIC))
+    f.seek(max(size - len(MAGIC), 0))
+    tail = f.read(len(MAGIC))
+    if size < 2 * len(MAGIC) or head != MAGIC or tail != MAGIC:
+        raise McapFormatError(f"{path} is not a complete MCAP file (magic bytes missing)")
+    f.seek(len(MAGIC))
+    return size - len(MAGIC)
+
+
+def _read(f: BinaryIO, n: int) -> bytes:
+    data = f.read(n)
+    if len(data) != n:
+        raise McapFormatError("file ends inside a record")
+    return data
+
+
+def _message_index(f: BinaryIO, end: int) -> list[tuple[int, bytes]]:
+    """The MessageIndex records at the file position (those after a chunk), read."""
+    index: list[tuple[int, bytes]] = []
+    while f.tell() + 9 <= end:
+        pos = f.tell()
+        op, length = _REC.unpack(_read(f, 9))
+        if op != OP_MESSAGE_INDEX:
+            f.seek(pos)
+            break
+        if pos + 9 + length > end or length < 6:
+            raise McapFormatError("message index record exceeds the data")
+        body = _read(f, length)
+        (cid,) = _U16.unpack_from(body, 0)
+        (n,) = _U32.unpack_from(body, 2)
+        if 6 + n > length or n % 16:
+            raise McapFormatError("malformed message index record")
+        index.append((cid, body[6 : 6 + n]))
+    return index
+
+
+def iter_mcap(path: Path, topics: Iterable[str]) -> Iterator[dict[str, RawMessages]]:
+    """Serialized messages of ``topics`` in the MCAP file ``path``, one dict per chunk (or run
+    of top-level records) in file order, holding the topics with messages there; the last dict
+    also names, with no messages, the wanted topics the file has a channel for. Memory: one
+    chunk.
+
+    Raises:
+        McapFormatError: not MCAP, truncated, or malformed.
+        OSError: the file cannot be read.
+    """
+    scanner = _Scanner(set(topics))
+    try:
+        with path.open("rb") as f:
+            end = _check_magic(f, path)
+            loose = bytearray()
+            while True:
+                pos = f.tell()
+                if pos + 9 > end:
+                    raise McapFormatError("no DataEnd record (file truncated?)")
+                head = _read(f, 9)
+                op, length = _REC.unpack(head)
+                if pos + 9 + length > end:
+                    raise McapFormatError("record exceeds the data")
+                if loose and (op in (OP_DATA_END, OP_CHUNK) or len(loose) >= LOOSE_BYTES):
+                    scanner.walk(bytes(loose))
+                    loose.clear()
+                    found = scanner.take()
+                    if found:
+                        yield found
+                if op == OP_DATA_END:
+                    break
+                body = _read(f, length)
+                if op == OP_CHUNK:
+                    scanner.chunk(body, _message_index(f, end))
+                    found = scanner.take()
+                    if found:
+                        yield found
+                else:
+                    loose += head
+                    loose += body
+            yield scanner.take(empty=True)
+    except (struct.error, UnicodeDecodeError, zstd.ZstdError, RuntimeError) as exc:
+        raise McapFormatError(f"{path}: {exc}") from exc
+
+
 def read_mcap(path: Path, topics: Iterable[str]) -> dict[str, RawMessages]:
     """Serialized messages of ``topics`` in the MCAP file ``path`` (topics absent: no key).
 
@@ -347,13 +429,19 @@ def read_mcap(path: Path, topics: Iterable[str]) -> dict[str, RawMessages]:
         McapFormatError: not MCAP, truncated, or malformed.
         OSError: the file cannot be read.
     """
-    data = path.read_bytes()
-    if not data.startswith(MAGIC) or not data.endswith(MAGIC):
-        raise McapFormatError(f"{path} is not a complete MCAP file (magic bytes missing)")
-    scanner = _Scanner(set(topics))
-    scanner.buffer = data
-    try:
-        scanner.records(data, len(MAGIC), len(data) - len(MAGIC), top=True)
-        return scanner.result()
-    except (struct.error, UnicodeDecodeError, zstd.ZstdError, RuntimeError) as exc:
-        raise McapFormatError(f"{path}: {exc}") from exc
+    parts: dict[str, list[RawMessages]] = {}
+    for found in iter_mcap(path, topics):
+        for topic, msgs in found.items():
+            parts.setdefault(topic, [])
+            if len(msgs):
+                parts[topic].append(msgs)
+            elif not parts[topic]:
+                parts[topic] = [msgs]
+    out: dict[str, RawMessages] = {}
+    for topic, msgs_list in parts.items():
+        nonempty = [m for m in msgs_list if len(m)] or msgs_list[:1]
+        first = nonempty[0]
+        joined = first if len(nonempty) == 1 else assemble(first.msgtype, nonempty)
+        joined.schema = first.schema
+        out[topic] = joined
+    return out

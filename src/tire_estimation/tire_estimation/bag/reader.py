@@ -19,8 +19,8 @@ from __future__ import annotations
 
 import math
 from collections import Counter
-from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -31,7 +31,7 @@ from rosbags.rosbag2 import Reader
 
 from tire_estimation.bag import topics as tp
 from tire_estimation.bag.cdr import Batch, decode
-from tire_estimation.bag.mcap_raw import McapFormatError, RawMessages, assemble, read_mcap
+from tire_estimation.bag.mcap_raw import McapFormatError, RawMessages, assemble, iter_mcap
 from tire_estimation.bag.sim_config import events_from_text, read_sim_config
 from tire_estimation.bag.typestore import bag_typestore
 from tire_estimation.bag.writer import CUSTOM_EVENTS, CUSTOM_VEHICLE, SIM_CONFIG_FILE, VEHICLE_FILE
@@ -58,20 +58,34 @@ _NS_PER_S = 1_000_000_000
 
 @dataclass
 class ReadLog:
-    """What reading dropped: remarks (``notes``) and, for the input topics, counts by
-    ``<stream>:<kind>`` (``dropped``)."""
+    """What reading dropped: remarks (:attr:`notes`) and, for the input topics, counts by
+    ``<stream>:<kind>`` (``dropped``). A remark made again (a bag read window by window) is
+    kept once, with the counts added up."""
 
-    notes: list[str] = field(default_factory=list)
     dropped: Counter[str] = field(default_factory=Counter)
+    _remarks: dict[tuple[str, str], int] = field(default_factory=dict)
 
     def drop(self, topic: str, kind: str, count: int, note: str) -> None:
         """``count`` messages of ``topic`` dropped as ``kind``; ``note`` says why."""
         if count <= 0:
             return
-        self.notes.append(f"{topic}: dropped {count} {note}")
+        key = (topic, note)
+        self._remarks[key] = self._remarks.get(key, 0) + count
         stream = tp.INPUT_STREAMS.get(topic)
         if stream is not None:
             self.dropped[drop_key(stream, kind)] += count
+
+    def remark(self, text: str) -> None:
+        """A remark about the data that is not a count of dropped messages."""
+        self._remarks.setdefault((text, ""), 0)
+
+    @property
+    def notes(self) -> list[str]:
+        """The remarks, in the order first made."""
+        return [
+            f"{topic}: dropped {n} {note}" if note else topic
+            for (topic, note), n in self._remarks.items()
+        ]
 
 
 @dataclass(frozen=True)
@@ -218,47 +232,109 @@ def mcap_files(path: Path) -> list[Path] | None:
     return files if files and all(f.suffix == ".mcap" and f.is_file() for f in files) else None
 
 
-def read_raw_fast(path: Path, files: list[Path], topics: Iterable[str]) -> dict[str, RawTopic]:
-    """Like :func:`read_raw` but walking the MCAP files directly (see :mod:`.mcap_raw`)."""
+class _Window:
+    """Raw messages gathered per topic until they span a window of log time."""
+
+    def __init__(self) -> None:
+        self.parts: dict[str, list[RawMessages]] = {}
+        self.first_ns: int | None = None
+        self.last_ns: int | None = None
+
+    def add(self, topic: str, msgs: RawMessages) -> None:
+        parts = self.parts.setdefault(topic, [])
+        if len(msgs) == 0:
+            if not parts:
+                parts.append(msgs)  # the topic is in the bag (its schema)
+            return
+        if parts and len(parts[0]) == 0:
+            parts.clear()
+        parts.append(msgs)
+        lo, hi = int(msgs.log_ns.min()), int(msgs.log_ns.max())
+        self.first_ns = lo if self.first_ns is None else min(self.first_ns, lo)
+        self.last_ns = hi if self.last_ns is None else max(self.last_ns, hi)
+
+    def full(self, window_ns: int | None) -> bool:
+        return (
+            window_ns is not None
+            and self.first_ns is not None
+            and self.last_ns is not None
+            and self.last_ns - self.first_ns >= window_ns
+        )
+
+    def topics(self) -> dict[str, RawTopic]:
+        out: dict[str, RawTopic] = {}
+        for topic, parts in self.parts.items():
+            first = parts[0]
+            msgs = first if len(parts) == 1 else assemble(first.msgtype, parts)
+            out[topic] = RawTopic(first.msgtype, msgs.log_ns, msgs.data or [], msgs.rows,
+                                  schema=first.schema)  # fmt: skip
+        return out
+
+
+def iter_raw_fast(
+    path: Path, files: list[Path], topics: Iterable[str], window_ns: int | None = None
+) -> Iterator[dict[str, RawTopic]]:
+    """Like :func:`iter_raw` but walking the MCAP files directly (see :mod:`.mcap_raw`)."""
     wanted = tuple(topics)
-    found: dict[str, list[RawMessages]] = {}
+    window = _Window()
     for file in files:
         try:
-            part = read_mcap(file, wanted)
+            for found in iter_mcap(file, wanted):
+                for topic, msgs in found.items():
+                    window.add(topic, msgs)
+                if window.full(window_ns):
+                    yield window.topics()
+                    window = _Window()
         except (McapFormatError, OSError) as exc:
             raise _bag_error(path, exc) from exc
-        for topic, msgs in part.items():
-            found.setdefault(topic, []).append(msgs)
-    out: dict[str, RawTopic] = {}
-    for topic, parts in found.items():
-        msgs = parts[0] if len(parts) == 1 else assemble(parts[0].msgtype, parts)
-        out[topic] = RawTopic(
-            parts[0].msgtype, msgs.log_ns, msgs.data or [], msgs.rows, schema=parts[0].schema
-        )
-    return out
+    yield window.topics()
+
+
+def read_raw_fast(path: Path, files: list[Path], topics: Iterable[str]) -> dict[str, RawTopic]:
+    """Like :func:`read_raw` but walking the MCAP files directly (see :mod:`.mcap_raw`)."""
+    return next(iter_raw_fast(path, files, topics))
+
+
+def iter_raw(
+    reader: Reader, path: Path, topics: Iterable[str], window_ns: int | None = None
+) -> Iterator[dict[str, RawTopic]]:
+    """Serialized messages of ``topics`` (those present in the bag), grouped by topic, in
+    windows that each span ``window_ns`` of log time (None: one window, the whole bag)."""
+    wanted = set(topics)
+    conns = [c for c in reader.connections if c.topic in wanted]
+    msgtypes = {c.topic: c.msgtype for c in conns}
+
+    def new() -> tuple[dict[str, list[int]], dict[str, list[bytes]]]:
+        return {topic: [] for topic in msgtypes}, {topic: [] for topic in msgtypes}
+
+    def topics_of(logs: dict[str, list[int]], data: dict[str, list[bytes]]) -> dict[str, RawTopic]:
+        return {
+            topic: RawTopic(msgtype, np.asarray(logs[topic], dtype=np.int64), data[topic])
+            for topic, msgtype in msgtypes.items()
+        }
+
+    logs, data = new()
+    if conns:
+        first: int | None = None
+        try:
+            for conn, log_ns, payload in reader.messages(connections=conns):
+                if window_ns is not None:
+                    if first is None:
+                        first = log_ns
+                    elif log_ns - first >= window_ns:
+                        yield topics_of(logs, data)
+                        logs, data = new()
+                        first = log_ns
+                logs[conn.topic].append(log_ns)
+                data[conn.topic].append(payload)
+        except Exception as exc:  # ReaderError, zstd errors, struct.error, EOF on truncated files
+            raise _bag_error(path, exc) from exc
+    yield topics_of(logs, data)
 
 
 def read_raw(reader: Reader, path: Path, topics: Iterable[str]) -> dict[str, RawTopic]:
     """Serialized messages of ``topics`` (those present in the bag), grouped by topic."""
-    wanted = set(topics)
-    conns = [c for c in reader.connections if c.topic in wanted]
-    out: dict[str, RawTopic] = {}
-    for conn in conns:
-        out.setdefault(conn.topic, RawTopic(conn.msgtype))
-    if not conns:
-        return out
-    logs: dict[str, list[int]] = {topic: [] for topic in out}
-    by_id = {id(c): (logs[c.topic], out[c.topic].data) for c in conns}
-    try:
-        for conn, log_ns, data in reader.messages(connections=conns):
-            topic_logs, topic_data = by_id[id(conn)]
-            topic_logs.append(log_ns)
-            topic_data.append(data)
-    except Exception as exc:  # ReaderError, zstd errors, struct.error, EOF on truncated files
-        raise _bag_error(path, exc) from exc
-    for topic, raw in out.items():
-        raw.log_ns = np.asarray(logs[topic], dtype=np.int64)
-    return out
+    return next(iter_raw(reader, path, topics))
 
 
 # --------------------------------------------------------------------------- decoding helpers
@@ -296,7 +372,7 @@ def _order(t_ns: I64, what: str, log: ReadLog, bad: NDArray[np.bool_] | None = N
     dropped = int(t_sorted.size - keep.sum())
     log.drop(what, "duplicate", dropped, "messages with a repeated header stamp")
     if np.any(np.diff(t_ns) < 0):
-        log.notes.append(f"{what}: messages were not in header-stamp order; sorted")
+        log.remark(f"{what}: messages were not in header-stamp order; sorted")
     return order[keep]
 
 
@@ -449,7 +525,7 @@ def fix_stream(
         vel[hit] = v[pos[hit]]
         vcov[hit] = c[pos[hit]]
         if not hit.all():
-            log.notes.append(f"{what}: {int((~hit).sum())} fixes have no velocity at their stamp")
+            log.remark(f"{what}: {int((~hit).sum())} fixes have no velocity at their stamp")
     return GnssStream(t[good], lat[good], lon[good], alt[good], cov[good], vel, vcov)
 
 
@@ -608,6 +684,28 @@ def read_bag(
             a contract topic with the wrong message type, or no vehicle description.
         VehicleConfigError: the vehicle description is malformed or absurd.
     """
+    meta, selected, files = open_bag(path, topics=topics, require=require, fast=fast)
+    if files is None:
+        reader = open_reader(meta.path)
+        try:
+            raw = read_raw(reader, meta.path, selected)
+        finally:
+            reader.close()
+    else:
+        raw = read_raw_fast(meta.path, files, selected)
+    return replace(meta, **decode_topics(raw, fast=fast, joints=joints))
+
+
+def open_bag(
+    path: Path | str,
+    *,
+    topics: Iterable[str] | Callable[[Mapping[str, TopicInfo]], Iterable[str]] | None = None,
+    require: Iterable[str] = (),
+    fast: bool = True,
+) -> tuple[BagData, tuple[str, ...], list[Path] | None]:
+    """What :func:`read_bag` knows before reading the messages: the bag's metadata as
+    :class:`BagData` without streams, the topics to decode, and the MCAP files that
+    :mod:`.mcap_raw` reads (None: read through ``rosbags``). Arguments and errors as there."""
     path = Path(path)
     if topics is not None and not callable(topics):
         _check_readable(tuple(topics))
@@ -636,17 +734,11 @@ def read_bag(
         config, events = _sim_config(path, custom)
         start_ns = int(reader.start_time) if reader.message_count else 0
         end_ns = int(reader.end_time) - 1 if reader.message_count else 0
-        files = mcap_files(path) if fast else None
-        if files is None:
-            raw = read_raw(reader, path, selected)
     finally:
         reader.close()
-    if files is not None:
-        raw = read_raw_fast(path, files, selected)
-
-    streams = decode_topics(raw, fast=fast, joints=joints)
+    files = mcap_files(path) if fast else None
     seed = config.get("seed")
-    return BagData(
+    meta = BagData(
         path=path,
         vehicle=vehicle,
         start_ns=start_ns,
@@ -657,8 +749,8 @@ def read_bag(
         seed=int(seed) if isinstance(seed, int) else None,
         sim_config=config,
         custom_data=custom,
-        **streams,
     )
+    return meta, selected, files
 
 
 def _check_readable(selected: tuple[str, ...]) -> None:
@@ -667,15 +759,41 @@ def _check_readable(selected: tuple[str, ...]) -> None:
         raise BagError(f"read_bag cannot decode topic {unknown[0]}")
 
 
+#: the stream fields of :class:`BagData` :func:`decode_topics` fills, by topic
+STREAM_FIELDS: dict[str, str] = {
+    tp.WHEEL_SPEEDS: "wheel_speeds",
+    tp.STEERING: "steering",
+    tp.IMU_DATA: "imu",
+    tp.GNSS_FIX: "gnss",
+    tp.GNSS_VELOCITY: "gnss_velocity",
+    tp.TIRE_FORCES_TOPIC: "tire_forces",
+    tp.VEHICLE_VELOCITY: "vehicle_velocity",
+    tp.TRUTH_FIX: "truth_fix",
+    tp.TRUTH_ODOMETRY: "truth_odometry",
+    tp.TRUTH_WHEEL_RADII: "truth_wheel_radii",
+    tp.TRUTH_TIRE_PRESSURE: "truth_tire_pressure",
+    tp.TRUTH_TIRE_STIFFNESS: "truth_stiffness",
+    tp.REFERENCE_ODOMETRY: "reference_odometry",
+    tp.REFERENCE_LATERAL_STATE: "reference_lateral",
+}
+
+
 def decode_topics(
-    raw: dict[str, RawTopic], *, fast: bool = True, joints: Names = CONTRACT_NAMES
+    raw: dict[str, RawTopic],
+    *,
+    fast: bool = True,
+    log: ReadLog | None = None,
+    match_velocity: bool = True,
+    joints: Names = CONTRACT_NAMES,
 ) -> dict[str, Any]:
     """Decode raw topics into the stream fields of :class:`BagData` (plus ``notes`` and
-    ``dropped``)."""
+    ``dropped``, those of ``log`` when given: a log shared by the windows of one bag).
+    ``match_velocity``: attach ``/gnss/velocity`` to the fixes of the same stamp
+    (:attr:`GnssStream.velocity_enu_m_s`); False leaves the fixes without it."""
     store = bag_typestore(
         tuple(sorted({(rt.msgtype, *rt.schema) for rt in raw.values() if len(rt)}))
     )
-    log = ReadLog()
+    log = ReadLog() if log is None else log
     batches: dict[str, tuple[list[Batch], int]] = {}
     for topic, rt in raw.items():
         if len(rt):
@@ -700,7 +818,8 @@ def decode_topics(
         velocity = velocity_arrays(*batches[tp.GNSS_VELOCITY], log)
         out["gnss_velocity"] = GnssVelocityStream(*velocity)
     if tp.GNSS_FIX in batches:
-        out["gnss"] = fix_stream(*batches[tp.GNSS_FIX], tp.GNSS_FIX, log, velocity)
+        matched = velocity if match_velocity else None
+        out["gnss"] = fix_stream(*batches[tp.GNSS_FIX], tp.GNSS_FIX, log, matched)
     if tp.TIRE_FORCES_TOPIC in batches:
         out["tire_forces"] = tire_force_stream(*batches[tp.TIRE_FORCES_TOPIC], log, joints.wheels)
     if tp.VEHICLE_VELOCITY in batches:

@@ -7,6 +7,7 @@ knows about bags or ROS.
 from __future__ import annotations
 
 import math
+from collections import Counter
 from typing import Any
 
 import numpy as np
@@ -258,6 +259,25 @@ def lateral_metrics(
     """
     if t_ns.size == 0 or ref_t_ns.size == 0:
         return {"vy_rmse_m_s": None, "sideslip_rmse_deg": None, "yaw_rate_rmse_deg_s": None}
+    sums = lateral_sums(
+        t_ns, vy_m_s, yaw_rate_rad_s, sideslip_rad, relay,
+        ref_t_ns, ref_velocity_m_s, ref_yaw_rate_rad_s,
+    )  # fmt: skip
+    return lateral_from_sums(sums)
+
+
+def lateral_sums(
+    t_ns: NDArray[np.int64],
+    vy_m_s: F64,
+    yaw_rate_rad_s: F64,
+    sideslip_rad: F64,
+    relay: NDArray[np.int64],
+    ref_t_ns: NDArray[np.int64],
+    ref_velocity_m_s: F64,
+    ref_yaw_rate_rad_s: F64,
+) -> Counter[str]:
+    """The sums :func:`lateral_metrics` is made of (arguments as there), to be added up over
+    the parts of a long run and turned into the metrics by :func:`lateral_from_sums`."""
     ref_vx = np.interp(t_ns, ref_t_ns, ref_velocity_m_s[:, 0])
     ref_vy = np.interp(t_ns, ref_t_ns, ref_velocity_m_s[:, 1])
     ref_r = np.interp(t_ns, ref_t_ns, ref_yaw_rate_rad_s)
@@ -265,17 +285,35 @@ def lateral_metrics(
     e_vy = vy_m_s - ref_vy
     e_beta = np.degrees(sideslip_rad - ref_beta)
     e_r = np.degrees(yaw_rate_rad_s - ref_r)
-
-    def rms(x: F64) -> float | None:
-        return float(np.sqrt(np.mean(x**2))) if x.size else None
-
     nonlinear = relay == 2
+    return Counter(
+        {
+            "n": int(t_ns.size),
+            "n_nonlinear": int(nonlinear.sum()),
+            "vy": float(np.sum(e_vy**2)),
+            "sideslip": float(np.sum(e_beta**2)),
+            "yaw_rate": float(np.sum(e_r**2)),
+            "vy_nonlinear": float(np.sum(e_vy[nonlinear] ** 2)),
+            "yaw_rate_nonlinear": float(np.sum(e_r[nonlinear] ** 2)),
+        }
+    )
+
+
+def lateral_from_sums(sums: Counter[str]) -> dict[str, Any]:
+    """:func:`lateral_metrics` from the sums of :func:`lateral_sums` over a run's parts."""
+    n, n_nl = sums["n"], sums["n_nonlinear"]
+    if n == 0:
+        return {"vy_rmse_m_s": None, "sideslip_rmse_deg": None, "yaw_rate_rmse_deg_s": None}
+
+    def rms(key: str, count: int) -> float | None:
+        return math.sqrt(sums[key] / count) if count else None
+
     return {
-        "vy_rmse_m_s": rms(e_vy),
-        "sideslip_rmse_deg": rms(e_beta),
-        "yaw_rate_rmse_deg_s": rms(e_r),
-        "nonlinear_fraction": float(np.mean(nonlinear)),
-        "nonlinear_vy_rmse_m_s": rms(e_vy[nonlinear]),
-        "nonlinear_yaw_rate_rmse_deg_s": rms(e_r[nonlinear]),
-        "samples": int(t_ns.size),
+        "vy_rmse_m_s": rms("vy", n),
+        "sideslip_rmse_deg": rms("sideslip", n),
+        "yaw_rate_rmse_deg_s": rms("yaw_rate", n),
+        "nonlinear_fraction": n_nl / n,
+        "nonlinear_vy_rmse_m_s": rms("vy_nonlinear", n_nl),
+        "nonlinear_yaw_rate_rmse_deg_s": rms("yaw_rate_nonlinear", n_nl),
+        "samples": n,
     }

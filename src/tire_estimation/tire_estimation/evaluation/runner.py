@@ -142,10 +142,14 @@ class RadiusRecorder:
     def on_output(self, pipeline: EstimationPipeline, output: Output) -> None:
         """Outputs are not part of this trace."""
 
-    def finish(self, pipeline: EstimationPipeline) -> RadiusTrace:
-        """The trace with the run's counters (call after the last sample)."""
+    def flush(self, pipeline: EstimationPipeline) -> None:
+        """Record the fix still waiting for a velocity of its stamp (after the last sample)."""
         if self._pending is not None:
             self._flush(pipeline)
+
+    def finish(self, pipeline: EstimationPipeline) -> RadiusTrace:
+        """The trace with the run's counters (call after the last sample)."""
+        self.flush(pipeline)
         trace, estimator = self.trace, pipeline.radius
         if estimator is None:
             return trace
