@@ -243,7 +243,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     rep.add_argument("--config", type=Path, default=None, help="estimator parameters (YAML)")
     rep.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
-    rep.add_argument("--no-progress", action="store_true", help="no progress bar")
+    rep.add_argument(
+        "--no-progress", action="store_true", help="no progress bar (fleet: no progress lines)"
+    )
     rep.add_argument(
         "--rank-effects",
         action="store_true",
@@ -279,7 +281,8 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         metavar="ADDRESS",
         help="fleet: a running Dask scheduler (e.g. tcp://host:8786; connect only to "
-        "schedulers you trust) instead of a local cluster on 127.0.0.1",
+        "schedulers you trust; its workers must see the bags and --out) instead of a local "
+        "cluster on 127.0.0.1",
     )
     rep.add_argument(
         "--workers",
