@@ -1,6 +1,7 @@
 """Benchmarks (``make bench``): filter step time (radius MPF, stiffness MPF, and the two side by
 side per sample), replay real-time factor (radius only, and the default replay with every
-estimator), node latency over DDS and the node's own callback time (in-process, no DDS).
+estimator), the replay's peak memory against drive length (:mod:`.bench_memory`), node latency
+over DDS and the node's own callback time (in-process, no DDS).
 
 Not part of the tests: numbers depend on the machine and its load. Results are printed as JSON
 (and written to ``--out`` if given); docs/results.md quotes them with the command.
@@ -22,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from tire_estimation.bench_memory import memory_against_length
 from tire_estimation.core.geodesy import LocalTangentPlane
 from tire_estimation.core.radius.config import RadiusEstimatorConfig
 from tire_estimation.core.radius.estimator import RadiusEstimator
@@ -325,6 +327,15 @@ def main(argv: list[str] | None = None) -> int:
         "25-minute figure: `tire-estimation simulate ece_r64 --minutes 25 --seed 1 --sensor "
         "tire_force_enabled=false --out BAG`)",
     )
+    parser.add_argument(
+        "--memory-bags",
+        type=Path,
+        nargs="+",
+        default=[DEMO_BAG],
+        help="bags of the replay's peak-memory figure, shortest first (default: the bundled "
+        "6-minute bag; the issue's figures: `tire-estimation simulate ece_r64 --minutes M "
+        "--seed 1 --out BAG` for M = 10 and 240)",
+    )
     args = parser.parse_args(argv)
     results: dict[str, Any] = {"machine": {"cpus": os.cpu_count(), "load": os.getloadavg()}}
     results["step_time"] = {str(n): step_time_us(n) for n in args.particles}
@@ -333,6 +344,7 @@ def main(argv: list[str] | None = None) -> int:
     results["replay"] = {str(n): replay_rtf(n, args.replay_bag) for n in args.particles}
     # the default replay: every estimator (stiffness MPF and its linear-KF baseline included)
     results["replay_default"] = replay_rtf(None, args.replay_bag, stiffness=True)
+    results["replay_memory"] = memory_against_length(args.memory_bags)
     if not args.skip_node:
         results["node_callback"] = node_callback_time()
         results["node_latency"] = node_latency(args.latency_seconds)
