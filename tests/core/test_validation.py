@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from tire_estimation.core.validation import require_choice
+from tire_estimation.core.validation import require_choice, require_vector3
 from tire_estimation.errors import ConfigError, VehicleConfigError
 
 
@@ -34,3 +34,22 @@ def test_an_unknown_key_names_the_nearest_valid_one() -> None:
         reject_unknown_keys({2: 3, "zzz": 1}, valid, VehicleConfigError)
     assert known_names("ece_r46", ["city", "ece_r64"]) == "did you mean ece_r64?"
     assert known_names("moon", "abcdefg") == "known: a, b, c, d, e, ..."
+
+
+@pytest.mark.parametrize(
+    ("value", "field", "reason"),
+    [
+        ((0.0, 1.0), "p", "3 numbers"),
+        ([0.0, 1.0, 2.0], "p", "3 numbers"),
+        ((0.0, "a", 2.0), "p[1]", "must be a number"),
+        ((0.0, 1.0, float("inf")), "p[2]", "must be finite"),
+        ((-2.5, 0.0, 0.0), "p[0]", r"within \+-2 m"),
+    ],
+)
+def test_a_vector3_is_three_finite_numbers_within_the_limit(
+    value: object, field: str, reason: str
+) -> None:
+    require_vector3("p", (1.0, -2.0, 0.5), 2.0, VehicleConfigError, " m")
+    with pytest.raises(VehicleConfigError, match=reason) as info:
+        require_vector3("p", value, 2.0, VehicleConfigError, " m")
+    assert info.value.field == field

@@ -352,9 +352,9 @@ def test_detector_node_starts_on_a_corrupt_file_and_publishes_finite_status(
         node = node_mod.DetectorNode(
             context=context, parameter_overrides=_params(rclpy_parameter.Parameter, tmp_path)
         )
-        assert node._persist_note.startswith("rejected") and reason in node._persist_note
+        assert node.state_file.note.startswith("rejected") and reason in node.state_file.note
         main = _by_name(node.diagnostic_statuses())["tire_estimation: deflation detector"]
-        assert _diag_values(main)["persistence"] == node._persist_note
+        assert _diag_values(main)["persistence"] == node.state_file.note
         assert node.detector.calibration_state.name == "NOT_STARTED"
         published: list[Any] = []
         node.pub_status.publish = published.append  # capture instead of DDS
@@ -434,7 +434,7 @@ def test_detector_node_persists_only_a_changed_state_of_a_named_vehicle(tmp_path
     try:
         params = _params(rclpy_parameter.Parameter, tmp_path, **{"vehicle.name": "vehicle"})
         unnamed = node_mod.DetectorNode(context=context, parameter_overrides=params)
-        assert "no vehicle identity" in unnamed._persist_note
+        assert "no vehicle identity" in unnamed.state_file.note
         Feeder(msg_mod, nav_msgs.Odometry).drive(unnamed, 5.0, MU_CAL)
         unnamed.save_on_shutdown()
         assert not path.exists()

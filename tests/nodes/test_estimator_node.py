@@ -169,22 +169,22 @@ def test_radii_persist_across_restarts_and_reset_forgets(ros: Any, tmp_path: Pat
     assert (tmp_path / "radii.json").is_file()
 
     again = _node(ros, tmp_path)
-    assert "radius restored" in again._persist_note
-    assert "stiffness restored" in again._persist_note
+    assert "radius restored" in again.state_file.note
+    assert "stiffness restored" in again.state_file.note
     restored = again.estimator.state_dict()
     assert restored.keys() == learned.keys()
     np.testing.assert_allclose(restored["rear"]["mean_m"], learned["rear"]["mean_m"], atol=1e-5)
     np.testing.assert_allclose(again.stiffness.state_dict()["mean"], stiff["mean"], rtol=0.05)
     # without the stiffness MPF the radii still load and the saved stiffness is kept
     no_stiff = _node(ros, tmp_path, stiffness_enabled=False)
-    assert "radius restored" in no_stiff._persist_note
+    assert "radius restored" in no_stiff.state_file.note
     no_stiff.save_on_shutdown()
     no_stiff.destroy_node()
     kept = _node(ros, tmp_path)
     np.testing.assert_allclose(kept.stiffness.state_dict()["mean"], stiff["mean"], rtol=0.05)
     kept.destroy_node()
     other = _node(ros, tmp_path, tire_set_id="winter")
-    assert "tire set" in other._persist_note
+    assert "tire set" in other.state_file.note
     other.destroy_node()
 
     from std_srvs.srv import Trigger
@@ -232,7 +232,7 @@ def test_a_corrupt_persistence_file_is_rejected_and_the_node_publishes_finite_ra
     assert '"dof": 10.0' in json.dumps(good)
     (tmp_path / "radii.json").write_text(_corrupt_files(good)[corruption])
     node = _node(ros, tmp_path)  # starts: no RecursionError / OverflowError
-    assert "rejected" in node._persist_note and "radius restored" not in node._persist_note
+    assert "rejected" in node.state_file.note and "radius restored" not in node.state_file.note
     assert "rejected" in _diag_values(node)["persistence"]
     published: list[Any] = []
     node.pub_radii.publish = published.append  # capture instead of DDS
@@ -556,7 +556,7 @@ def test_no_vehicle_identity_means_no_persistence(ros: Any, tmp_path: Path) -> N
     saves: two vehicles left at the defaults would share one file."""
     path = tmp_path / "radii.json"
     named = _node(ros, tmp_path, **{"vehicle.name": "vehicle"})
-    assert "no vehicle identity" in named._persist_note
+    assert "no vehicle identity" in named.state_file.note
     assert "no vehicle identity" in _diag_values(named)["persistence"]
     _drive(_callbacks(named), 1_000_000_000_000, 20.0)
     named.save_on_shutdown()
@@ -566,7 +566,7 @@ def test_no_vehicle_identity_means_no_persistence(ros: Any, tmp_path: Path) -> N
     saved = {"format_version": 1, "vehicle_name": "vehicle", "tire_set_id": "default"}
     path.write_text(json.dumps({**saved, "saved_unix_s": 1.7e9, "state": {}}))
     again = _node(ros, tmp_path, **{"vehicle.name": "vehicle"})
-    assert "no vehicle identity" in again._persist_note
+    assert "no vehicle identity" in again.state_file.note
     again.destroy_node()
 
 

@@ -104,7 +104,7 @@ def test_estimator_node_transitions(
     assert node.dropped["wheel_speeds:inactive"] == 200
     assert node.dropped["gnss_fix:inactive"] == 20
     assert node.received["wheel_speeds"] == 200
-    assert state_text(node._learned) == node._saved_text  # nothing learned
+    assert state_text(node._learned) == node.state_file.saved_text  # nothing learned
 
     # active: processed and published
     assert node.trigger_activate() == Return.SUCCESS
@@ -136,7 +136,7 @@ def test_estimator_node_transitions(
     assert node.services and all("reset" not in s.srv_name for s in node.services)
     assert path.read_text() == saved  # unchanged state: not written again
     assert node.trigger_configure() == Return.SUCCESS
-    assert "radius restored" in node._persist_note
+    assert "radius restored" in node.state_file.note
     assert node.dropped == {}  # a fresh configuration
 
     assert node.trigger_shutdown() == Return.SUCCESS
@@ -210,4 +210,24 @@ def test_detector_node_transitions(
     assert _own(node.subscriptions) == [] and _own(node.publishers) == []
     assert node.trigger_shutdown() == Return.SUCCESS
     assert node.state_label() == "finalized"
+    node.destroy_node()
+
+
+def test_bad_input_is_dropped_and_counted_by_kind(
+    ros: Any, tmp_path: Path, published: list[tuple[str, Any]]
+) -> None:
+    """Active: a message the conversion rejects is counted under the error's kind, any other bad
+    input (here not a message at all) as ``invalid``; neither raises."""
+    from tests.nodes.test_estimator_node import _wheels
+
+    node = _estimator(ros, tmp_path, autostart=True)
+    callback = {sub.topic_name: sub.callback for sub in node.subscriptions}[
+        "/vehicle/wheel_speeds"
+    ]
+    callback(_wheels(T0_NS, [float("nan")] * 4))
+    callback(object())
+    callback(_wheels(T0_NS, [20.0 / 0.31] * 4))
+    assert node.received["wheel_speeds"] == 3
+    assert node.dropped == {"wheel_speeds:nan": 1, "wheel_speeds:invalid": 1}
+    node.finish()
     node.destroy_node()

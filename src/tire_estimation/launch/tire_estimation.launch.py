@@ -19,10 +19,26 @@ from launch_ros.substitutions import FindPackageShare
 PACKAGE = "tire_estimation"
 
 
+def _node(executable: str, params_argument: str) -> Node:
+    """One of the package's nodes, named as its executable, with the parameter file of the
+    launch argument ``params_argument``, the vehicle file and the clock choice."""
+    return Node(
+        package=PACKAGE,
+        executable=executable,
+        name=executable,
+        parameters=[
+            LaunchConfiguration(params_argument),
+            {
+                "vehicle_file": LaunchConfiguration("vehicle_file"),
+                "use_sim_time": LaunchConfiguration("use_sim_time"),
+            },
+        ],
+        output="screen",
+    )
+
+
 def generate_launch_description() -> LaunchDescription:
     config = PathJoinSubstitution([FindPackageShare(PACKAGE), "config"])
-    vehicle_file = LaunchConfiguration("vehicle_file")
-    use_sim_time = LaunchConfiguration("use_sim_time")
     return LaunchDescription(
         [
             DeclareLaunchArgument("vehicle_file", default_value=""),
@@ -34,25 +50,7 @@ def generate_launch_description() -> LaunchDescription:
                 default_value=PathJoinSubstitution([config, "detector.yaml"]),
             ),
             DeclareLaunchArgument("use_sim_time", default_value="false"),
-            Node(
-                package=PACKAGE,
-                executable="estimator_node",
-                name="estimator_node",
-                parameters=[
-                    LaunchConfiguration("params_file"),
-                    {"vehicle_file": vehicle_file, "use_sim_time": use_sim_time},
-                ],
-                output="screen",
-            ),
-            Node(
-                package=PACKAGE,
-                executable="detector_node",
-                name="detector_node",
-                parameters=[
-                    LaunchConfiguration("detector_params_file"),
-                    {"vehicle_file": vehicle_file, "use_sim_time": use_sim_time},
-                ],
-                output="screen",
-            ),
+            _node("estimator_node", "params_file"),
+            _node("detector_node", "detector_params_file"),
         ]
     )

@@ -11,6 +11,7 @@ from typing import Any
 import pytest
 
 from tire_estimation.evaluation.campaign.cli import add_campaign_parser
+from tire_estimation.evaluation.campaign.execute import Execution
 from tire_estimation.evaluation.campaign.spec import (
     CampaignError,
     EceCampaignPlan,
@@ -43,7 +44,10 @@ def test_small_ece_campaign_on_dask(tmp_path: Path) -> None:
         first_seed=1,
     )
     summary = run_ece_r64_campaign(
-        tmp_path / "ece", plan, executor="dask", n_workers=1, threads=True, save_traces=True
+        tmp_path / "ece",
+        plan,
+        Execution(executor="dask", n_workers=1, threads=True),
+        save_traces=True,
     )
     out = tmp_path / "ece"
     for name in ("summary.json", "cases.csv", "cases.json", "detection_times.png"):

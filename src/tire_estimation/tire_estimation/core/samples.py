@@ -71,6 +71,27 @@ def _vector(values: object, n: int, what: str) -> F64:
     return arr
 
 
+def _finite_vector(values: object, n: int, what: str, max_abs: float, unit: str) -> F64:
+    """``n`` finite values (else ``nan``) within +-``max_abs`` (else ``out_of_range``)."""
+    arr = _vector(values, n, what)
+    if not np.all(np.isfinite(arr)):
+        raise InputError("nan", f"{what} is not finite")
+    if np.max(np.abs(arr)) > max_abs:
+        raise InputError("out_of_range", f"|{what}| above {max_abs} {unit}")
+    return arr
+
+
+def _finite_scalar(value: object, what: str) -> float:
+    """A number (else ``bad_value``) that is finite (else ``nan``)."""
+    try:
+        x = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError) as exc:
+        raise InputError("bad_value", f"{what}: {exc}") from exc
+    if not math.isfinite(x):
+        raise InputError("nan", f"{what} is not finite")
+    return x
+
+
 @dataclass(frozen=True, slots=True)
 class WheelSpeeds:
     """Wheel angular speeds (4,) rad/s, positive rolling forward; NaN for a wheel not reported."""
@@ -104,12 +125,7 @@ class Steering:
     @classmethod
     def checked(cls, t_ns: object, angle_rad: object) -> Steering:
         """Validated sample: finite, within +-1.2 rad."""
-        try:
-            angle = float(angle_rad)  # type: ignore[arg-type]
-        except (TypeError, ValueError) as exc:
-            raise InputError("bad_value", f"steering angle: {exc}") from exc
-        if not math.isfinite(angle):
-            raise InputError("nan", "steering angle is not finite")
+        angle = _finite_scalar(angle_rad, "steering angle")
         if abs(angle) > MAX_STEERING_RAD:
             raise InputError("out_of_range", f"steering angle {angle} rad")
         return cls(_stamp(t_ns), angle)
@@ -129,15 +145,13 @@ class ImuSample:
     def checked(
         cls, t_ns: object, angular_velocity_rad_s: object, linear_acceleration_m_s2: object
     ) -> ImuSample:
-        """Validated sample: two finite 3-vectors."""
-        gyro = _vector(angular_velocity_rad_s, 3, "angular velocity")
-        acc = _vector(linear_acceleration_m_s2, 3, "linear acceleration")
-        if not (np.all(np.isfinite(gyro)) and np.all(np.isfinite(acc))):
-            raise InputError("nan", "IMU sample is not finite")
-        if np.max(np.abs(gyro)) > MAX_ANGULAR_RATE_RAD_S:
-            raise InputError("out_of_range", f"|angular velocity| above {MAX_ANGULAR_RATE_RAD_S}")
-        if np.max(np.abs(acc)) > MAX_ACCELERATION_M_S2:
-            raise InputError("out_of_range", f"|acceleration| above {MAX_ACCELERATION_M_S2}")
+        """Validated sample: two finite 3-vectors within the ranges of MEMS sensors."""
+        gyro = _finite_vector(
+            angular_velocity_rad_s, 3, "angular velocity", MAX_ANGULAR_RATE_RAD_S, "rad/s"
+        )
+        acc = _finite_vector(
+            linear_acceleration_m_s2, 3, "linear acceleration", MAX_ACCELERATION_M_S2, "m/s^2"
+        )
         return cls(_stamp(t_ns), gyro, acc)
 
 
@@ -215,11 +229,7 @@ class GnssVelocity:
     def checked(cls, t_ns: object, velocity_enu_m_s: object, covariance: object) -> GnssVelocity:
         """Validated sample: a finite 3-vector; a covariance as for :meth:`GnssFix.checked`
         (all zero: not given)."""
-        v = _vector(velocity_enu_m_s, 3, "GNSS velocity")
-        if not np.all(np.isfinite(v)):
-            raise InputError("nan", "GNSS velocity is not finite")
-        if np.max(np.abs(v)) > MAX_GNSS_SPEED_M_S:
-            raise InputError("out_of_range", f"|GNSS velocity| above {MAX_GNSS_SPEED_M_S} m/s")
+        v = _finite_vector(velocity_enu_m_s, 3, "GNSS velocity", MAX_GNSS_SPEED_M_S, "m/s")
         return cls(_stamp(t_ns), v, checked_covariance(covariance, "velocity covariance"))
 
 
@@ -262,10 +272,7 @@ class MeasuredVelocity:
     @classmethod
     def checked(cls, t_ns: object, vx_m_s: object) -> MeasuredVelocity:
         """Validated sample: a finite speed."""
-        vx = float(vx_m_s)  # type: ignore[arg-type]
-        if not math.isfinite(vx):
-            raise InputError("nan", "velocity not finite")
-        return cls(_stamp(t_ns), vx)
+        return cls(_stamp(t_ns), _finite_scalar(vx_m_s, "velocity"))
 
 
 Sample = (

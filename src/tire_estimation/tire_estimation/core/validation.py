@@ -23,6 +23,19 @@ def require_finite(field: str, value: float, error: type[ConfigError] = ConfigEr
         raise error(field, value, "must be finite")
 
 
+def require_vector3(
+    field: str, value: object, limit: float, error: type[ConfigError] = ConfigError, unit: str = ""
+) -> None:
+    """Raise unless ``value`` is a tuple of 3 finite numbers, each within +-``limit`` (in
+    ``unit``); errors name ``field`` or the component ``field[i]``."""
+    if not isinstance(value, tuple) or len(value) != 3:
+        raise error(field, value, "must be 3 numbers [x, y, z]")
+    for i, v in enumerate(value):
+        require_finite(f"{field}[{i}]", v, error)
+        if abs(v) > limit:
+            raise error(f"{field}[{i}]", v, f"must be within +-{limit:g}{unit}")
+
+
 def require_positive(field: str, value: float, error: type[ConfigError] = ConfigError) -> None:
     """Raise unless ``value`` is finite and > 0."""
     require_finite(field, value, error)

@@ -21,8 +21,8 @@ from tire_estimation.core.validation import (
     check_rules,
     in_range,
     require_choice,
-    require_finite,
     require_known_keys,
+    require_vector3,
     unknown_key_reason,
 )
 from tire_estimation.errors import VehicleConfigError
@@ -104,13 +104,8 @@ class VehicleParams:
             )
         require_choice("vehicle.drive", self.drive, DRIVES, err)
         for field in ("gnss_antenna_position_m", "imu_position_m"):
-            value = getattr(self, field)
-            if len(value) != 3:
-                raise err(f"vehicle.{field}", value, "must be a list of 3 numbers [x, y, z]")
-            for i, v in enumerate(value):
-                require_finite(f"vehicle.{field}[{i}]", v, err)
-                if abs(v) > 20.0:
-                    raise err(f"vehicle.{field}[{i}]", v, "must be within 20 m of base_link")
+            # within 20 m of base_link
+            require_vector3(f"vehicle.{field}", getattr(self, field), 20.0, err, " m")
 
     @property
     def lf_m(self) -> float:

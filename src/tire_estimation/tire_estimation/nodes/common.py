@@ -29,7 +29,7 @@ from tire_estimation.core.validation import unknown_key_reason
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.errors import ConfigError, TireEstimationError, one_line
 from tire_estimation.params import ParameterSpec
-from tire_estimation.persistence import Identity, restore, save_state
+from tire_estimation.persistence import Identity, delete_state, restore, save_state
 
 #: the vehicle name a node has when neither a vehicle file nor ``vehicle.name`` gives one
 DEFAULT_VEHICLE_NAME = VehicleParams().name
@@ -221,3 +221,67 @@ def state_text(target: Any) -> str:
     """``target.state_dict()`` as canonical JSON: a save is due only when it changed since the
     state was restored, saved or reset (a node never writes a prior it has not changed)."""
     return json.dumps(target.state_dict(), sort_keys=True, default=str)
+
+
+class NodeState:
+    """A node's saved state (``target.state_dict()``) in ``persistence_file``: restored at
+    construction, written only when it changed since it was restored, saved or reset.
+
+    ``path_text`` empty, or no ``explicit`` vehicle identity (:func:`explicit_identity`):
+    persistence off, ``path`` None and ``note`` says why. ``what`` names the state in the log.
+    """
+
+    def __init__(
+        self,
+        node: Node,
+        path_text: str,
+        identity: Identity,
+        explicit: bool,
+        target: Any,
+        what: str,
+    ) -> None:
+        self.path: Path | None = Path(path_text).expanduser() if path_text else None
+        self.identity = identity
+        self.target = target
+        self.what = what
+        self._node = node
+        #: what /diagnostics says: what was restored, or why not
+        self.note = "persistence disabled"
+        if self.path is not None and not explicit:
+            self.path, self.note = None, NO_IDENTITY_NOTE
+        if self.path is not None:
+            self.note = restore_state(node, self.path, identity, target, what)
+        #: the state as last restored, saved or reset: a save writes only a change
+        self.saved_text = state_text(target) if self.path is not None else ""
+
+    def changed(self) -> bool:
+        """The state differs from the one last restored, saved or reset."""
+        return state_text(self.target) != self.saved_text
+
+    def save(self) -> bool:
+        """Write the state when it changed; False when the write failed (logged)."""
+        if self.path is None:
+            return True
+        text = state_text(self.target)
+        if text == self.saved_text:
+            return True
+        if not save_state_of(self._node, self.path, self.identity, self.target, self.what):
+            return False
+        self.saved_text = text
+        return True
+
+    def save_on_shutdown(self) -> bool:
+        """:meth:`save`, logging why nothing is written."""
+        if self.path is None:
+            self._node.get_logger().info(f"{self.what} not saved: {self.note}")
+        elif not self.changed():
+            self._node.get_logger().info(
+                f"{self.what} unchanged since restored, saved or reset: {self.path} not written"
+            )
+        return self.save()
+
+    def reset(self) -> None:
+        """Delete the file: the state went back to its prior."""
+        if self.path is not None:
+            delete_state(self.path)
+            self.saved_text = state_text(self.target)

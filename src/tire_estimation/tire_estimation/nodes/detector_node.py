@@ -30,21 +30,18 @@ from tire_estimation.core.deflation.config import DeflationDetectorConfig
 from tire_estimation.core.deflation.monitor import DeflationMonitor
 from tire_estimation.core.deflation.status import DeflationStatusData, RadiusErrors
 from tire_estimation.core.vehicle import load_vehicle_yaml
-from tire_estimation.errors import InputError, TireEstimationError
+from tire_estimation.errors import InputError
 from tire_estimation.node_config import DetectorNodeOptions
 from tire_estimation.nodes import conversions as conv
 from tire_estimation.nodes.common import (
-    NO_IDENTITY_NOTE,
+    NodeState,
     declare_specs,
     explicit_identity,
     reject_undeclared_overrides,
-    restore_state,
-    save_state_of,
     spin_node,
-    state_text,
 )
 from tire_estimation.nodes.detector_diagnostics import wheel_status
-from tire_estimation.nodes.lifecycle import ManagedNode
+from tire_estimation.nodes.lifecycle import BAD_INPUT, ManagedNode
 from tire_estimation.params import (
     ParameterSpec,
     build_config,
@@ -89,16 +86,14 @@ class DetectorNode(ManagedNode):
         self._last_status: DeflationStatusData | None = None
 
         self._identity = Identity(vehicle_name, self.get_parameter("tire_set_id").value)
-        text = self.get_parameter("persistence_file").value
-        self._persist_path = Path(text).expanduser() if text else None
-        self._persist_note = "persistence disabled"
-        if self._persist_path is not None and not explicit_identity(
-            self.get_parameter("vehicle_file").value, vehicle_name
-        ):
-            self._persist_path, self._persist_note = None, NO_IDENTITY_NOTE
-        self._restore()
-        #: the state as last restored or saved: a save writes only a change
-        self._saved_text = state_text(self.detector) if self._persist_path else ""
+        self.state_file = NodeState(
+            self,
+            self.get_parameter("persistence_file").value,
+            self._identity,
+            explicit_identity(self.get_parameter("vehicle_file").value, vehicle_name),
+            self.detector,
+            "detector state",
+        )
 
         # the guarded callbacks (public: tests feed long sequences without DDS)
         self.on_tire_radii = self._guard("tire_radii", self._on_radii)
@@ -112,12 +107,12 @@ class DetectorNode(ManagedNode):
         self.create_service(Trigger, "~/recalibrate", self._on_recalibrate)
         self.create_timer(self.get_parameter("diagnostics_period_s").value, self.publish_diag)
         period = self.get_parameter("persistence_period_s").value
-        if self._persist_path is not None and period > 0:
+        if self.state_file.path is not None and period > 0:
             self.create_timer(period, self._save)
         self.get_logger().info(
             f"detector_node up: vehicle {self._identity.vehicle_name!r}, tire set "
             f"{self._identity.tire_set_id!r}, calibration {self.detector.calibration_state.name}; "
-            f"{self._persist_note}"
+            f"{self.state_file.note}"
         )
 
     # --- parameters -------------------------------------------------------------------------
@@ -145,38 +140,16 @@ class DetectorNode(ManagedNode):
         return str(self.get_parameter("vehicle.name").value), None
 
     # --- persistence ------------------------------------------------------------------------
-    def _restore(self) -> None:
-        if self._persist_path is None:
-            return
-        self._persist_note = restore_state(
-            self, self._persist_path, self._identity, self.detector, "detector state"
-        )
-
     def _save(self) -> None:
         """Write the state when it changed since it was restored or saved."""
-        if self._persist_path is None:
-            return
-        text = state_text(self.detector)
-        if text == self._saved_text:
-            return
-        if save_state_of(
-            self, self._persist_path, self._identity, self.detector, "detector state"
-        ):
-            self._saved_text = text
-        else:
+        if not self.state_file.save():
             self.dropped["persistence_write"] += 1
 
     def save_on_shutdown(self) -> None:
         """Write the calibration and alarms (when the node deactivates, cleans up or stops);
         log why nothing is written."""
-        if self._persist_path is None:
-            self.get_logger().info(f"detector state not saved: {self._persist_note}")
-        elif state_text(self.detector) == self._saved_text:
-            self.get_logger().info(
-                f"detector state unchanged since restored or saved: {self._persist_path} "
-                "not written"
-            )
-        self._save()
+        if not self.state_file.save_on_shutdown():
+            self.dropped["persistence_write"] += 1
 
     def _on_recalibrate(self, _: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
         self.detector.recalibrate()
@@ -194,19 +167,12 @@ class DetectorNode(ManagedNode):
         """Wrap a callback: count the message, drop and count bad input, never raise."""
 
         def callback(msg: Any) -> None:
-            self.received[stream] += 1
-            if not self.active:
-                self.dropped[f"{stream}:inactive"] += 1
+            if not self.accept(stream):
                 return
             try:
                 handler(msg)
-            except InputError as exc:
-                self.dropped[f"{stream}:{exc.kind}"] += 1
-            except (TireEstimationError, ValueError, TypeError, AttributeError) as exc:
-                self.dropped[f"{stream}:invalid"] += 1
-                self.get_logger().warning(
-                    f"dropped a {stream} message: {exc}", throttle_duration_sec=5.0
-                )
+            except BAD_INPUT as exc:
+                self.drop(stream, exc)
 
         return callback
 
@@ -337,7 +303,7 @@ class DetectorNode(ManagedNode):
             else f"{self.monitor.speed_m_s:.2f}",
             "braking": str(self.monitor.braking).lower(),
             "tire_set_id": self._identity.tire_set_id,
-            "persistence": self._persist_note,
+            "persistence": self.state_file.note,
         }
         if status.common is not None:
             values["common.radius_change_m"] = f"{status.common.radius_change_m:.6f}"

@@ -57,24 +57,20 @@ from tire_estimation.core.radius.config import RadiusEstimatorConfig
 from tire_estimation.core.samples import Sample
 from tire_estimation.core.stiffness.config import StiffnessEstimatorConfig
 from tire_estimation.core.vehicle import VehicleParams, load_vehicle_yaml
-from tire_estimation.errors import InputError, TireEstimationError
 from tire_estimation.node_config import EstimatorNodeOptions, periods_of
 from tire_estimation.nodes import conversions as conv
 from tire_estimation.nodes import estimator_diagnostics, messages
 from tire_estimation.nodes.common import (
-    NO_IDENTITY_NOTE,
+    NodeState,
     declare_specs,
     explicit_identity,
     parameter_values,
     reject_undeclared_overrides,
-    restore_state,
-    save_state_of,
     spin_node,
-    state_text,
 )
-from tire_estimation.nodes.lifecycle import ManagedNode
+from tire_estimation.nodes.lifecycle import BAD_INPUT, ManagedNode
 from tire_estimation.params import ParameterSpec, build_config, estimator_sections, parameter_specs
-from tire_estimation.persistence import Identity, LearnedState, delete_state
+from tire_estimation.persistence import Identity, LearnedState
 from tire_estimation_msgs.msg import LateralState, TireForces, TireRadii, TireStiffness
 
 SECTIONS = estimator_sections()
@@ -127,18 +123,17 @@ class EstimatorNode(ManagedNode):
         self._rate_t0 = time.monotonic()
         self._input_rates_hz: dict[str, float] = {}
         self._identity = Identity(self.vehicle.name, opts.tire_set_id)
-        self._persist_path = (
-            Path(opts.persistence_file).expanduser() if opts.persistence_file else None
-        )
-        self._persist_note = "persistence disabled"
-        if self._persist_path is not None and not explicit_identity(
-            opts.vehicle_file, self.vehicle.name
-        ):
-            self._persist_path, self._persist_note = None, NO_IDENTITY_NOTE
+        # one file for the learned radii and (when the stiffness MPF runs) the learned
+        # stiffness; each part is restored or rejected on its own
         self._learned = LearnedState({"radius": self.estimator, "stiffness": self.stiffness})
-        self._restore()
-        #: the learned state as last restored, saved or reset: a save writes only a change
-        self._saved_text = state_text(self._learned) if self._persist_path else ""
+        self.state_file = NodeState(
+            self,
+            opts.persistence_file,
+            self._identity,
+            explicit_identity(opts.vehicle_file, self.vehicle.name),
+            self._learned,
+            "estimates",
+        )
 
         qos = (
             qos_profile_sensor_data if opts.sensor_qos == "sensor_data" else QoSProfile(depth=100)
@@ -211,11 +206,11 @@ class EstimatorNode(ManagedNode):
         self.pub_diag = self.create_lifecycle_publisher(DiagnosticArray, "/diagnostics", 10)
         self.create_service(Trigger, "~/reset", self._on_reset)
         self.create_timer(opts.diagnostics_period_s, self._publish_diag)
-        if self._persist_path is not None and opts.persistence_period_s > 0:
+        if self.state_file.path is not None and opts.persistence_period_s > 0:
             self.create_timer(opts.persistence_period_s, self._save)
         self.get_logger().info(
             f"estimator_node up: vehicle {self.vehicle.name!r}, {self.config.n_particles} "
-            f"particles, wheels {self.config.wheels}; {self._persist_note}"
+            f"particles, wheels {self.config.wheels}; {self.state_file.note}"
         )
 
     # --- parameters -------------------------------------------------------------------------
@@ -229,32 +224,14 @@ class EstimatorNode(ManagedNode):
         return build_config(VehicleParams, "vehicle", self._values("vehicle"))
 
     # --- persistence ------------------------------------------------------------------------
-    def _restore(self) -> None:
-        # one file for the learned radii and (when the stiffness MPF runs) the learned
-        # stiffness; each part is restored or rejected on its own
-        if self._persist_path is None:
-            return
-        self._persist_note = restore_state(
-            self, self._persist_path, self._identity, self._learned, "estimates"
-        )
-
     def _save(self) -> None:
         """Write the learned state when it changed since it was restored, saved or reset."""
-        if self._persist_path is None:
-            return
-        text = state_text(self._learned)
-        if text == self._saved_text:
-            return
-        if save_state_of(self, self._persist_path, self._identity, self._learned, "estimates"):
-            self._saved_text = text
-        else:
+        if not self.state_file.save():
             self.dropped["persistence_write"] += 1
 
     def _on_reset(self, _: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
         self.pipeline.reset()
-        if self._persist_path is not None:
-            delete_state(self._persist_path)
-            self._saved_text = state_text(self._learned)
+        self.state_file.reset()
         response.success = True
         response.message = "learned tire radii and stiffness reset to the prior"
         self.get_logger().info(response.message)
@@ -263,36 +240,22 @@ class EstimatorNode(ManagedNode):
     def save_on_shutdown(self) -> None:
         """Write the learned radii and stiffness (when the node deactivates, cleans up or
         stops); log why nothing is written."""
-        if self._persist_path is None:
-            self.get_logger().info(f"estimates not saved: {self._persist_note}")
-        elif state_text(self._learned) == self._saved_text:
-            self.get_logger().info(
-                f"estimates unchanged since restored, saved or reset: {self._persist_path} "
-                "not written"
-            )
-        self._save()
+        if not self.state_file.save_on_shutdown():
+            self.dropped["persistence_write"] += 1
 
     # --- inputs -----------------------------------------------------------------------------
     def _callback(self, stream: str, convert: Callable[[Any], Sample]) -> Callable[[Any], None]:
         """Count the message, convert it, push it; drop and count bad input, never raise."""
 
         def callback(msg: Any) -> None:
-            self.received[stream] += 1
-            if not self.active:
-                self.dropped[f"{stream}:inactive"] += 1
+            if not self.accept(stream):
                 return
             self._rate_window[stream] += 1
             try:
                 sample = convert(msg)
                 outputs = self.pipeline.push(sample)
-            except InputError as exc:
-                self.dropped[f"{stream}:{exc.kind}"] += 1
-                return
-            except (TireEstimationError, ValueError, TypeError, AttributeError) as exc:
-                self.dropped[f"{stream}:invalid"] += 1
-                self.get_logger().warning(
-                    f"dropped a {stream} message: {exc}", throttle_duration_sec=5.0
-                )
+            except BAD_INPUT as exc:
+                self.drop(stream, exc)
                 return
             self._publish(outputs)
             datum = self.estimator.datum if self.estimator is not None else None
@@ -339,7 +302,7 @@ class EstimatorNode(ManagedNode):
             self.received,
             self.dropped,
             self._input_rates_hz,
-            self._persist_note,
+            self.state_file.note,
         )
 
 

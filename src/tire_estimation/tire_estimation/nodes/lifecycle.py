@@ -4,6 +4,7 @@ shutdown), and the start that configures and activates a node by itself (``autos
 from __future__ import annotations
 
 import traceback
+from collections import Counter
 from typing import Any
 
 from rclpy.exceptions import ParameterException
@@ -15,10 +16,12 @@ from rclpy.service import Service
 from rclpy.subscription import Subscription
 from rclpy.timer import Timer
 
-from tire_estimation.errors import TireEstimationError, one_line
+from tire_estimation.errors import InputError, TireEstimationError, one_line
 
 #: the primary states from which the shutdown transition runs
 _LIVE_STATES = ("unconfigured", "inactive", "active")
+#: what a message's handling raises on bad input: dropped and counted, never raised
+BAD_INPUT = (TireEstimationError, ValueError, TypeError, AttributeError)
 
 
 class ManagedNode(LifecycleNode):
@@ -29,9 +32,14 @@ class ManagedNode(LifecycleNode):
     it implements :meth:`_configure` (configuration, state, publishers made with
     ``create_lifecycle_publisher``, subscriptions, services, timers) and
     :meth:`save_on_shutdown`. Its input callbacks process a message only while
-    :attr:`active`. Deactivate, cleanup and shutdown save the state; cleanup and shutdown
-    destroy what configure made.
+    :attr:`active` (:meth:`accept`; bad input: :meth:`drop`). Deactivate, cleanup and
+    shutdown save the state; cleanup and shutdown destroy what configure made.
     """
+
+    #: messages per input stream (made by ``_configure``)
+    received: Counter[str]
+    #: dropped messages and samples per ``stream:reason`` (made by ``_configure``)
+    dropped: Counter[str]
 
     def __init__(self, node_name: str, **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
@@ -75,6 +83,24 @@ class ManagedNode(LifecycleNode):
                 pass
         if self.configured:
             self.save_on_shutdown()
+
+    # --- inputs -----------------------------------------------------------------------------
+    def accept(self, stream: str) -> bool:
+        """Count a message of ``stream``; True when it is to be processed (the node is active),
+        else it is dropped as ``stream:inactive``."""
+        self.received[stream] += 1
+        if not self.active:
+            self.dropped[f"{stream}:inactive"] += 1
+        return self.active
+
+    def drop(self, stream: str, exc: Exception) -> None:
+        """Count a message whose handling raised :data:`BAD_INPUT` as ``stream:kind`` (an
+        :class:`InputError`) or ``stream:invalid`` (anything else, logged, throttled)."""
+        if isinstance(exc, InputError):
+            self.dropped[f"{stream}:{exc.kind}"] += 1
+            return
+        self.dropped[f"{stream}:invalid"] += 1
+        self.get_logger().warning(f"dropped a {stream} message: {exc}", throttle_duration_sec=5.0)
 
     # --- to implement -----------------------------------------------------------------------
     def _configure(self) -> None:

@@ -36,8 +36,8 @@ from tire_estimation.core.validation import (
     check_rules,
     in_range,
     int_in_range,
-    require_finite,
     require_range,
+    require_vector3,
 )
 from tire_estimation.core.wheels import WHEELS
 from tire_estimation.errors import ConfigError
@@ -172,7 +172,7 @@ class SensorConfig:
             0.0,
             0.1 * pitch,
         )
-        _require_vector3(p + "gyro_bias_rad_s", self.gyro_bias_rad_s, 1.0)
+        require_vector3(p + "gyro_bias_rad_s", self.gyro_bias_rad_s, 1.0, unit=" rad/s")
         if not isinstance(self.tire_force_wheels, tuple) or any(
             w not in WHEELS for w in self.tire_force_wheels
         ):
@@ -196,12 +196,3 @@ class SensorConfig:
         out["gyro_bias_rad_s"] = [float(v) for v in self.gyro_bias_rad_s]
         out["tire_force_wheels"] = list(self.tire_force_wheels)
         return out
-
-
-def _require_vector3(field: str, value: object, limit: float) -> None:
-    if not isinstance(value, tuple) or len(value) != 3:
-        raise ConfigError(field, value, "must be a tuple of 3 numbers")
-    for i, v in enumerate(value):
-        require_finite(f"{field}[{i}]", v)
-        if abs(v) > limit:
-            raise ConfigError(f"{field}[{i}]", v, f"must be within +-{limit}")

@@ -21,9 +21,8 @@ from tire_estimation.core.validation import (
     in_range,
     int_in_range,
     one_of,
-    reject_unknown_keys,
+    require_known_keys,
 )
-from tire_estimation.errors import ConfigError
 
 WHEEL_MODES = ("rear", "all")
 
@@ -216,9 +215,7 @@ class RadiusEstimatorConfig:
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> RadiusEstimatorConfig:
         """Build from a mapping (e.g. ROS parameters); unknown keys raise ConfigError."""
-        if not isinstance(data, Mapping):
-            raise ConfigError("radius_estimator", data, "must be a mapping")
-        reject_unknown_keys(data, (f.name for f in dataclasses.fields(cls)))
+        data = require_known_keys(cls, data, "radius_estimator")
         kwargs = {}
         for f in dataclasses.fields(cls):
             if f.name in data:

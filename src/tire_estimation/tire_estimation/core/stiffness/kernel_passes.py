@@ -9,8 +9,9 @@ NiW update (:func:`posterior`, eq. 19, 39-41), the bias update (:func:`bias_upda
 the information share of ``niw_update`` = ``rao_blackwellized`` and systematic resampling.
 Every loop over the lanes is the innermost loop and reads and writes only the scratch: the
 compiler vectorizes neither a loop whose body holds another loop nor one over several arrays.
-Numba's cache of the kernels is keyed on ``kernels.py`` alone: after a change here, touch that
-file (or remove its ``__pycache__``) so that they compile again.
+Numba's cache of the kernels is keyed on the text of ``kernels.py`` alone (touching it is not
+enough): after a change here, remove its ``kernels.*.nbi`` / ``.nbc`` files in ``__pycache__``
+so that they compile again.
 """
 
 from __future__ import annotations
@@ -183,6 +184,28 @@ def at(i: int) -> int:
 
 
 @numba.njit(**_JIT)
+def load3(wk: F64, o: int, f: int) -> V3:
+    """Fields ``f`` to ``f + 2`` of the particle at offset ``o`` of the block layout."""
+    return wk[o + f * LANES], wk[o + (f + 1) * LANES], wk[o + (f + 2) * LANES]
+
+
+@numba.njit(**_JIT)
+def load6(wk: F64, o: int, f: int) -> tuple[float, float, float, float, float, float]:
+    """Fields ``f`` to ``f + 5`` of the particle at offset ``o`` (an upper triangle, two rows)."""
+    a, b, c = load3(wk, o, f)
+    d, e, g = load3(wk, o, f + 3)
+    return a, b, c, d, e, g
+
+
+@numba.njit(**_JIT)
+def store3(wk: F64, o: int, f: int, v: V3) -> None:
+    """``v`` into fields ``f`` to ``f + 2`` of the particle at offset ``o``."""
+    wk[o + f * LANES] = v[0]
+    wk[o + (f + 1) * LANES] = v[1]
+    wk[o + (f + 2) * LANES] = v[2]
+
+
+@numba.njit(**_JIT)
 def scalars(c: F64) -> tuple[float, ...]:
     """The model constants as scalars (kept in registers in the loops)."""
     return (
@@ -292,15 +315,9 @@ def posterior(
         base = blk * (FIELDS * LANES)
         for ln in range(LANES):
             o = base + ln
-            d = (
-                wk[o + F_D * LANES], wk[o + (F_D + 1) * LANES], wk[o + (F_D + 2) * LANES],
-                wk[o + (F_D + 3) * LANES], wk[o + (F_D + 4) * LANES], wk[o + (F_D + 5) * LANES],
-            )  # fmt: skip
-            mu = (wk[o + F_MU * LANES], wk[o + (F_MU + 1) * LANES], wk[o + (F_MU + 2) * LANES])
-            lu = (
-                wk[o + F_L * LANES], wk[o + (F_L + 1) * LANES], wk[o + (F_L + 2) * LANES],
-                wk[o + (F_L + 3) * LANES], wk[o + (F_L + 4) * LANES], wk[o + (F_L + 5) * LANES],
-            )  # fmt: skip
+            d = load6(wk, o, F_D)
+            mu = load3(wk, o, F_MU)
+            lu = load6(wk, o, F_L)
             # Lambda_11 = (1 + gamma) / nu~ Lambda (symmetric)
             l11 = (
                 w_fac * lu[0], w_fac * lu[1], w_fac * lu[2], w_fac * lu[1], w_fac * lu[3],
@@ -315,12 +332,7 @@ def posterior(
                 d[3] * l11[1] + d[4] * l11[4] + d[5] * l11[7],
                 d[3] * l11[2] + d[4] * l11[5] + d[5] * l11[8],
             )
-            i00, i01, i02 = (
-                wk[o + F_INV * LANES],
-                wk[o + (F_INV + 1) * LANES],
-                wk[o + (F_INV + 2) * LANES],
-            )
-            i11, i12 = wk[o + (F_INV + 3) * LANES], wk[o + (F_INV + 4) * LANES]
+            i00, i01, i02, i11, i12, _ = load6(wk, o, F_INV)
             # gain Lambda_12 Lambda_22^-1 = Lambda_21^T Lambda~_e^-1 (3, 3)
             gain = (
                 l21[0] * i00 + l21[3] * i01, l21[0] * i01 + l21[3] * i11,
@@ -364,15 +376,13 @@ def posterior(
             ch11 = math.sqrt((c11 + ridge) - ch10 * ch10)
             ch21 = (c21 - ch20 * ch10) / ch11
             ch22 = math.sqrt((c22 + ridge) - ch20 * ch20 - ch21 * ch21)
-            n0, n1, n2 = wk[o + F_N * LANES], wk[o + (F_N + 1) * LANES], wk[o + (F_N + 2) * LANES]
+            n0, n1, n2 = load3(wk, o, F_N)
             tf = math.sqrt(dof_c / wk[o + F_CHI2 * LANES])
             # w = mu_{1|2} + chol z sqrt(nu_{1|2} / chi2); Sec. V projection to physical bounds
             w0 = clip(loc[0] + (ch00 * n0) * tf, lo0, hi0)
             w1 = clip(loc[1] + (ch10 * n0 + ch11 * n1) * tf, lo1, hi1)
             w2 = clip(loc[2] + (ch20 * n0 + ch21 * n1 + ch22 * n2) * tf, lo2, hi2)
-            wk[o + F_W * LANES] = w0
-            wk[o + (F_W + 1) * LANES] = w1
-            wk[o + (F_W + 2) * LANES] = w2
+            store3(wk, o, F_W, (w0, w1, w2))
             # eq. (19) with w_bar = w_k (Remark 3): Lambda += c (w - mu)(w - mu)^T; the mean
             # mu += gamma_{k|k} (w - mu), or the split update mu += g_loc (loc - mu) + g_w (w -
             # loc); projected to the bounds
@@ -399,15 +409,9 @@ def posterior(
                     mu = (fm0, mu[1], mu[2])
                     lu = (fl00, 0.0, 0.0, lu[3], lu[4], lu[5])
             # (stored unconditionally: one path for the SIMD lanes)
-            wk[o + (F_MU + 0) * LANES] = mu[0]
-            wk[o + (F_MU + 1) * LANES] = mu[1]
-            wk[o + (F_MU + 2) * LANES] = mu[2]
-            wk[o + (F_L + 0) * LANES] = lu[0]
-            wk[o + (F_L + 1) * LANES] = lu[1]
-            wk[o + (F_L + 2) * LANES] = lu[2]
-            wk[o + (F_L + 3) * LANES] = lu[3]
-            wk[o + (F_L + 4) * LANES] = lu[4]
-            wk[o + (F_L + 5) * LANES] = lu[5]
+            store3(wk, o, F_MU, mu)
+            store3(wk, o, F_L, (lu[0], lu[1], lu[2]))
+            store3(wk, o, F_L + 3, (lu[3], lu[4], lu[5]))
             # line 18 (first half): derivative for eq. (9), rate = rate_n + a w_k
             # (no inner loops here: the loop over the lanes must be the innermost one)
             wk[o + (F_RATE + 0) * LANES] = wk[o + (F_RATE + 0) * LANES] + (
@@ -437,19 +441,10 @@ def bias_update(wk: F64, o: int, inv_nu_s: float, nu_t: float, bias_fac: float) 
     """Line 15: eq. (30) for the particle at offset ``o`` of the block-layout scratch, with
     ``mu_{k|k}`` and ``Lambda_{k|k}`` (``student_t.bias_update`` with the Student-t total
     noise, deviations ii, v and x), in place."""
-    d = (
-        wk[o + F_D * LANES], wk[o + (F_D + 1) * LANES], wk[o + (F_D + 2) * LANES],
-        wk[o + (F_D + 3) * LANES], wk[o + (F_D + 4) * LANES], wk[o + (F_D + 5) * LANES],
-    )  # fmt: skip
-    mu = (wk[o + F_MU * LANES], wk[o + (F_MU + 1) * LANES], wk[o + (F_MU + 2) * LANES])
-    lu = (
-        wk[o + F_L * LANES], wk[o + (F_L + 1) * LANES], wk[o + (F_L + 2) * LANES],
-        wk[o + (F_L + 3) * LANES], wk[o + (F_L + 4) * LANES], wk[o + (F_L + 5) * LANES],
-    )  # fmt: skip
-    pu = (
-        wk[o + F_P * LANES], wk[o + (F_P + 1) * LANES], wk[o + (F_P + 2) * LANES],
-        wk[o + (F_P + 3) * LANES], wk[o + (F_P + 4) * LANES], wk[o + (F_P + 5) * LANES],
-    )  # fmt: skip
+    d = load6(wk, o, F_D)
+    mu = load3(wk, o, F_MU)
+    lu = load6(wk, o, F_L)
+    pu = load6(wk, o, F_P)
     pj = (pu[0], pu[1], pu[2], pu[1], pu[3], pu[4], pu[2], pu[4], pu[5])
     # eq. (30) with mu_{k|k} and Sigma_{k|k} = Lambda / (nu - 4): extra = d Sigma d^T
     sg = (
@@ -518,27 +513,12 @@ def information_share(wk: F64, n: int, w_fac: float, freeze_cx: bool, weights: F
     total = 0.0
     for i in range(n):
         o = at(i)
-        d = (
-            wk[o + F_D * LANES], wk[o + (F_D + 1) * LANES], wk[o + (F_D + 2) * LANES],
-            wk[o + (F_D + 3) * LANES], wk[o + (F_D + 4) * LANES], wk[o + (F_D + 5) * LANES],
-            0.0, 0.0, 0.0,
-        )  # fmt: skip
+        d6 = load6(wk, o, F_D)
+        d = (*d6, 0.0, 0.0, 0.0)
         dt = (d[0], d[3], 0.0, d[1], d[4], 0.0, d[2], d[5], 0.0)
-        v0, v1, v2 = (
-            wk[o + F_INV * LANES],
-            wk[o + (F_INV + 1) * LANES],
-            wk[o + (F_INV + 2) * LANES],
-        )
-        v3, v4, v5 = (
-            wk[o + (F_INV + 3) * LANES],
-            wk[o + (F_INV + 4) * LANES],
-            wk[o + (F_INV + 5) * LANES],
-        )
+        v0, v1, v2, v3, v4, v5 = load6(wk, o, F_INV)
         inv = (v0, v1, v2, v1, v3, v4, v2, v4, v5)
-        u = (
-            wk[o + F_L * LANES], wk[o + (F_L + 1) * LANES], wk[o + (F_L + 2) * LANES],
-            wk[o + (F_L + 3) * LANES], wk[o + (F_L + 4) * LANES], wk[o + (F_L + 5) * LANES],
-        )  # fmt: skip
+        u = load6(wk, o, F_L)
         l11 = (
             w_fac * u[0], w_fac * u[1], w_fac * u[2], w_fac * u[1], w_fac * u[3],
             w_fac * u[4], w_fac * u[2], w_fac * u[4], w_fac * u[5],

@@ -24,7 +24,7 @@ tire_estimation.evaluation.campaign``).
 """
 
 from tire_estimation.evaluation.campaign.cli import add_campaign_parser, main
-from tire_estimation.evaluation.campaign.execute import execute_cases, local_cluster
+from tire_estimation.evaluation.campaign.execute import Execution, execute_cases, local_cluster
 from tire_estimation.evaluation.campaign.output import read_csv_rows, write_csv
 from tire_estimation.evaluation.campaign.run import redetect_case, run_case
 from tire_estimation.evaluation.campaign.score import braking_signal
@@ -69,6 +69,7 @@ __all__ = [
     "CaseRun",
     "CaseSpec",
     "EceCampaignPlan",
+    "Execution",
     "add_campaign_parser",
     "braking_signal",
     "calibration_cases",

@@ -13,6 +13,7 @@ from typing import Any
 from tire_estimation.cli import parse_key_value
 from tire_estimation.core.validation import reject_unknown_keys
 from tire_estimation.errors import ConfigError, TireEstimationError, one_line
+from tire_estimation.evaluation.campaign.execute import Execution
 from tire_estimation.evaluation.campaign.spec import (
     GNSS_LEVELS,
     ROAD_LEVELS,
@@ -131,6 +132,13 @@ def _add_exec_args(p: argparse.ArgumentParser) -> None:
     )
 
 
+def _execution(args: argparse.Namespace) -> Execution:
+    """The execution options of :func:`_add_exec_args`."""
+    return Execution(
+        args.executor, args.workers, args.scheduler, args.threads, args.dashboard_address
+    )
+
+
 def _p95(stats: dict[str, Any]) -> float:
     return float(stats.get("p95_abs", float("nan")))
 
@@ -143,11 +151,7 @@ def _cmd_calibration(args: argparse.Namespace) -> int:
         at_min=args.at_min,
         first_seed=args.first_seed,
         gnss=args.gnss,
-        executor=args.executor,
-        n_workers=args.workers,
-        scheduler=args.scheduler,
-        threads=args.threads,
-        dashboard_address=args.dashboard_address,
+        execution=_execution(args),
         overwrite=args.overwrite,
         estimator=_estimator_options(args.estimator),
         progress=_print_progress,
@@ -187,11 +191,7 @@ def _cmd_ece_r64(args: argparse.Namespace) -> int:
     summary = run_ece_r64_campaign(
         args.out,
         plan,
-        executor=args.executor,
-        n_workers=args.workers,
-        scheduler=args.scheduler,
-        threads=args.threads,
-        dashboard_address=args.dashboard_address,
+        execution=_execution(args),
         overwrite=args.overwrite,
         progress=_print_progress,
         save_traces=args.save_traces,

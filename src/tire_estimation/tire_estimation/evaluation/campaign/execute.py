@@ -9,6 +9,7 @@ unless ``dashboard_address`` asks for it. A remote scheduler is the user's choic
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from tire_estimation.evaluation.campaign.run import run_case
@@ -21,6 +22,31 @@ if TYPE_CHECKING:
 LOCAL_HOST = "127.0.0.1"
 #: default dashboard address of the LocalCluster: this machine only, a free port
 DEFAULT_DASHBOARD_ADDRESS = f"{LOCAL_HOST}:0"
+#: the ways to run the cases
+EXECUTORS = ("dask", "processes", "serial")
+
+
+@dataclass(frozen=True)
+class Execution:
+    """Where the cases of a study run (checked at construction).
+
+    ``executor``: ``dask`` (``scheduler`` address, else :func:`local_cluster` of ``n_workers``
+    single-threaded worker processes, or threads only with ``threads=True``, its dashboard on
+    ``dashboard_address``), ``processes`` (``concurrent.futures.ProcessPoolExecutor`` of
+    ``n_workers``) or ``serial``.
+    """
+
+    executor: str = "dask"
+    n_workers: int = 2
+    scheduler: str | None = None
+    threads: bool = False
+    dashboard_address: str | None = None
+
+    def __post_init__(self) -> None:
+        if self.n_workers < 1:
+            raise CampaignError(f"n_workers={self.n_workers!r}: must be >= 1")
+        if self.executor not in EXECUTORS:
+            raise CampaignError(f"executor={self.executor!r}: must be dask, processes or serial")
 
 
 def local_cluster(
@@ -47,23 +73,13 @@ def local_cluster(
 
 def execute_cases(
     cases: Sequence[CaseSpec],
-    executor: str = "dask",
-    n_workers: int = 2,
-    scheduler: str | None = None,
-    threads: bool = False,
+    execution: Execution | None = None,
     progress: Callable[[dict[str, Any], int, int], None] | None = None,
     accuracy_at_s: float = 600.0,
-    dashboard_address: str | None = None,
 ) -> list[dict[str, Any]]:
-    """Run every case; rows in the order of ``cases``.
-
-    ``executor``: ``dask`` (``scheduler`` address, else :func:`local_cluster` of ``n_workers``
-    single-threaded worker processes, or threads only with ``threads=True``, its dashboard on
-    ``dashboard_address``), ``processes`` (``concurrent.futures.ProcessPoolExecutor``) or
-    ``serial``.
-    """
-    if n_workers < 1:
-        raise CampaignError(f"n_workers={n_workers!r}: must be >= 1")
+    """Run every case as ``execution`` says (default :class:`Execution`); rows in the order of
+    ``cases``."""
+    ex = execution or Execution()
     rows: dict[str, dict[str, Any]] = {}
     total = len(cases)
 
@@ -72,17 +88,17 @@ def execute_cases(
         if progress is not None:
             progress(row, len(rows), total)
 
-    if executor == "serial":
+    if ex.executor == "serial":
         for spec in cases:
             done(run_case(spec, accuracy_at_s))
-    elif executor == "processes":
+    elif ex.executor == "processes":
         from concurrent.futures import ProcessPoolExecutor, as_completed
 
-        with ProcessPoolExecutor(max_workers=n_workers) as pool:
+        with ProcessPoolExecutor(max_workers=ex.n_workers) as pool:
             futures = [pool.submit(run_case, spec, accuracy_at_s) for spec in cases]
             for fut in as_completed(futures):
                 done(fut.result())
-    elif executor == "dask":
+    else:
         try:
             from dask.distributed import Client, as_completed
         except ImportError as exc:  # pragma: no cover - dask is a pinned dependency
@@ -90,10 +106,10 @@ def execute_cases(
                 "dask.distributed is not installed; use --executor processes"
             ) from exc
         cluster = None
-        if scheduler:
-            client = Client(scheduler)
+        if ex.scheduler:
+            client = Client(ex.scheduler)
         else:
-            cluster = local_cluster(n_workers, threads, dashboard_address)
+            cluster = local_cluster(ex.n_workers, ex.threads, ex.dashboard_address)
             client = Client(cluster)
         try:
             futures = client.map(run_case, list(cases), accuracy_at_s=accuracy_at_s, pure=False)
@@ -103,6 +119,4 @@ def execute_cases(
             client.close()
             if cluster is not None:
                 cluster.close()
-    else:
-        raise CampaignError(f"executor={executor!r}: must be dask, processes or serial")
     return [rows[spec.case_id] for spec in cases]

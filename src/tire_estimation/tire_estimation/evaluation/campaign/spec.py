@@ -204,6 +204,14 @@ class EceCampaignPlan:
         return float(min(self.detector_calibration_s, limit))
 
 
+#: the case kinds of an ECE R-64 campaign: kind -> (case id prefix, simulated scenario)
+_CASE_KINDS = {
+    "step": ("step", "ece_r64"),
+    "robustness": ("rob", "robustness"),
+    "diffusion": ("diff", "diffusion"),
+}
+
+
 def _planned_case(plan: EceCampaignPlan, **fields: Any) -> CaseSpec:
     """A case of ``plan``: its detector calibration time (:meth:`EceCampaignPlan.calibration_s`
     of the case's ``event_s`` and ``minutes``), the plan's estimator overrides (``wheels`` and
@@ -253,7 +261,22 @@ def ece_r64_cases(plan: EceCampaignPlan) -> list[CaseSpec]:
         )
 
     cases: list[CaseSpec] = []
-    seed = plan.first_seed
+
+    def add(kind: str, i: int, minutes: float, **fields: Any) -> None:
+        # the i-th case of its kind: id and scenario of the kind, the next seed (one per case)
+        prefix, scenario = _CASE_KINDS[kind]
+        cases.append(
+            _planned_case(
+                plan,
+                case_id=f"{prefix}-{i:04d}",
+                kind=kind,
+                scenario=scenario,
+                seed=plan.first_seed + len(cases),
+                minutes=minutes,
+                **fields,
+            )
+        )
+
     ev = plan.deflation_s
     if plan.step_cases and not 0.0 < ev < 60.0 * plan.step_minutes:
         raise CampaignError(
@@ -261,46 +284,34 @@ def ece_r64_cases(plan: EceCampaignPlan) -> list[CaseSpec]:
         )
     for i in range(plan.step_cases):
         wheel, sens, gnss, road = factors(i)
-        cases.append(
-            _planned_case(
-                plan,
-                case_id=f"step-{i:04d}",
-                kind="step",
-                scenario="ece_r64",
-                seed=seed,
-                minutes=plan.step_minutes,
-                options={
-                    "deflate_wheel": wheel,
-                    "deflation_fraction": 0.2,
-                    "deflation_time_min": ev / 60.0,
-                    "pressure_sensitivity_mm_per_kpa": sens,
-                },
-                sensors={**GNSS_LEVELS[gnss], **ROAD_LEVELS[road], **plan.sensors},
-                labels={"wheel": wheel, "tyre": f"{sens:g}", "gnss": gnss, "road": road},
-                deflated_wheels=(wheel,),
-                event_s=ev,
-                deadline_s=STEP_DEADLINE_S,
-            )
+        add(
+            "step",
+            i,
+            plan.step_minutes,
+            options={
+                "deflate_wheel": wheel,
+                "deflation_fraction": 0.2,
+                "deflation_time_min": ev / 60.0,
+                "pressure_sensitivity_mm_per_kpa": sens,
+            },
+            sensors={**GNSS_LEVELS[gnss], **ROAD_LEVELS[road], **plan.sensors},
+            labels={"wheel": wheel, "tyre": f"{sens:g}", "gnss": gnss, "road": road},
+            deflated_wheels=(wheel,),
+            event_s=ev,
+            deadline_s=STEP_DEADLINE_S,
         )
-        seed += 1
     rob_grid = list(itertools.product(gnss_levels, plan.road_levels))
     for i in range(plan.robustness_cases):
         gnss, road = rob_grid[i % len(rob_grid)]
         sens = sens_levels[i % len(sens_levels)]
-        cases.append(
-            _planned_case(
-                plan,
-                case_id=f"rob-{i:04d}",
-                kind="robustness",
-                scenario="robustness",
-                seed=seed,
-                minutes=plan.robustness_minutes,
-                options={"pressure_sensitivity_mm_per_kpa": sens},
-                sensors={**GNSS_LEVELS[gnss], **ROAD_LEVELS[road], **plan.sensors},
-                labels={"tyre": f"{sens:g}", "gnss": gnss, "road": road},
-            )
+        add(
+            "robustness",
+            i,
+            plan.robustness_minutes,
+            options={"pressure_sensitivity_mm_per_kpa": sens},
+            sensors={**GNSS_LEVELS[gnss], **ROAD_LEVELS[road], **plan.sensors},
+            labels={"tyre": f"{sens:g}", "gnss": gnss, "road": road},
         )
-        seed += 1
     start_s = (
         60.0 * plan.diffusion_start_min
         if plan.diffusion_start_min is not None
@@ -315,26 +326,20 @@ def ece_r64_cases(plan: EceCampaignPlan) -> list[CaseSpec]:
         picks = tuple(w for w in WHEELS if w in picks)
         rate = float(np.round(rng.uniform(0.8, 2.0), 2))
         sens = sens_levels[i % len(sens_levels)]
-        cases.append(
-            _planned_case(
-                plan,
-                case_id=f"diff-{i:04d}",
-                kind="diffusion",
-                scenario="diffusion",
-                seed=seed,
-                minutes=plan.diffusion_minutes,
-                options={
-                    "wheels": list(picks),
-                    "rate_kpa_per_min": rate,
-                    "start_min": start_s / 60.0,
-                    "pressure_sensitivity_mm_per_kpa": sens,
-                },
-                sensors={**GNSS_LEVELS[dgnss], **plan.sensors},
-                labels={"tyre": f"{sens:g}", "gnss": dgnss, "rate": f"{rate:g}"},
-                deflated_wheels=picks,
-                event_s=start_s,
-                deadline_s=DIFFUSION_DEADLINE_S,
-            )
+        add(
+            "diffusion",
+            i,
+            plan.diffusion_minutes,
+            options={
+                "wheels": list(picks),
+                "rate_kpa_per_min": rate,
+                "start_min": start_s / 60.0,
+                "pressure_sensitivity_mm_per_kpa": sens,
+            },
+            sensors={**GNSS_LEVELS[dgnss], **plan.sensors},
+            labels={"tyre": f"{sens:g}", "gnss": dgnss, "rate": f"{rate:g}"},
+            deflated_wheels=picks,
+            event_s=start_s,
+            deadline_s=DIFFUSION_DEADLINE_S,
         )
-        seed += 1
     return cases

@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from tire_estimation.atomic_io import atomic_write_text
-from tire_estimation.evaluation.campaign.execute import execute_cases
+from tire_estimation.evaluation.campaign.execute import Execution, execute_cases
 from tire_estimation.evaluation.campaign.output import (
     plot_calibration,
     plot_detection,
@@ -44,33 +44,21 @@ def run_calibration_study(
     at_min: float = 10.0,
     first_seed: int = 0,
     gnss: str = "calibration",
-    executor: str = "dask",
-    n_workers: int = 2,
-    scheduler: str | None = None,
-    threads: bool = False,
+    execution: Execution | None = None,
     overwrite: bool = False,
     estimator: dict[str, Any] | None = None,
     progress: Callable[[dict[str, Any], int, int], None] | None = None,
     sensors: dict[str, Any] | None = None,
-    dashboard_address: str | None = None,
 ) -> dict[str, Any]:
     """Issue-3 study: ``summary.json``, ``cases.csv``, ``calibration_errors.png`` in ``out``
-    (``dashboard_address``: of the Dask LocalCluster, :func:`execute_cases`)."""
+    (the cases run as ``execution`` says, default :class:`Execution`)."""
     if not 0.0 < at_min <= minutes:
         raise CampaignError(f"at_min={at_min!r}: must be within (0, minutes={minutes}]")
     out_dir = prepare_out(out, overwrite)
     cases = calibration_cases(seeds, minutes, first_seed, gnss, estimator, sensors)
     t0 = time.perf_counter()
-    rows = execute_cases(
-        cases,
-        executor,
-        n_workers,
-        scheduler,
-        threads,
-        progress,
-        accuracy_at_s=60.0 * at_min,
-        dashboard_address=dashboard_address,
-    )
+    ex = execution or Execution()
+    rows = execute_cases(cases, ex, progress, accuracy_at_s=60.0 * at_min)
     summary = summarize_calibration(rows, 60.0 * at_min)
     summary["config"] = {
         "seeds": seeds,
@@ -80,8 +68,8 @@ def run_calibration_study(
         "gnss": {gnss: GNSS_LEVELS[gnss]},
         "estimator_overrides": estimator or {},
         "sensor_overrides": sensors or {},
-        "executor": executor,
-        "n_workers": n_workers,
+        "executor": ex.executor,
+        "n_workers": ex.n_workers,
     }
     summary["wall_time_s"] = time.perf_counter() - t0
     summary["versions"] = versions()
@@ -95,20 +83,16 @@ def run_calibration_study(
 def run_ece_r64_campaign(
     out: Path | str,
     plan: EceCampaignPlan,
-    executor: str = "dask",
-    n_workers: int = 2,
-    scheduler: str | None = None,
-    threads: bool = False,
+    execution: Execution | None = None,
     overwrite: bool = False,
     progress: Callable[[dict[str, Any], int, int], None] | None = None,
     save_traces: bool = False,
-    dashboard_address: str | None = None,
 ) -> dict[str, Any]:
     """Issue-4 campaign: ``summary.json``, ``cases.csv``, ``cases.json`` and PNGs in ``out``.
 
-    ``save_traces`` keeps every case's estimator traces in ``out/traces`` (about 2 MB per
-    25-min case) for :func:`redetect_campaigns`; ``dashboard_address``: of the Dask
-    LocalCluster (:func:`execute_cases`).
+    The cases run as ``execution`` says (default :class:`Execution`); ``save_traces`` keeps
+    every case's estimator traces in ``out/traces`` (about 2 MB per 25-min case) for
+    :func:`redetect_campaigns`.
     """
     out_dir = prepare_out(out, overwrite)
     cases = ece_r64_cases(plan)
@@ -120,23 +104,16 @@ def run_ece_r64_campaign(
         cases = [dataclasses.replace(c, trace_dir=str(trace_dir.resolve())) for c in cases]
     atomic_write_text(out_dir / "cases.json", json.dumps([c.to_dict() for c in cases], indent=1))
     t0 = time.perf_counter()
-    rows = execute_cases(
-        cases,
-        executor,
-        n_workers,
-        scheduler,
-        threads,
-        progress,
-        dashboard_address=dashboard_address,
-    )
+    ex = execution or Execution()
+    rows = execute_cases(cases, ex, progress)
     summary = summarize_detection(rows)
     plan_d = dataclasses.asdict(plan)
     plan_d["deflation_s"] = plan.deflation_s
     summary["config"] = {
         "plan": plan_d,
-        "executor": executor,
-        "n_workers": n_workers,
-        "scheduler": scheduler,
+        "executor": ex.executor,
+        "n_workers": ex.n_workers,
+        "scheduler": ex.scheduler,
         "braking": (
             "deceleration of the estimator's speed, low-passed (1 s), > 1 m/s^2"
             if plan.braking_source == "estimate"
