@@ -478,3 +478,30 @@ def test_velocity_selects_the_particles_whose_radius_explains_the_speed():
     assert f.resample_count == 0  # N_eff is 200 / 1.2: no resampling at threshold 0.5
     assert f.weights[150] / f.weights[0] == pytest.approx(ratio, rel=1e-9)
     assert f.weights[:100].sum() > 0.85
+
+
+def test_inflate_widens_the_cloud_about_its_mean_up_to_the_prior_radius_std():
+    m = RadiusMotionModel(R_NOM, TRACK, WHEELBASE)
+    rng = np.random.default_rng(4)
+    mpf = RadiusMPF(m, 400, np.zeros(2), 3e-3, 1e-3, 10.0, 1.0, 0.0, 0.0, rng)
+    mpf.init_pose(np.array([10.0, -5.0, 3.1]), np.diag([0.04, 0.09, 0.01**2]))
+    mpf._mu[...] = 1e-3 + 1e-4 * rng.standard_normal((2, 400))
+    mpf.weights[:] = rng.uniform(0.5, 1.5, 400)
+    mpf.weights /= mpf.weights.sum()
+    w = mpf.weights.copy()
+
+    def moments():
+        x = np.vstack([mpf.east, mpf.north, mpf.yaw, mpf.stats.mean.T])
+        mean = x @ w
+        return mean, np.sqrt(((x - mean[:, None]) ** 2) @ w)
+
+    mean0, std0 = moments()
+    assert mpf.inflate(3.0) == 3.0
+    mean1, std1 = moments()
+    np.testing.assert_allclose(mean1, mean0, atol=1e-12)
+    np.testing.assert_allclose(std1, 3.0 * std0, rtol=1e-9)
+    np.testing.assert_array_equal(mpf.weights, w)
+    # capped: the NiW means spread no wider than the prior std of the mean radius errors
+    applied = mpf.inflate(1000.0)
+    assert 1.0 < applied < 1000.0
+    assert moments()[1][3:].max() == pytest.approx(3e-3)

@@ -125,6 +125,8 @@ class RadiusMPF(MarginalGnssBias):
         self.mean_q = float(mean_random_walk_m_sqrt_s) ** 2
         self.kernel_a = float(kernel_shrinkage)
         self.block_size = int(block_size)
+        #: prior std of the mean radius errors, m (the widest :meth:`inflate` makes the cloud)
+        self.prior_mean_std_m = float(prior_mean_std_m)
         d = self.D
         self._prior = (
             np.asarray(prior_mean_m, dtype=float).reshape(d),
@@ -516,6 +518,36 @@ class RadiusMPF(MarginalGnssBias):
         self._north += shift[1]
         if self.bias_on:
             self._bias_anchor(s_inv, pred.innovation_m)
+
+    @_mutates
+    def inflate(self, alpha: float) -> float:
+        """Widen the cloud about its weighted mean by ``alpha`` (>= 1): positions, headings and
+        NiW means ``x_i <- xbar + alpha (x_i - xbar)``; weights, NiW scales and the GNSS-error
+        filters are kept (multiplicative inflation: the correlations the cloud learned between
+        pose and radii are kept, its covariance grows by ``alpha^2``). ``alpha`` is capped so
+        that the spread of the NiW means does not exceed the prior std of the mean radius
+        errors. Returns the factor applied."""
+        self._flush()
+        w = self.weights
+        mbar = self._mu @ w
+        dev = self._mu - mbar[:, None]
+        spread = math.sqrt(float(np.max((dev * dev) @ w)))
+        if spread > 0.0:
+            alpha = min(alpha, max(1.0, self.prior_mean_std_m / spread))
+        if not alpha > 1.0:
+            return 1.0
+        for a in (self._east, self._north):
+            m = float(w @ a)
+            a *= alpha
+            a += (1.0 - alpha) * m
+        # headings are not wrapped, but a cloud may straddle a wrap of its mean: deviations
+        # from one particle's heading, wrapped
+        ref = float(self._yaw[0])
+        rel = np.remainder(self._yaw - ref + math.pi, 2.0 * math.pi) - math.pi
+        m_rel = float(w @ rel)
+        self._yaw[:] = ref + m_rel + alpha * (rel - m_rel)
+        self._mu[...] = mbar[:, None] + alpha * dev
+        return alpha
 
     def estimate(self) -> MpfEstimate:
         """Weighted pose mean/covariance and the NiW MMSE (eq. 30, Table I lines 17-18)."""
