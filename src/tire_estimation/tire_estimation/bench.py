@@ -1,7 +1,8 @@
 """Benchmarks (``make bench``): filter step time (radius MPF, stiffness MPF, and the two side by
 side per sample), replay real-time factor (radius only, and the default replay with every
-estimator), the replay's peak memory against drive length (:mod:`.bench_memory`), node latency
-over DDS and the node's own callback time (in-process, no DDS).
+estimator), the IMU-driven estimators' cost per IMU sample on the replay's samples, the replay's
+peak memory against drive length (:mod:`.bench_memory`), node latency over DDS and the node's own
+callback time (in-process, no DDS).
 
 Not part of the tests: numbers depend on the machine and its load. Results are printed as JSON
 (and written to ``--out`` if given); docs/results.md quotes them with the command.
@@ -146,6 +147,48 @@ def per_sample_costs(particles: list[int]) -> dict[str, dict[str, float]]:
     return out
 
 
+def imu_estimator_costs(bag: Path) -> dict[str, Any]:
+    """CPU time per IMU sample, µs, of each IMU-driven lateral estimator of the default replay
+    (the stiffness MPF, defaults, and its linear-KF baseline) on ``bag``'s samples, fed as the
+    replay's pipeline feeds them (wheel speeds, steering, measured speed, IMU) with one
+    ``estimate()`` after each IMU sample, as the replay's lateral recorder takes it at 100 Hz;
+    and the share of IMU samples at which the stiffness MPF learns."""
+    from tire_estimation.bag.reader import read_bag
+    from tire_estimation.core.lateral.linear_kf import LinearLateralKF, LinearLateralKFConfig
+    from tire_estimation.core.samples import ImuSample, MeasuredVelocity, Steering, WheelSpeeds
+    from tire_estimation.core.stiffness.config import StiffnessEstimatorConfig
+    from tire_estimation.core.stiffness.estimator import StiffnessEstimator
+    from tire_estimation.sources import bag_samples
+
+    data = read_bag(bag)
+    kinds = (ImuSample, WheelSpeeds, Steering, MeasuredVelocity)
+    samples = [s for s in bag_samples(data) if type(s) in kinds]
+    n_imu = sum(type(s) is ImuSample for s in samples)
+    learning = 0
+
+    def feed(est: Any) -> float:
+        nonlocal learning
+        learning = 0
+        start = time.process_time()
+        for s in samples:
+            if type(s) is ImuSample:
+                est.on_imu(s.t_ns, s.angular_velocity_rad_s, s.linear_acceleration_m_s2)
+                learning += bool(getattr(est.estimate(), "active", False))
+            elif type(s) is WheelSpeeds:
+                est.on_wheel_speeds(s.t_ns, s.wheel_speed_rad_s)
+            elif type(s) is Steering:
+                est.on_steering(s.t_ns, s.angle_rad)
+            else:
+                est.on_velocity(s.t_ns, s.vx_m_s)
+        return 1e6 * (time.process_time() - start) / max(n_imu, 1)
+
+    linear_us = feed(LinearLateralKF(LinearLateralKFConfig(), data.vehicle))
+    rng = np.random.default_rng([0, 1])
+    stiffness_us = feed(StiffnessEstimator(StiffnessEstimatorConfig(), data.vehicle, rng))
+    return {"imu_samples": n_imu, "stiffness_mpf_us": stiffness_us, "linear_kf_us": linear_us,
+            "stiffness_learning_fraction": learning / max(n_imu, 1)}  # fmt: skip
+
+
 def replay_rtf(
     n_particles: int | None, bag: Path = DEMO_BAG, stiffness: bool = False
 ) -> dict[str, float]:
@@ -253,56 +296,87 @@ def node_latency(seconds: float = 20.0, n_particles: int = 500) -> dict[str, Any
 
 
 def node_callback_time(
-    seconds: float = 30.0, n_particles: int = 500, skip_s: float = 3.0
+    seconds: float = 30.0, n_particles: int = 500, skip_s: float = 3.0, stiffness: bool = True
 ) -> dict[str, Any]:
-    """The node's own share of the latency: wall time of ``estimator_node``'s wheel-speed
-    callback (plus the GNSS callback at every 10th sample), called in-process with messages as
-    in :func:`node_latency` (100 Hz / 10 Hz, odometry published after every sample), without
-    DDS between publisher and node. ``skip_s`` of header time at the start are not counted."""
+    """The node's own share of the latency: wall time of ``estimator_node``'s subscription
+    callbacks, called in-process (no DDS) with wheel speeds, steering and IMU at 100 Hz and GNSS
+    fixes at 10 Hz, odometry published after every wheel-speed sample. A 25 m/s drive with a
+    0.5 Hz, 2 deg sine steer (the stiffness MPF learns); ``stiffness`` False: the node without
+    the stiffness MPF (``stiffness_enabled:=false``), the steering and IMU still delivered.
+    ``skip_s`` of header time at the start are not counted. Percentiles over single callbacks
+    and over the callbacks of one 10 ms input period (``tick_*``)."""
+    import math
+
     import rclpy
-    from sensor_msgs.msg import JointState, NavSatFix
+    from sensor_msgs.msg import Imu, JointState, NavSatFix
 
     from tire_estimation.nodes.estimator_node import EstimatorNode
 
     rclpy.init(args=["--ros-args", "-p", "persistence_file:=''", "-p",
                      "odometry_publish_period_s:=0.0", "-p",
-                     f"radius.n_particles:={n_particles}", "--log-level", "warn"])  # fmt: skip
+                     f"radius.n_particles:={n_particles}", "-p",
+                     f"stiffness_enabled:={str(stiffness).lower()}",
+                     "--log-level", "warn"])  # fmt: skip
     try:
         node = EstimatorNode()
+        callbacks = {sub.topic_name: sub.callback for sub in node.subscriptions}
+        on_wheels, on_fix = callbacks["/vehicle/wheel_speeds"], callbacks["/gnss/fix"]
+        on_steer, on_imu = callbacks["/vehicle/steering"], callbacks["/imu/data"]
         ltp = LocalTangentPlane(58.4, 15.6, 100.0)
         speed = 25.0
+        wheelbase = node.vehicle.lf_m + node.vehicle.lr_m
         omega = speed / node.vehicle.nominal_tire_radius_m
         wheel = JointState(name=["wheel_fl", "wheel_fr", "wheel_rl", "wheel_rr"])
+        steer = JointState(name=[node.names.steering])
+        imu = Imu()
         fix = NavSatFix()
         fix.position_covariance = [2.25, 0, 0, 0, 2.25, 0, 0, 0, 4.0]
         fix.position_covariance_type = NavSatFix.COVARIANCE_TYPE_DIAGONAL_KNOWN
         t0 = time.time_ns()
         wall: list[float] = []
-        fix_phase: list[bool] = []
+        tick: list[float] = []
+        east = north = heading = 0.0
         for k in range(int(seconds * 100)):
-            wheel.header.stamp.sec, wheel.header.stamp.nanosec = divmod(
-                t0 + k * 10_000_000, 1_000_000_000
-            )
+            stamp = divmod(t0 + k * 10_000_000, 1_000_000_000)
+            delta = math.radians(2.0) * math.sin(2.0 * math.pi * 0.5 * k * 0.01)
+            yaw_rate = speed * delta / wheelbase
+            heading += yaw_rate * 0.01
+            east += speed * math.cos(heading) * 0.01
+            north += speed * math.sin(heading) * 0.01
+            steer.header.stamp.sec, steer.header.stamp.nanosec = stamp
+            steer.position = [delta]
+            imu.header.stamp = steer.header.stamp
+            imu.angular_velocity.z = yaw_rate
+            imu.linear_acceleration.y = speed * yaw_rate
+            imu.linear_acceleration.z = 9.81
+            wheel.header.stamp = steer.header.stamp
             wheel.velocity = [omega] * 4
+            calls = [(on_steer, steer), (on_imu, imu), (on_wheels, wheel)]
             if k % 10 == 0:
-                la, lo, al = ltp.to_lla(speed * k * 0.01, 0.0, 0.0)
-                fix.header.stamp = wheel.header.stamp
+                la, lo, al = ltp.to_lla(east, north, 0.0)
+                fix.header.stamp = steer.header.stamp
                 fix.latitude, fix.longitude, fix.altitude = float(la), float(lo), float(al)
-            start = time.perf_counter()
-            node._on_wheels(wheel)
-            if k % 10 == 0:
-                node._on_gnss(fix)
-            wall.append(time.perf_counter() - start)
-            fix_phase.append(k % 10 == 0)
+                calls.append((on_fix, fix))
+            total = 0.0
+            for callback, msg in calls:
+                start = time.perf_counter()
+                callback(msg)
+                dt = time.perf_counter() - start
+                total += dt
+                if k >= skip_s * 100:
+                    wall.append(dt)
+            if k >= skip_s * 100:
+                tick.append(total)
+        learning = node.stiffness is not None and node.stiffness.estimate().active
         node.destroy_node()
     finally:
         rclpy.shutdown()
-    skip = int(skip_s * 100)
-    ms = np.asarray(wall[skip:]) * 1e3
-    fixes = np.asarray(fix_phase[skip:])
-    return {"samples": int(ms.size), "p50_ms": float(np.median(ms)),
+    ms, tick_ms = np.asarray(wall) * 1e3, np.asarray(tick) * 1e3
+    return {"callbacks": int(ms.size), "p50_ms": float(np.median(ms)),
             "p99_ms": float(np.quantile(ms, 0.99)), "max_ms": float(ms.max()),
-            "with_fix_p50_ms": float(np.median(ms[fixes]))}  # fmt: skip
+            "tick_p50_ms": float(np.median(tick_ms)),
+            "tick_p99_ms": float(np.quantile(tick_ms, 0.99)),
+            "stiffness_learning_at_end": bool(learning)}  # fmt: skip
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -344,6 +418,7 @@ def main(argv: list[str] | None = None) -> int:
     results["replay"] = {str(n): replay_rtf(n, args.replay_bag) for n in args.particles}
     # the default replay: every estimator (stiffness MPF and its linear-KF baseline included)
     results["replay_default"] = replay_rtf(None, args.replay_bag, stiffness=True)
+    results["imu_estimators"] = imu_estimator_costs(args.replay_bag)
     results["replay_memory"] = memory_against_length(args.memory_bags)
     if not args.skip_node:
         results["node_callback"] = node_callback_time()

@@ -10,13 +10,13 @@ import re
 import numpy as np
 import pytest
 
+from tests.core.lateral.reference_single_track import expm_small
 from tire_estimation.core.lateral.estimate import LateralEstimate
 from tire_estimation.core.lateral.single_track import (
     SingleTrackModel,
     SingleTrackParams,
     axle_forces,
     continuous_matrices,
-    expm_small,
     steady_state,
 )
 from tire_estimation.core.lateral.tyre_force_filter import (

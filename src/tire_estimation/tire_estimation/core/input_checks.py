@@ -42,7 +42,8 @@ def finite_vector(value: Any, n: int, what: str) -> F64:
     v = np.asarray(value, dtype=float).reshape(-1)
     if v.shape != (n,):
         raise InputError("wrong_length", f"{what}: need {n} values, got {v.shape[0]}")
-    if not np.all(np.isfinite(v)):
+    # (the few values as floats: cheaper than np.isfinite and np.all on a short vector)
+    if not all(map(math.isfinite, v.tolist())):
         raise InputError("nan", f"{what}: non-finite value")
     return v
 

@@ -27,13 +27,9 @@ import numpy as np
 
 from tire_estimation.core.arrays import F64
 from tire_estimation.core.input_checks import drop_key, finite_vector, stamp_after
+from tire_estimation.core.lateral import single_track_kernels as kernels
 from tire_estimation.core.lateral.estimate import LateralState
-from tire_estimation.core.lateral.single_track import (
-    SingleTrackParams,
-    continuous_matrices,
-    first_order_hold,
-    steady_state,
-)
+from tire_estimation.core.lateral.single_track import SingleTrackParams, steady_state
 from tire_estimation.core.validation import NON_NEGATIVE, POSITIVE, Rule, check_rules
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.errors import InputError
@@ -101,6 +97,17 @@ class LinearLateralKF:
             [config.vy_process_std_m_s_sqrt_s**2, config.yaw_rate_process_std_rad_s_sqrt_s**2]
         )
         self._r = np.diag([config.accel_y_std_m_s2**2, config.yaw_rate_std_rad_s**2])
+        p = self.params
+        # the compiled step's constants (single_track_kernels.kf_constants)
+        self._constants = kernels.kf_constants(
+            kernels.model_constants(
+                p.mass_kg, p.yaw_inertia_kg_m2, p.lf_m, p.lr_m, p.cf_n_rad, p.cr_n_rad
+            ),
+            float(self._q_density[0, 0]),
+            float(self._q_density[1, 1]),
+            float(self._r[0, 0]),
+            float(self._r[1, 1]),
+        )
         self.reset()
 
     def reset(self) -> None:
@@ -123,7 +130,7 @@ class LinearLateralKF:
         """Wheel speeds (fl, fr, rl, rr), rad/s; vx = mean rear wheel speed x nominal radius."""
         try:
             t = stamp_after("wheel speeds", t_ns, self._t_vx)
-            ws = finite_vector(wheel_speed_rad_s, 4, "wheel speeds")
+            ws = finite_vector(wheel_speed_rad_s, 4, "wheel speeds").tolist()
         except (InputError, TypeError, ValueError) as exc:
             self._drop("wheel_speeds", exc.kind if isinstance(exc, InputError) else "bad_value")
             return
@@ -157,8 +164,8 @@ class LinearLateralKF:
         """IMU sample in base_link axes: one predict + update step."""
         try:
             t = stamp_after("imu", t_ns, self._t_imu)
-            gyro = finite_vector(gyro_rad_s, 3, "gyro")
-            acc = finite_vector(accel_m_s2, 3, "accel")
+            gyro = finite_vector(gyro_rad_s, 3, "gyro").tolist()
+            acc = finite_vector(accel_m_s2, 3, "accel").tolist()
         except (InputError, TypeError, ValueError) as exc:
             self._drop("imu", exc.kind if isinstance(exc, InputError) else "bad_value")
             return
@@ -179,46 +186,24 @@ class LinearLateralKF:
             self.initialized = False
         if not self.initialized:
             self.x = steady_state(self.params, vx, delta)
-            self.x[1] = float(gyro[2])
+            self.x[1] = gyro[2]
             self.p = np.diag([1.0, self._r[1, 1]])
             self.initialized = True
             self._last_vx = vx
             return
         assert dt is not None
-        self._predict(dt, vx, delta0, delta)
-        self._update(vx, delta, float(acc[1]), float(gyro[2]))
+        self._step(dt, vx, delta0, delta, acc[1], gyro[2])
         self._last_vx = vx
 
-    def _predict(self, dt: float, vx: float, delta0: float, delta1: float) -> None:
-        a, b = continuous_matrices(self.params, vx)
-        # single-track eq. (23)-(28) discretized with a first-order hold on delta
-        f, b0, b1 = first_order_hold(a, b, dt)
-        slope = (delta1 - delta0) / dt
-        self.x = f @ self.x + b0 * delta0 + b1 * slope
-        # P' = F P F^T + Q T (white process-noise density, first order in T)
-        self.p = f @ self.p @ f.T + self._q_density * dt
-
-    def _update(self, vx: float, delta: float, ay_m_s2: float, r_meas: float) -> None:
-        p = self.params
-        # ay = (Ff + Fr) / m with eq. (25)-(28): Ff = Cf (delta - (vy + lf r) / vx),
-        # Fr = Cr (lr r - vy) / vx
-        c = np.array(
-            [
-                [
-                    -(p.cf_n_rad + p.cr_n_rad) / (p.mass_kg * vx),
-                    (p.cr_n_rad * p.lr_m - p.cf_n_rad * p.lf_m) / (p.mass_kg * vx),
-                ],
-                [0.0, 1.0],
-            ]
-        )
-        d = np.array([p.cf_n_rad / p.mass_kg, 0.0])
-        innov = np.array([ay_m_s2, r_meas]) - (c @ self.x + d * delta)
-        s = c @ self.p @ c.T + self._r
-        k = np.linalg.solve(s, c @ self.p).T
-        self.x = self.x + k @ innov
-        # Joseph form keeps P symmetric positive definite
-        i_kc = np.eye(2) - k @ c
-        self.p = i_kc @ self.p @ i_kc.T + k @ self._r @ k.T
+    def _step(
+        self, dt: float, vx: float, delta0: float, delta1: float, ay_m_s2: float, r_meas: float
+    ) -> None:
+        """Predict over ``dt`` (single-track eq. 23-28, exact first-order-hold discretization of
+        the steer angle from ``delta0`` to ``delta1``; P' = F P F^T + Q T, a white
+        process-noise density, first order in T) and update with y = [ay, r]: ay = (Ff + Fr) / m
+        with eq. (25)-(28), the Joseph form keeping P symmetric positive definite. One compiled
+        call (:func:`.single_track_kernels.kf_step`), in place on ``x`` and ``p``."""
+        kernels.kf_step(self.x, self.p, self._constants, dt, vx, delta0, delta1, ay_m_s2, r_meas)
 
     def estimate(self) -> LateralState:
         """Current estimate of the CG (zeros before the first step); the covariance of vx is 0

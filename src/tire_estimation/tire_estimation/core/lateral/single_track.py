@@ -14,8 +14,9 @@ Written out (Cf, Cr axle cornering stiffness N/rad; lf, lr m; m kg; Iz kg m^2)::
     alpha_r = (lr r - vy) / vx                           (28)
 
 so dx/dt = A(vx) x + B delta; it is discretized exactly (matrix exponential of the augmented
-system) over each step, for a steering angle that is either held (zero-order hold) or, when the
-angle at the start of the step is given, linear between its two samples (first-order hold).
+system, compiled in :mod:`.single_track_kernels`) over each step, for a steering angle that is
+either held (zero-order hold) or, when the angle at the start of the step is given, linear
+between its two samples (first-order hold).
 
 The tyre-force KF uses the first-order hold: a steering sensor samples a continuous angle, and
 holding the newest sample over the step that ends at it would advance the model's input by half
@@ -30,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from tire_estimation.core.arrays import F64
+from tire_estimation.core.lateral import single_track_kernels as kernels
 from tire_estimation.core.vehicle import VehicleParams
 
 
@@ -114,42 +116,6 @@ def kinematic_state(p: SingleTrackParams, vx_m_s: float, delta_rad: float) -> F6
     return np.array([p.lr_m * r, r])
 
 
-def first_order_hold(a: F64, b: F64, dt_s: float) -> tuple[F64, F64, F64]:
-    """Exact discretization of dx/dt = A x + B delta over ``dt_s`` for a steer angle linear
-    between its samples: x(T) = Ad x(0) + B0 delta0 + B1 w with w = (delta1 - delta0) / T.
-
-    Returns (Ad (2, 2), B0 (2,), B1 (2,)).
-    """
-    # eq. (23)-(28) with a first-order hold: delta(s) = delta0 + w s on [0, T];
-    # d/dt [x, delta, w] = [[A, B, 0], [0, 0, 1], [0, 0, 0]] [x, delta, w], so
-    # x(T) = E11 x(0) + E12 delta0 + E13 w, E = expm(that matrix T)
-    aug = np.zeros((4, 4))
-    aug[:2, :2] = a * dt_s
-    aug[:2, 2] = b * dt_s
-    aug[2, 3] = dt_s
-    e = expm_small(aug)
-    return e[:2, :2], e[:2, 2], e[:2, 3]
-
-
-def expm_small(m: F64, order: int = 10) -> F64:
-    """Matrix exponential of a small square matrix by scaling and squaring of a Taylor series.
-
-    (scipy.linalg.expm costs milliseconds per 3x3 call here; this costs microseconds and is
-    accurate to ~1e-12 for the step sizes of the filter.)
-    """
-    norm = float(np.max(np.sum(np.abs(m), axis=1)))
-    squarings = max(0, math.ceil(math.log2(norm / 0.25))) if norm > 0.25 else 0
-    a = m / (2.0**squarings)
-    term = np.eye(m.shape[0])
-    out = term.copy()
-    for k in range(1, order + 1):
-        term = term @ a / k
-        out = out + term
-    for _ in range(squarings):
-        out = out @ out
-    return out
-
-
 class SingleTrackModel:
     """Open-loop integration of eq. (23-28); the reference model of the tyre-force KF.
 
@@ -161,6 +127,14 @@ class SingleTrackModel:
     def __init__(self, params: SingleTrackParams, min_speed_m_s: float = 3.0) -> None:
         self.params = params
         self.min_speed_m_s = float(max(min_speed_m_s, 0.1))
+        self._model = kernels.model_constants(
+            params.mass_kg,
+            params.yaw_inertia_kg_m2,
+            params.lf_m,
+            params.lr_m,
+            params.cf_n_rad,
+            params.cr_n_rad,
+        )
         self.x: F64 = np.zeros(2)
         self.initialized = False
 
@@ -193,18 +167,19 @@ class SingleTrackModel:
         if vx_m_s < self.min_speed_m_s:
             self.x = kinematic_state(self.params, vx_m_s, delta_rad)
             return self.x.copy()
-        a, b = continuous_matrices(self.params, vx_m_s)
         if delta_start_rad is None or dt_s <= 0.0:
             # zero-order-hold discretization: expm([[A, B], [0, 0]] T) = [[Ad, Bd], [0, 1]]
-            aug = np.zeros((3, 3))
-            aug[:2, :2] = a * dt_s
-            aug[:2, 2] = b * dt_s
-            e = expm_small(aug)
-            self.x = e[:2, :2] @ self.x + e[:2, 2] * delta_rad
+            zoh = np.empty((2, 3))
+            kernels.zero_order_hold(self._model, vx_m_s, dt_s, zoh)
+            self.x = zoh[:, :2] @ self.x + zoh[:, 2] * delta_rad
             return self.x.copy()
-        ad, b0, b1 = first_order_hold(a, b, dt_s)
+        # first-order hold: delta(s) = delta0 + w s on [0, T];
+        # d/dt [x, delta, w] = [[A, B, 0], [0, 0, 1], [0, 0, 0]] [x, delta, w], so
+        # x(T) = E11 x(0) + E12 delta0 + E13 w, E = expm(that matrix T)
+        foh = np.empty((2, 4))
+        kernels.first_order_hold(self._model, vx_m_s, dt_s, foh)
         slope = (delta_rad - delta_start_rad) / dt_s
-        self.x = ad @ self.x + b0 * delta_start_rad + b1 * slope
+        self.x = foh[:, :2] @ self.x + foh[:, 2] * delta_start_rad + foh[:, 3] * slope
         return self.x.copy()
 
     def axle_forces(self, vx_m_s: float, delta_rad: float) -> F64:

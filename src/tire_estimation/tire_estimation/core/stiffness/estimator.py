@@ -76,14 +76,15 @@ class MpfFilter(StiffnessFilter):
 
     def estimate(self) -> FilterEstimate:
         """Estimates (27) of the stiffness and (42) of the state, the mean IMU bias."""
-        e = self.mpf.estimate()
+        # the fields of StiffnessMpf.estimate, without building it
+        out = self.mpf.estimate_vector()
         return FilterEstimate(
-            stiffness=e.stiffness,
-            stiffness_std=e.stiffness_std,
-            state=e.state,
-            state_cov=e.state_cov,
-            n_eff=e.n_eff,
-            bias=e.bias,
+            stiffness=out[0:3],
+            stiffness_std=out[3:6],
+            state=out[9:12],
+            state_cov=out[12:21].reshape(3, 3),
+            n_eff=float(self.mpf.n_eff),
+            bias=out[21:24],
         )
 
 

@@ -232,7 +232,7 @@ class StiffnessFrontEnd(Generic[F]):
             "steering": None,
             "velocity": None,
         }
-        self._wheel: F64 | None = None
+        self._wheel: list[float] | None = None
         self._steer = 0.0
         self._vx_meas: float | None = None
         self._steer_window = SlidingWindow(ACTIVATION_WINDOW_S)
@@ -255,13 +255,13 @@ class StiffnessFrontEnd(Generic[F]):
     def _check_stamp(self, stream: str, t_ns: Any) -> int:
         return stamp_after(stream, t_ns, self._last[stream])
 
-    def _accept(self, stream: str, t_ns: Any, value: Any, n: int) -> F64 | None:
-        """The ``n`` values of an input sample, or None (dropped and counted)."""
+    def _accept(self, stream: str, t_ns: Any, value: Any, n: int) -> list[float] | None:
+        """The ``n`` values of an input sample as floats, or None (dropped and counted)."""
         try:
             t = self._check_stamp(stream, t_ns)
-            v = finite_vector(value, n, stream)
+            v = finite_vector(value, n, stream).tolist()
             # (finite values: the largest magnitude of these few, without NumPy temporaries)
-            if max(map(abs, v.tolist())) > _LIMITS[stream]:
+            if max(map(abs, v)) > _LIMITS[stream]:
                 raise InputError("out_of_range", f"{stream}: |value| above {_LIMITS[stream]}")
         except (InputError, TypeError, ValueError) as exc:
             self._drop(stream, _drop_kind(exc))
@@ -284,24 +284,24 @@ class StiffnessFrontEnd(Generic[F]):
         """Mean road-wheel steer angle delta, rad (positive left)."""
         a = self._accept("steering", t_ns, angle_rad, 1)
         if a is not None:
-            self._steer = float(a[0])
+            self._steer = a[0]
 
     def on_velocity(self, t_ns: int, vx_m_s: float) -> None:
         """Measured longitudinal speed, m/s (used when there are no wheel speeds)."""
         v = self._accept("velocity", t_ns, vx_m_s, 1)
         if v is not None:
-            self._vx_meas = float(v[0])
+            self._vx_meas = v[0]
 
-    def _measurement(self, t_ns: int, gyro: F64, acc: F64) -> Measurement | None:
+    def _measurement(self, t_ns: int, gyro: list[float], acc: list[float]) -> Measurement | None:
         """The filter's view of the IMU sample at ``t_ns`` with the latest fresh inputs (None
         without a fresh speed)."""
         have_wheel = self._wheel is not None and self._fresh("wheel", t_ns)
         have_vel = self._vx_meas is not None and self._fresh("velocity", t_ns)
         if have_wheel:
             assert self._wheel is not None
-            r_w = self.params.wheel_radius_m
-            wf = float(0.5 * r_w * (self._wheel[0] + self._wheel[1]))
-            wr = float(0.5 * r_w * (self._wheel[2] + self._wheel[3]))
+            r_w, w = self.params.wheel_radius_m, self._wheel
+            wf = 0.5 * r_w * (w[0] + w[1])
+            wr = 0.5 * r_w * (w[2] + w[3])
             speed = wr if self.params.drive == "front" else min(wf, wr)
         elif have_vel:
             assert self._vx_meas is not None
@@ -310,7 +310,7 @@ class StiffnessFrontEnd(Generic[F]):
             return None
         return Measurement(
             # eq. (12) y = [ax, ay, r]
-            y=np.array([acc[0], float(acc[1]), gyro[2]]),
+            y=np.array([acc[0], acc[1], gyro[2]]),
             delta_rad=self._steer if self._fresh("steering", t_ns) else 0.0,
             wheel_speed_m_s=(wf, wr),
             speed_m_s=speed,
@@ -321,8 +321,8 @@ class StiffnessFrontEnd(Generic[F]):
         """IMU sample in ``base_link`` axes; runs one filter step."""
         try:
             t = self._check_stamp("imu", t_ns)
-            gyro = finite_vector(gyro_rad_s, 3, "gyro")
-            acc = finite_vector(accel_m_s2, 3, "accel")
+            gyro = finite_vector(gyro_rad_s, 3, "gyro").tolist()
+            acc = finite_vector(accel_m_s2, 3, "accel").tolist()
         except (InputError, TypeError, ValueError) as exc:
             self._drop("imu", _drop_kind(exc))
             return

@@ -562,14 +562,20 @@ class StiffnessMpf:
         self.rate = self.rate[idx]
         self.stats.take(idx)
 
-    def estimate(self) -> MpfEstimate:
-        """Estimates (27) of the stiffness and (42) of the state (:func:`.kernels.estimate`)."""
+    def estimate_vector(self) -> F64:
+        """The estimates of :meth:`estimate` as one vector (24,): stiffness, its std, the std of
+        the mean, the state, its covariance (row-major), the bias (:func:`.kernels.estimate`)."""
         st = self.stats
         out = np.empty(24)
         stiffness_kernels.estimate(
             self.weights, st.mean, st.scale, self.x, self.b, float(st.gamma), float(st.dof),
             self.nominal, out,
         )  # fmt: skip
+        return out
+
+    def estimate(self) -> MpfEstimate:
+        """Estimates (27) of the stiffness and (42) of the state (:func:`.kernels.estimate`)."""
+        out = self.estimate_vector()
         return MpfEstimate(
             # eq. (27a) C_n + sum q_i mu_i; eq. (27b) Sigma_hat = sum q_i (Lambda_i / (nu - 4) +
             # dev dev^T); eq. (42) weighted mean of the state
