@@ -505,3 +505,35 @@ def test_inflate_widens_the_cloud_about_its_mean_up_to_the_prior_radius_std():
     applied = mpf.inflate(1000.0)
     assert 1.0 < applied < 1000.0
     assert moments()[1][3:].max() == pytest.approx(3e-3)
+
+
+def test_inflate_widens_the_radii_only_as_far_as_they_explain_the_drift():
+    """A cloud whose rear radius errors move with the east position (as a radius error moves
+    the dead-reckoned pose): a drift along east implies a radius change and widens the radii;
+    the same drift along north, which the radii do not explain, leaves them as they are."""
+    m = RadiusMotionModel(R_NOM, TRACK, WHEELBASE)
+
+    def cloud() -> RadiusMPF:
+        rng = np.random.default_rng(5)
+        mpf = RadiusMPF(m, 400, np.zeros(2), 3e-3, 1e-3, 10.0, 1.0, 0.0, 0.0, rng)
+        mpf.init_pose(np.array([0.0, 0.0, 0.0]), np.diag([0.04, 0.04, 0.01**2]))
+        east = mpf.east - mpf.east.mean()
+        # 1e-4 m of radius error per 0.2 m of east offset, plus a little of its own
+        mpf._mu[...] = 5e-4 * east + 1e-5 * rng.standard_normal((2, 400))
+        mpf.weights[:] = 1.0 / 400
+        return mpf
+
+    def radius_std(mpf: RadiusMPF) -> np.ndarray:
+        mu = mpf.stats.mean.T
+        return np.sqrt(((mu - (mu @ mpf.weights)[:, None]) ** 2) @ mpf.weights)
+
+    along = cloud()
+    std0 = radius_std(along)
+    # the drift is 5 position stds east: the radius change it implies is about 5 radius stds
+    assert along.inflate(10.0, np.array([1.0, 0.0])) == 10.0
+    ratio = radius_std(along) / std0
+    assert np.all((ratio > 3.0) & (ratio < 10.0)), ratio
+    across = cloud()
+    assert across.inflate(10.0, np.array([0.0, 1.0])) == 10.0
+    np.testing.assert_allclose(radius_std(across), std0, rtol=0.05)
+    assert np.std(across.north) == pytest.approx(10.0 * 0.2, rel=0.15)

@@ -294,7 +294,7 @@ class GnssHandling:
         and predict the fix again from the widened cloud; the test starts afresh."""
         self._drift.clear()
         lik = r_m2 if pred.likelihood_cov_m2 is None else pred.likelihood_cov_m2
-        alpha = self.mpf.inflate(inflation_factor(drift_m, pred.innovation_cov_m2 - lik))
+        alpha = self.mpf.inflate(inflation_factor(drift_m, pred.innovation_cov_m2 - lik), drift_m)
         if alpha <= 1.0:
             return pred
         self.reacquisitions += 1
