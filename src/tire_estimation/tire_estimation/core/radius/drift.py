@@ -128,3 +128,73 @@ def inflation_factor(mean_m: F64, cloud_cov_m2: F64) -> float:
     m0, m1 = float(mean_m[0]), float(mean_m[1])
     maha = (c11 * m0 * m0 - 2.0 * c01 * m0 * m1 + c00 * m1 * m1) / det
     return max(1.0, math.sqrt(maha / 2.0))
+
+
+def widen_cloud(
+    east_m: F64,
+    north_m: F64,
+    yaw_rad: F64,
+    mu_m: F64,
+    weights: F64,
+    alpha: float,
+    prior_mean_std_m: float,
+    drift_m: F64 | None = None,
+) -> float:
+    """Widen a particle cloud about its weighted mean, in place: positions and headings (N,)
+    ``x_i <- xbar + alpha (x_i - xbar)``, the NiW means ``mu_m`` (d, N) likewise by
+    ``alpha_r <= alpha``; weights, NiW scales and the GNSS-error filters are not touched
+    (multiplicative inflation keeps the correlations the cloud learned between pose and radii).
+    ``alpha`` is capped so that the spread of the NiW means does not exceed
+    ``prior_mean_std_m``, the prior std of the mean radius errors.
+
+    ``drift_m`` (2,), the mean position innovation that made the cloud too narrow: the radii
+    are widened only as far as they explain it. The cloud's regression of the radius errors on
+    its east/north positions gives the radius change the offset implies, ``dmu = C_mu,p
+    C_p,p^-1 drift_m`` (the Kalman shift, unchanged by a multiplicative inflation);
+    ``alpha_r`` makes the largest ``|dmu_k| / std_k`` one standard deviation, so that an offset
+    the radii do not explain (a slip the model lacks) leaves them as they are and one a changed
+    radius explains (a pressure step turning the heading) lets the fixes re-select it. Without
+    ``drift_m``, ``alpha_r = alpha``. Returns the factor applied to the pose (1: nothing done).
+    """
+    w = weights
+    mbar = mu_m @ w
+    dev = mu_m - mbar[:, None]
+    var_r = (dev * dev) @ w
+    spread = math.sqrt(float(np.max(var_r)))
+    if spread > 0.0:
+        alpha = min(alpha, max(1.0, prior_mean_std_m / spread))
+    if not alpha > 1.0:
+        return 1.0
+    alpha_r = alpha
+    if drift_m is not None:
+        alpha_r = min(
+            alpha, max(1.0, _implied_radius_ratio(east_m, north_m, w, dev, var_r, drift_m))
+        )
+    for a in (east_m, north_m):
+        m = float(w @ a)
+        a *= alpha
+        a += (1.0 - alpha) * m
+    # headings are not wrapped, but a cloud may straddle a wrap of its mean: deviations from one
+    # particle's heading, wrapped
+    ref = float(yaw_rad[0])
+    rel = np.remainder(yaw_rad - ref + math.pi, 2.0 * math.pi) - math.pi
+    m_rel = float(w @ rel)
+    yaw_rad[:] = ref + m_rel + alpha * (rel - m_rel)
+    mu_m[...] = mbar[:, None] + alpha_r * dev
+    return alpha
+
+
+def _implied_radius_ratio(
+    east_m: F64, north_m: F64, w: F64, dev: F64, var_r: F64, drift_m: F64
+) -> float:
+    """``max_k |dmu_k| / std_k`` with ``dmu = C_mu,p C_p,p^-1 drift_m`` over the cloud (``dev``
+    the NiW means' deviations (d, N), ``var_r`` their weighted variances); 0 when the positions
+    or the radii have no spread."""
+    pos = np.vstack([east_m - w @ east_m, north_m - w @ north_m])
+    c_pp = (pos * w) @ pos.T
+    ok = var_r > 0.0
+    if not np.linalg.det(c_pp) > 0.0 or not np.any(ok):
+        return 0.0
+    # Kalman shift of the radius errors for a position offset: C_mu,p C_p,p^-1 drift
+    implied = ((dev * w) @ pos.T) @ np.linalg.solve(c_pp, np.asarray(drift_m, dtype=float))
+    return float(np.max(np.abs(implied[ok]) / np.sqrt(var_r[ok])))

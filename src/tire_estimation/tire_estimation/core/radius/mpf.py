@@ -28,6 +28,7 @@ from tire_estimation.core import niw
 from tire_estimation.core.arrays import F64
 from tire_estimation.core.kernel_random import kernel_state
 from tire_estimation.core.radius import kernels as radius_kernels
+from tire_estimation.core.radius.drift import widen_cloud
 from tire_estimation.core.radius.gnss_bias import MarginalGnssBias
 from tire_estimation.core.radius.model import RL, RR, RadiusMotionModel
 from tire_estimation.core.radius.mpf_outcomes import FixPrediction, MpfEstimate, VelocityUpdate
@@ -521,63 +522,14 @@ class RadiusMPF(MarginalGnssBias):
 
     @_mutates
     def inflate(self, alpha: float, drift_m: F64 | None = None) -> float:
-        """Widen the cloud about its weighted mean by ``alpha`` (>= 1): positions and headings
-        ``x_i <- xbar + alpha (x_i - xbar)``, the NiW means likewise by ``alpha_r <= alpha``;
-        weights, NiW scales and the GNSS-error filters are kept (multiplicative inflation: the
-        correlations the cloud learned between pose and radii are kept). ``alpha`` is capped so
-        that the spread of the NiW means does not exceed the prior std of the mean radius
-        errors.
-
-        ``drift_m`` (2,), the mean position innovation that made the cloud too narrow: the
-        radii are widened only as far as they explain it. The cloud's own regression of the
-        radius errors on its east/north positions gives the radius change that the offset
-        implies, ``dmu = C_mu,p C_p,p^-1 drift_m`` (the Kalman shift, unchanged by a
-        multiplicative inflation); ``alpha_r`` makes the widest ``|dmu_k| / std_k`` one
-        standard deviation, so that an offset the radii do not explain (a slip the model lacks)
-        leaves them as they are, and one a changed radius explains (a pressure step turning the
-        heading) lets the fixes re-select it. Without ``drift_m``, ``alpha_r = alpha``.
-        Returns the factor applied to the pose."""
+        """Widen the cloud about its weighted mean by ``alpha`` (>= 1), the radii only as far as
+        they explain ``drift_m`` (:func:`~.drift.widen_cloud`); returns the factor applied to
+        the pose."""
         self._flush()
-        w = self.weights
-        mbar = self._mu @ w
-        dev = self._mu - mbar[:, None]
-        var_r = (dev * dev) @ w
-        spread = math.sqrt(float(np.max(var_r)))
-        if spread > 0.0:
-            alpha = min(alpha, max(1.0, self.prior_mean_std_m / spread))
-        if not alpha > 1.0:
-            return 1.0
-        alpha_r = alpha
-        if drift_m is not None:
-            alpha_r = min(alpha, max(1.0, self._implied_radius_ratio(dev, var_r, drift_m)))
-        for a in (self._east, self._north):
-            m = float(w @ a)
-            a *= alpha
-            a += (1.0 - alpha) * m
-        # headings are not wrapped, but a cloud may straddle a wrap of its mean: deviations
-        # from one particle's heading, wrapped
-        ref = float(self._yaw[0])
-        rel = np.remainder(self._yaw - ref + math.pi, 2.0 * math.pi) - math.pi
-        m_rel = float(w @ rel)
-        self._yaw[:] = ref + m_rel + alpha * (rel - m_rel)
-        self._mu[...] = mbar[:, None] + alpha_r * dev
-        return alpha
-
-    def _implied_radius_ratio(self, dev: F64, var_r: F64, drift_m: F64) -> float:
-        """``max_k |dmu_k| / std_k`` with ``dmu = C_mu,p C_p,p^-1 drift_m`` over the cloud
-        (``dev`` the NiW means' deviations (d, N), ``var_r`` their weighted variances); 0 when
-        the positions or the radii have no spread."""
-        w = self.weights
-        pos = np.vstack([self._east - w @ self._east, self._north - w @ self._north])
-        c_pp = (pos * w) @ pos.T
-        if not np.linalg.det(c_pp) > 0.0:
-            return 0.0
-        # Kalman shift of the radius errors for a position offset: C_mu,p C_p,p^-1 drift
-        implied = ((dev * w) @ pos.T) @ np.linalg.solve(c_pp, np.asarray(drift_m, dtype=float))
-        ok = var_r > 0.0
-        if not np.any(ok):
-            return 0.0
-        return float(np.max(np.abs(implied[ok]) / np.sqrt(var_r[ok])))
+        return widen_cloud(
+            self._east, self._north, self._yaw, self._mu, self.weights, alpha,
+            self.prior_mean_std_m, drift_m,
+        )  # fmt: skip
 
     def estimate(self) -> MpfEstimate:
         """Weighted pose mean/covariance and the NiW MMSE (eq. 30, Table I lines 17-18)."""
