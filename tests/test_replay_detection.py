@@ -31,10 +31,7 @@ def test_the_demo_warns_on_the_deflated_wheel(
     metrics = json.loads((out / "metrics.json").read_text())
     det = metrics["detection"]
     assert det["ran"] and det["armed"]
-    # the step turns the heading faster than the radius random walk follows: the drift test
-    # widens the cloud once (after the step) instead of the fixes being rejected
-    assert metrics["radii"]["reacquisitions"] == 1
-    assert metrics["dropped_samples"].get("gnss_fix:outlier", 0) == 0
+
     assert [a["wheel"] for a in det["alarms"]] == ["wheel_rl"]
     assert 226.8 < det["alarms"][0]["t_s"] < 226.8 + 600.0
     assert det["calibration"]["required_s"] == 150.0

@@ -626,9 +626,6 @@ def _run(
     )
     if closed_loop is not None:
         metrics["closed_loop"] = closed_loop
-    if pipeline.radius is not None:
-        # the drift test widened the particle cloud this many times (core/radius/drift.py)
-        metrics["radii"]["reacquisitions"] = int(pipeline.radius.reacquisitions)
     metrics["wall_s"] = time.perf_counter() - wall0
     metrics["timing_s"] = {"read": t_read, "estimate": t_run - wall0 - t_read}
     metrics["realtime_factor"] = metrics["duration_s"] / max(metrics["wall_s"], 1e-9)

@@ -56,8 +56,6 @@ def statuses(
             "reason": est.state_reason,
             "effective_sample_size": f"{float(est.n_eff):.1f}",
             "resample_count": str(int(est.resample_count)),
-            # times the drift test widened the cloud to re-acquire the fixes
-            "reacquisitions": str(int(radius.reacquisitions)),
             "particles": str(radius.config.n_particles),
             "persistence": persistence_note,
         }

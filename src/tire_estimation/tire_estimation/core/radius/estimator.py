@@ -35,7 +35,6 @@ from tire_estimation.core.radius.aug_kf import (
 from tire_estimation.core.radius.aug_kf import AugKf
 from tire_estimation.core.radius.axle_check import AxleCheck
 from tire_estimation.core.radius.config import RadiusEstimatorConfig
-from tire_estimation.core.radius.drift import DriftTest
 from tire_estimation.core.radius.effects import EFFECTS, delay_s
 from tire_estimation.core.radius.gates import Gates
 from tire_estimation.core.radius.gnss import (
@@ -164,9 +163,6 @@ class RadiusEstimator(GnssHandling, Reporting, Gates):
         self.velocity_updates = 0
         #: GNSS velocities not used because the wheels accelerated (``gnss_velocity_max_accel``)
         self.velocity_skipped_accel = 0
-        #: fixes whose mean innovation showed a drifted prediction and widened the cloud
-        self.reacquisitions = 0
-        self._drift = DriftTest(self._gate)
         self._prev_ws: F64 | None = None
         self._prev_rear: tuple[float, float] = (0.0, 0.0)
         self._t_pose_ns: int | None = None

@@ -13,7 +13,6 @@ import numpy as np
 
 from tire_estimation.core.arrays import F64
 from tire_estimation.core.input_checks import checked_covariance
-from tire_estimation.core.radius.drift import DriftTest, inflation_factor
 from tire_estimation.core.radius.inputs import finite, is_int
 from tire_estimation.core.samples import MAX_ABS_ALTITUDE_M
 from tire_estimation.errors import InputError
@@ -23,7 +22,6 @@ if TYPE_CHECKING:
     from tire_estimation.core.radius.config import RadiusEstimatorConfig
     from tire_estimation.core.radius.model import RadiusMotionModel
     from tire_estimation.core.radius.mpf import RadiusMPF
-    from tire_estimation.core.radius.mpf_outcomes import FixPrediction
     from tire_estimation.core.radius.road_grade import RoadGradeFit
 
 
@@ -115,8 +113,6 @@ class GnssHandling:
     lever_arm_m: F64
     velocity_updates: int
     velocity_skipped_accel: int
-    reacquisitions: int
-    _drift: DriftTest
     _gate: float
     _fix_shift_s: float
     _velocity_shift_s: float
@@ -258,10 +254,6 @@ class GnssHandling:
             )
         self._rejections = 0
         self._t_last_fix_ns = t_ns
-        gate_pred = pred
-        drift = self._drift.push(pred.innovation_m, pred.innovation_cov_m2)
-        if drift is not None:
-            pred = self._reacquire(drift, y_m, r_m2, pred, ext)
         learn = self._active
         if learn:
             self.mpf.update(y_m, r_m2, pred)
@@ -269,36 +261,12 @@ class GnssHandling:
         else:
             self.mpf.anchor(y_m, r_m2, pred)
             reason = f"anchored ({self._reason})"
-        if pred is not gate_pred:
-            reason += "; cloud widened (drift)"
         if self.kf is not None:
             upd, hj = self.kf.innovation(y_m, r_m2, self.lever_arm_m, ext)
             if upd.nis <= self._gate * 4.0:
                 self.kf.update(upd, hj, learn=learn)
         self._set_cache(self.mpf.estimate())
-        return GnssUpdate(
-            t_ns,
-            gate_pred.innovation_m,
-            gate_pred.innovation_cov_m2,
-            gate_pred.nis,
-            True,
-            reason,
-        )
-
-    def _reacquire(
-        self, drift_m: F64, y_m: F64, r_m2: F64, pred: FixPrediction, ext_s: float
-    ) -> FixPrediction:
-        """The fixes' mean innovation ``drift_m`` shows that the prediction drifted
-        (:class:`~.drift.DriftTest`): widen the cloud so that it covers the drift
-        (:func:`~.drift.inflation_factor` of the cloud's part of the innovation covariance)
-        and predict the fix again from the widened cloud; the test starts afresh."""
-        self._drift.clear()
-        lik = r_m2 if pred.likelihood_cov_m2 is None else pred.likelihood_cov_m2
-        alpha = self.mpf.inflate(inflation_factor(drift_m, pred.innovation_cov_m2 - lik), drift_m)
-        if alpha <= 1.0:
-            return pred
-        self.reacquisitions += 1
-        return self.mpf.predict_fix(y_m, r_m2, self.lever_arm_m, ext_s)
+        return GnssUpdate(t_ns, pred.innovation_m, pred.innovation_cov_m2, pred.nis, True, reason)
 
     def on_gnss_velocity(
         self, t_ns: int, velocity_enu_m_s: Any, velocity_covariance_m2_s2: Any = None
@@ -462,6 +430,5 @@ class GnssHandling:
             self.kf.init_pose(mean, cov)
         self._pose_ok = True
         self._rejections = 0
-        self._drift.clear()
         self._set_cache(self.mpf.estimate())
         return GnssUpdate(t_ns, zeros2, r_m2, 0.0, True, "pose initialized")

@@ -28,7 +28,6 @@ from tire_estimation.core import niw
 from tire_estimation.core.arrays import F64
 from tire_estimation.core.kernel_random import kernel_state
 from tire_estimation.core.radius import kernels as radius_kernels
-from tire_estimation.core.radius.drift import widen_cloud
 from tire_estimation.core.radius.gnss_bias import MarginalGnssBias
 from tire_estimation.core.radius.model import RL, RR, RadiusMotionModel
 from tire_estimation.core.radius.mpf_outcomes import FixPrediction, MpfEstimate, VelocityUpdate
@@ -126,8 +125,6 @@ class RadiusMPF(MarginalGnssBias):
         self.mean_q = float(mean_random_walk_m_sqrt_s) ** 2
         self.kernel_a = float(kernel_shrinkage)
         self.block_size = int(block_size)
-        #: prior std of the mean radius errors, m (the widest :meth:`inflate` makes the cloud)
-        self.prior_mean_std_m = float(prior_mean_std_m)
         d = self.D
         self._prior = (
             np.asarray(prior_mean_m, dtype=float).reshape(d),
@@ -519,17 +516,6 @@ class RadiusMPF(MarginalGnssBias):
         self._north += shift[1]
         if self.bias_on:
             self._bias_anchor(s_inv, pred.innovation_m)
-
-    @_mutates
-    def inflate(self, alpha: float, drift_m: F64 | None = None) -> float:
-        """Widen the cloud about its weighted mean by ``alpha`` (>= 1), the radii only as far as
-        they explain ``drift_m`` (:func:`~.drift.widen_cloud`); returns the factor applied to
-        the pose."""
-        self._flush()
-        return widen_cloud(
-            self._east, self._north, self._yaw, self._mu, self.weights, alpha,
-            self.prior_mean_std_m, drift_m,
-        )  # fmt: skip
 
     def estimate(self) -> MpfEstimate:
         """Weighted pose mean/covariance and the NiW MMSE (eq. 30, Table I lines 17-18)."""
