@@ -116,12 +116,11 @@ def continuous_matrices(
 
 
 @numba.njit(cache=True)
-def first_order_hold(model: F64, vx_m_s: float, dt_s: float, out: F64) -> None:
-    """``out`` (2, 4) = ``[Ad | B0 | B1]``, the exact discretization over ``dt_s`` at ``vx_m_s``
-    for a steer angle linear between its samples (first-order hold):
-    x(T) = Ad x(0) + B0 delta0 + B1 (delta1 - delta0) / T."""
+def _held_exponential(model: F64, vx_m_s: float, dt_s: float, ramp_dt_s: float, out: F64) -> None:
+    """First two rows of expm(M T), ``M`` = [[A, B, 0], [0, 0, 1], [0, 0, 0]] at ``vx_m_s``
+    with the ramp entry ``ramp_dt_s`` (``dt_s``: a steer angle linear between its samples; 0:
+    held), into ``out`` (2, k) (its first k columns)."""
     a00, a01, a10, a11, b0, b1 = continuous_matrices(model, vx_m_s)
-    # d/dt [x, delta, w] = [[A, B, 0], [0, 0, 1], [0, 0, 0]] [x, delta, w]
     aug = np.zeros((4, 4))
     aug[0, 0] = a00 * dt_s
     aug[0, 1] = a01 * dt_s
@@ -129,12 +128,21 @@ def first_order_hold(model: F64, vx_m_s: float, dt_s: float, out: F64) -> None:
     aug[1, 1] = a11 * dt_s
     aug[0, 2] = b0 * dt_s
     aug[1, 2] = b1 * dt_s
-    aug[2, 3] = dt_s
+    aug[2, 3] = ramp_dt_s
     e = np.empty((4, 4))
     _expm4(aug, e)
     for i in range(2):
-        for j in range(4):
+        for j in range(out.shape[1]):
             out[i, j] = e[i, j]
+
+
+@numba.njit(cache=True)
+def first_order_hold(model: F64, vx_m_s: float, dt_s: float, out: F64) -> None:
+    """``out`` (2, 4) = ``[Ad | B0 | B1]``, the exact discretization over ``dt_s`` at ``vx_m_s``
+    for a steer angle linear between its samples (first-order hold):
+    x(T) = Ad x(0) + B0 delta0 + B1 (delta1 - delta0) / T."""
+    # d/dt [x, delta, w] = [[A, B, 0], [0, 0, 1], [0, 0, 0]] [x, delta, w]
+    _held_exponential(model, vx_m_s, dt_s, dt_s, out)
 
 
 @numba.njit(cache=True)
@@ -142,19 +150,7 @@ def zero_order_hold(model: F64, vx_m_s: float, dt_s: float, out: F64) -> None:
     """``out`` (2, 3) = ``[Ad | Bd]``: expm([[A, B], [0, 0]] T) with the steer angle held (as
     ``SingleTrackModel.step`` without a start angle; the 3x3 exponential embedded in a 4x4 with
     a zero last row and column, which leaves its first three rows and columns unchanged)."""
-    a00, a01, a10, a11, b0, b1 = continuous_matrices(model, vx_m_s)
-    aug = np.zeros((4, 4))
-    aug[0, 0] = a00 * dt_s
-    aug[0, 1] = a01 * dt_s
-    aug[1, 0] = a10 * dt_s
-    aug[1, 1] = a11 * dt_s
-    aug[0, 2] = b0 * dt_s
-    aug[1, 2] = b1 * dt_s
-    e = np.empty((4, 4))
-    _expm4(aug, e)
-    for i in range(2):
-        for j in range(3):
-            out[i, j] = e[i, j]
+    _held_exponential(model, vx_m_s, dt_s, 0.0, out)
 
 
 @numba.njit(cache=True)
