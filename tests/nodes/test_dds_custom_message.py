@@ -8,7 +8,7 @@ import pytest
 
 from tests.conftest import import_ros
 
-pytestmark = pytest.mark.ros
+pytestmark = [pytest.mark.ros, pytest.mark.serial]
 
 
 def test_tire_radii_message_goes_over_dds() -> None:

@@ -18,7 +18,7 @@ import pytest
 
 from tests.conftest import import_ros
 
-pytestmark = pytest.mark.ros
+pytestmark = [pytest.mark.ros, pytest.mark.serial]
 
 MINUTES = 4.0
 RATE = 2.0  # bag seconds per wall second (3x fell to 91-94 % received under load on 2 cores)
