@@ -242,30 +242,6 @@ def innovation_tests(
     }
 
 
-def lateral_metrics(
-    t_ns: NDArray[np.int64],
-    vy_m_s: F64,
-    yaw_rate_rad_s: F64,
-    sideslip_rad: F64,
-    relay: NDArray[np.int64],
-    ref_t_ns: NDArray[np.int64],
-    ref_velocity_m_s: F64,
-    ref_yaw_rate_rad_s: F64,
-) -> dict[str, Any]:
-    """RMSE of vy (m/s), sideslip (deg) and yaw rate (deg/s) of base_link against a reference.
-
-    ``ref_velocity_m_s`` (T, >=2) [vx, vy] of base_link in base_link axes. Also the RMSEs over
-    the samples the relay marked nonlinear (``relay == 2``), when there are any.
-    """
-    if t_ns.size == 0 or ref_t_ns.size == 0:
-        return {"vy_rmse_m_s": None, "sideslip_rmse_deg": None, "yaw_rate_rmse_deg_s": None}
-    sums = lateral_sums(
-        t_ns, vy_m_s, yaw_rate_rad_s, sideslip_rad, relay,
-        ref_t_ns, ref_velocity_m_s, ref_yaw_rate_rad_s,
-    )  # fmt: skip
-    return lateral_from_sums(sums)
-
-
 def lateral_sums(
     t_ns: NDArray[np.int64],
     vy_m_s: F64,
@@ -276,8 +252,13 @@ def lateral_sums(
     ref_velocity_m_s: F64,
     ref_yaw_rate_rad_s: F64,
 ) -> Counter[str]:
-    """The sums :func:`lateral_metrics` is made of (arguments as there), to be added up over
-    the parts of a long run and turned into the metrics by :func:`lateral_from_sums`."""
+    """Sums of the squared errors of vy (m/s), sideslip (deg) and yaw rate (deg/s) of
+    base_link against a reference, to be added up over the parts of a long run and turned into
+    RMSEs by :func:`lateral_from_sums`.
+
+    ``ref_velocity_m_s`` (T, >=2) [vx, vy] of base_link in base_link axes (T >= 1). Also the
+    sums over the samples the relay marked nonlinear (``relay == 2``).
+    """
     ref_vx = np.interp(t_ns, ref_t_ns, ref_velocity_m_s[:, 0])
     ref_vy = np.interp(t_ns, ref_t_ns, ref_velocity_m_s[:, 1])
     ref_r = np.interp(t_ns, ref_t_ns, ref_yaw_rate_rad_s)
@@ -300,7 +281,7 @@ def lateral_sums(
 
 
 def lateral_from_sums(sums: Counter[str]) -> dict[str, Any]:
-    """:func:`lateral_metrics` from the sums of :func:`lateral_sums` over a run's parts."""
+    """RMSEs from the sums of :func:`lateral_sums` over a run's parts (None where empty)."""
     n, n_nl = sums["n"], sums["n_nonlinear"]
     if n == 0:
         return {"vy_rmse_m_s": None, "sideslip_rmse_deg": None, "yaw_rate_rmse_deg_s": None}

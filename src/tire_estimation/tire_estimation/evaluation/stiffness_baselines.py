@@ -86,15 +86,24 @@ _LOG_2PI = math.log(2.0 * math.pi)
 
 
 # ---------------------------------------------------------------------------- configuration
+#: suffixes of the state-noise fields ``{prefix}_...`` of vX, vY and r
+_STATE_NOISES = ("vx_m_s_sqrt_s", "vy_m_s_sqrt_s", "yaw_rate_rad_s_sqrt_s")
+
+
 def _walk_rules(prefix: str, state_rule: Rule) -> dict[str, Rule]:
     """The stiffness random walk within [0, 5] of nominal per sqrt(s), and ``state_rule`` on
     the state noises ``{prefix}_vx_m_s_sqrt_s``, ``_vy_m_s_sqrt_s`` and
     ``_yaw_rate_rad_s_sqrt_s``."""
-    states = ("vx_m_s_sqrt_s", "vy_m_s_sqrt_s", "yaw_rate_rad_s_sqrt_s")
     return {
         "stiffness_walk_std_fraction_sqrt_s": in_range(0.0, 5.0),
-        **{f"{prefix}_{state}": state_rule for state in states},
+        **{f"{prefix}_{state}": state_rule for state in _STATE_NOISES},
     }
+
+
+def _state_noise(config: BaselineConfig, prefix: str) -> F64:
+    """The state noises ``{prefix}_...`` of :func:`_walk_rules` of ``config``, (3,) =
+    [vX, vY, r], per sqrt(s)."""
+    return np.array([getattr(config, f"{prefix}_{state}") for state in _STATE_NOISES])
 
 
 @dataclass(frozen=True)
@@ -244,13 +253,7 @@ class AugPf(StiffnessFilter):
         self._set_model(config, params)
         self.rng = rng
         self.n = config.n_particles
-        self.jitter = np.array(
-            [
-                config.state_jitter_vx_m_s_sqrt_s,
-                config.state_jitter_vy_m_s_sqrt_s,
-                config.state_jitter_yaw_rate_rad_s_sqrt_s,
-            ]
-        )
+        self.jitter = _state_noise(config, "state_jitter")
         self.walk = config.stiffness_walk_std_fraction_sqrt_s * self.nominal
         self.initialized = False
         self.x = np.zeros((self.n, 3))
@@ -347,13 +350,7 @@ class AugEkf(StiffnessFilter):
 
     def __init__(self, config: EkfConfig, params: SingleTrackParams) -> None:
         self._set_model(config, params)
-        self.q_state = np.array(
-            [
-                config.process_vx_m_s_sqrt_s,
-                config.process_vy_m_s_sqrt_s,
-                config.process_yaw_rate_rad_s_sqrt_s,
-            ]
-        )
+        self.q_state = _state_noise(config, "process")
         self.q_walk = config.stiffness_walk_std_fraction_sqrt_s * self.nominal
         self.initialized = False
         self.z = np.zeros(6)

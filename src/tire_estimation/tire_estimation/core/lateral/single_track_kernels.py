@@ -50,6 +50,17 @@ def kf_constants(model: F64, q_vy: float, q_r: float, r_ay: float, r_r: float) -
 
 
 @numba.njit(cache=True)
+def _matmul4(a: F64, b: F64, out: F64) -> None:
+    """``out`` = ``a @ b`` of 4x4 ``a`` and ``b`` (``out`` neither of them), summed in index
+    order."""
+    for i in range(4):
+        for j in range(4):
+            out[i, j] = (
+                a[i, 0] * b[0, j] + a[i, 1] * b[1, j] + a[i, 2] * b[2, j] + a[i, 3] * b[3, j]
+            )
+
+
+@numba.njit(cache=True)
 def _expm4(m: F64, out: F64) -> None:
     """``out`` = expm(m) of a 4x4 ``m``: scaling to a row-sum norm of at most
     :data:`EXPM_NORM`, a Taylor series of order :data:`EXPM_ORDER`, squaring (accurate to about
@@ -73,27 +84,13 @@ def _expm4(m: F64, out: F64) -> None:
         for j in range(4):
             out[i, j] = term[i, j]
     for k in range(1, EXPM_ORDER + 1):
+        _matmul4(term, a, tmp)
         for i in range(4):
             for j in range(4):
-                tmp[i, j] = (
-                    term[i, 0] * a[0, j]
-                    + term[i, 1] * a[1, j]
-                    + term[i, 2] * a[2, j]
-                    + term[i, 3] * a[3, j]
-                ) / k
-        for i in range(4):
-            for j in range(4):
-                term[i, j] = tmp[i, j]
-                out[i, j] = out[i, j] + tmp[i, j]
+                term[i, j] = tmp[i, j] / k
+                out[i, j] = out[i, j] + term[i, j]
     for _ in range(squarings):
-        for i in range(4):
-            for j in range(4):
-                tmp[i, j] = (
-                    out[i, 0] * out[0, j]
-                    + out[i, 1] * out[1, j]
-                    + out[i, 2] * out[2, j]
-                    + out[i, 3] * out[3, j]
-                )
+        _matmul4(out, out, tmp)
         for i in range(4):
             for j in range(4):
                 out[i, j] = tmp[i, j]
