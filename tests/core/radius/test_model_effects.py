@@ -62,12 +62,20 @@ def test_load_transfer_turns_equal_wheel_speeds_into_a_yaw_rate(coef: float) -> 
     assert out.speed_m_s == pytest.approx(20.0, rel=1e-12)
 
 
-def _climb(gain: float, grade_rad: float) -> RadiusEstimator:
-    """60 s straight east at 20 m/s along the slope on a constant grade, exact GNSS fixes."""
-    est = _estimator(road_grade_correction_gain=gain, init_min_distance_m=20.0)
+def _climb(
+    gain: float, grade_rad: float, imu: bool = True, source: str = "checked"
+) -> RadiusEstimator:
+    """60 s straight east at 20 m/s along the slope on a constant grade, exact GNSS fixes and
+    (``imu``) the IMU's specific force ``f_x = g sin(theta)``."""
+    est = _estimator(
+        road_grade_correction_gain=gain, init_min_distance_m=20.0, road_grade_source=source
+    )
     ltp = LocalTangentPlane(48.0, 11.0, 500.0)
-    for k in range(6001):  # wheel speeds at 100 Hz, fixes at 10 Hz
+    f_imu = np.array([9.80665 * math.sin(grade_rad), 0.0, 9.80665 * math.cos(grade_rad)])
+    for k in range(6001):  # wheel speeds and IMU at 100 Hz, fixes at 10 Hz
         t_ns = k * 10_000_000
+        if imu:
+            est.on_imu(t_ns, np.zeros(3), f_imu)
         est.on_wheel_speeds(t_ns, [OMEGA] * 4)
         if k % 10 == 0:
             s = 20.0 * k * 0.01
@@ -76,17 +84,38 @@ def _climb(gain: float, grade_rad: float) -> RadiusEstimator:
     return est
 
 
-def test_grade_is_estimated_from_altitude_and_corrects_the_distance() -> None:
+@pytest.mark.parametrize(("imu", "source"), [(True, "checked"), (False, "altitude")])
+def test_grade_is_estimated_from_altitude_and_corrects_the_distance(
+    imu: bool, source: str
+) -> None:
+    """The altitude grade, confirmed by the IMU's (or alone, ``road_grade_source:
+    altitude``), corrects the distance."""
     grade = 0.08
     r = VEH.nominal_tire_radius_m
     for gain in (0.0, 1.0):
-        out = _climb(gain, grade).estimate()
+        out = _climb(gain, grade, imu, source).estimate()
         # sin(theta) = dz / ds over the last 100 m of wheel-travelled distance
         assert out.road_grade_rad == pytest.approx(grade, abs=1e-3)
+        assert out.road_grade_source == "altitude"
+        assert out.road_grade_counts["altitude"] > 500
+        assert out.road_grade_counts["imu"] == out.road_grade_counts["none"] == 0
         # eq. (6a) on wheel speeds reduced by gain (1 - cos theta): the horizontal speed
         scale = 1.0 - gain * (1.0 - math.cos(grade))
         expected = OMEGA * scale * (r + float(np.mean(out.radius_error_m)))
         assert out.speed_m_s == pytest.approx(expected, rel=1e-9)
+
+
+def test_checked_grade_without_an_imu_is_not_used() -> None:
+    """Without an IMU to check it against, the checked grade does not trust the altitude: no
+    correction, the speed is that of the wheel speeds."""
+    out = _climb(1.0, 0.08, imu=False).estimate()
+    assert out.road_grade_rad == 0.0
+    assert out.road_grade_source == "none"
+    assert out.road_grade_counts["none"] > 500
+    assert out.road_grade_counts["altitude"] == 0
+    r = VEH.nominal_tire_radius_m
+    expected = OMEGA * (r + float(np.mean(out.radius_error_m)))
+    assert out.speed_m_s == pytest.approx(expected, rel=1e-9)
 
 
 def test_sliding_line_slope_matches_least_squares():
@@ -187,16 +216,21 @@ def test_rear_brake_slip_without_imu_uses_the_wheel_deceleration() -> None:
     assert out.speed_m_s == pytest.approx(15.0 / (1.0 + kappa), rel=1e-9)
 
 
-def test_every_effect_is_a_config_switch_that_is_off_by_default() -> None:
-    """One object per effect: its field is a ``RadiusEstimatorConfig`` field, 0 by default and
-    checked against the object's limits; names and fields are unique."""
+def test_every_effect_is_a_config_switch_off_by_default_but_the_road_grade() -> None:
+    """One object per effect: its field is a ``RadiusEstimatorConfig`` field, 0 by default
+    (the road grade: 1, the geometric correction with the IMU-checked grade) and checked
+    against the object's limits; names and fields are unique; the grid holds 0 and the
+    default."""
     from tire_estimation.core.radius.config import RadiusEstimatorConfig
     from tire_estimation.core.radius.effects import EFFECTS
 
     cfg = RadiusEstimatorConfig()
     assert len({e.name for e in EFFECTS}) == len({e.config_field for e in EFFECTS}) == 9
+    on_by_default = {"road_grade": 1.0}
+    assert cfg.road_grade_source == "checked"
     for e in EFFECTS:
-        assert e.value(cfg) == 0.0 and 0.0 in e.grid
+        assert e.value(cfg) == on_by_default.get(e.name, 0.0)
+        assert 0.0 in e.grid and e.value(cfg) in e.grid
         hi = e.limits[1]
         with pytest.raises(ConfigError, match=e.config_field):
             RadiusEstimatorConfig(**{e.config_field: hi + 1.0})

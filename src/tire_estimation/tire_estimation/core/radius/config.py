@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from typing import Any, ClassVar
 
 from tire_estimation.core.radius.effects import EFFECTS
+from tire_estimation.core.radius.road_grade import GRADE_SOURCE_MODES
 from tire_estimation.core.validation import (
     BOOL,
     NON_NEGATIVE,
@@ -147,13 +148,19 @@ class RadiusEstimatorConfig:
             about -5e-7 follows from Pacejka's effective-rolling-radius parameters.
         road_grade_correction_gain: gain of the road-grade correction (the wheels roll along
             the slope, GNSS measures the horizontal displacement): the grade ``theta`` is
-            estimated online from the GNSS altitude against the wheel-travelled distance and
-            every wheel speed is reduced by ``gain (1 - cos theta)`` times its axle's mean speed
-            (the distance is corrected, the yaw rate from the left-right difference is not;
-            the fit spans the last 100 m, ``road_grade.ROAD_GRADE_WINDOW_M``). 0 = off
-            (default), 1 = the geometric correction; in [0, 5]. Off by default: a consumer
-            receiver's altitude wanders by tens of metres (the Husky drive: fitted grades of up
-            to 27 degrees), which the correction would read as hills.
+            estimated online (``road_grade_source``) and every wheel speed is reduced by
+            ``gain (1 - cos theta)`` times its axle's mean speed (the distance is corrected,
+            the yaw rate from the left-right difference is not; the grade spans the last
+            100 m, ``road_grade.ROAD_GRADE_WINDOW_M``). 0 = off, 1 = the geometric
+            correction (default: the grade is checked against the IMU, so a wandering
+            altitude is not read as hills); in [0, 5].
+        road_grade_source: where the grade comes from. ``checked`` (default): the slope of the
+            GNSS altitude over the wheel-travelled distance where the IMU's grade (specific
+            force ``f_x = dv/dt + g sin theta`` over the same distance) agrees with it within
+            a 99 % chi-square test, the IMU's grade where it does not, none without a fresh
+            IMU. ``altitude``: the altitude's slope alone, unchecked (a consumer receiver's
+            altitude wanders by tens of metres: on the Husky drive the fitted grades reach 27
+            degrees). Counted per fix in ``RadiusEstimate.road_grade_counts``.
         rear_brake_slip_s2_per_m: braking slip ``k`` of the rear (non-driven) wheels per unit
             braking deceleration, s^2/m: ``kappa = -k b`` with ``b = max(0, -f_x - a_0)``
             (``f_x`` the longitudinal specific force, IMU when fresh, else the wheel-speed
@@ -194,8 +201,9 @@ class RadiusEstimatorConfig:
     gnss_antenna_offset_y_m: float = 0.0
     radius_speed_coefficient_m_per_m2_s2: float = 0.0
     radius_load_coefficient_m_per_n: float = 0.0
-    road_grade_correction_gain: float = 0.0
+    road_grade_correction_gain: float = 1.0
     rear_brake_slip_s2_per_m: float = 0.0
+    road_grade_source: str = "checked"
     seed: int = 0
 
     RULES: ClassVar[dict[str, Rule]] = {
@@ -205,6 +213,7 @@ class RadiusEstimatorConfig:
         **dict.fromkeys(_POSITIVE, POSITIVE),
         **dict.fromkeys(_BOOLS, BOOL),
         "wheels": one_of(WHEEL_MODES),
+        "road_grade_source": one_of(GRADE_SOURCE_MODES),
         **{effect.config_field: in_range(*effect.limits) for effect in EFFECTS},
         "seed": int_in_range(0, 2**63 - 1),
     }

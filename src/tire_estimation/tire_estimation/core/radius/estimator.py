@@ -180,7 +180,7 @@ class RadiusEstimator(GnssHandling, Reporting, Gates):
         self._last_alt_m = 0.0
         self._active_time_s = 0.0
         #: road grade: wheel-travelled (slope) distance and the grade fitted over it
-        self.grade = RoadGradeFit()
+        self.grade = RoadGradeFit(self.config.road_grade_source)
         #: braking deceleration of the latest sample (rear brake slip on), m/s^2
         self.brake_decel_m_s2 = 0.0
         self._set_cache(self.mpf.estimate())
@@ -330,7 +330,11 @@ class RadiusEstimator(GnssHandling, Reporting, Gates):
         if last is not None and (t_ns - last) * 1e-9 <= self.config.max_gap_s:
             # slope distance rolled by the rear wheels (nominal radius) for the grade fit
             rolled = 0.5 * self.model.nominal_radius_m * (abs(w3) + abs(w4))
-            self.grade.roll((t_ns - last) * 1e-9, rolled)
+            imu = self._imu
+            fx = float(imu[2][0]) if imu is not None and self._imu_fresh(t_ns) else None
+            self.grade.roll((t_ns - last) * 1e-9, rolled, fx)
+        elif last is not None:
+            self.grade.restart_imu()  # the integral of f_x v cannot span a wheel-speed gap
         if self._horizontal:
             for correct, value in self._horizontal:
                 ws = correct(self, value, t_ns, ws)

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -60,7 +60,13 @@ class RadiusEstimate:
         state_reason: why (e.g. ``low speed``, ``braking``, ``waiting for GNSS``).
         baseline: AUG-KF estimate when ``run_aug_kf`` (else None).
         road_grade_rad: online road-grade estimate (GNSS altitude over the wheel-travelled
-            distance, positive uphill), rad; 0 until a window of fixes is available.
+            distance, checked against the IMU's; positive uphill), rad; 0 until a window of
+            fixes is available.
+        road_grade_source: where ``road_grade_rad`` came from at the latest fix: ``altitude``
+            (the GNSS altitude, confirmed by the IMU unless ``road_grade_source: altitude``),
+            ``imu`` (the IMU's specific force: the altitude disagreed) or ``none``.
+        road_grade_counts: fixes (with a full grade window) per source, the keys of
+            ``road_grade.GRADE_SOURCES``.
         rear_brake_decel_m_s2: braking deceleration ``b = max(0, -f_x - a_0)``: the one of the
             latest wheel-speed sample when the rear brake slip is on, else computed at the pose
             time for the residual signature, m/s^2.
@@ -87,6 +93,8 @@ class RadiusEstimate:
     road_grade_rad: float = 0.0
     rear_brake_decel_m_s2: float = 0.0
     rear_radius_error_cov_m2: F64 | None = None
+    road_grade_source: str = "none"
+    road_grade_counts: Mapping[str, int] = field(default_factory=dict)
 
 
 #: wheel samples kept to align a GNSS velocity with the wheel speeds (2.56 s at 100 Hz)
@@ -179,6 +187,8 @@ class Reporting:
                 else self.braking_decel_at(int(self._t_pose_ns or 0))
             ),
             rear_radius_error_cov_m2=sanitize(mc, 1.0),
+            road_grade_source=self.grade.source,
+            road_grade_counts=dict(self.grade.counts),
         )
         return out
 
