@@ -53,6 +53,10 @@ def test_replay_writes_the_contract_report(short_bag: Path, tmp_path: Path) -> N
     assert set(radii["rmse_vs_truth_m"]) == {"wheel_rl", "wheel_rr"}
     assert all(0 <= v < 3e-3 for v in radii["rmse_vs_truth_m"].values())
     assert radii["baseline"]["name"] == "AUG-KF"
+    # a flat simulated road: the altitude's grade, confirmed by the IMU, and about zero
+    grade = radii["road_grade"]
+    assert grade["source_counts"]["altitude"] > 0.9 * sum(grade["source_counts"].values()) > 0
+    assert grade["rms_deg"] < 1.0
     assert metrics["position"]["rmse_m"] < 5.0
     assert metrics["estimator"]["config"]["n_particles"] == 200
     assert isinstance(metrics["residuals"]["consistent"], bool)

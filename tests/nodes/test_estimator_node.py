@@ -470,6 +470,9 @@ def test_gnss_velocity_is_subscribed_used_and_bad_ones_are_counted(
     assert int(values["received.gnss_velocity"]) == 302
     assert int(values["gnss_velocity.updates"]) == node.estimator.velocity_updates > 100
     assert values["gnss_velocity.skipped_accelerating"] == "0"  # constant speed
+    # no IMU to check the altitude's grade against: no grade correction, and said so
+    assert values["road_grade.source"] == "none" and values["road_grade_deg"] == "0.00"
+    assert int(values["road_grade.fixes.none"]) > 200
     est = node.estimator.estimate()
     # 30 s of straight driving: filter seeds 0-5 end at 0.14-0.56 mm (the common mode of the
     # two radii, which a straight drive observes weakly); 1 mm catches a velocity misuse

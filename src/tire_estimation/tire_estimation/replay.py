@@ -788,6 +788,14 @@ def build_metrics(
     radii["nominal_radius_m"] = nominal
     if axles is not None:
         radii["axles"] = {a: dataclasses.asdict(axles.status(a)) for a in ("front", "rear")}
+    grade = arr["road_grade_rad"]
+    # the grade the correction used: fixes per source (the GNSS altitude confirmed by the IMU,
+    # the IMU's where they disagreed, none) and its size over the drive
+    radii["road_grade"] = {
+        "source_counts": dict(trace.road_grade_counts),
+        "rms_deg": float(np.degrees(np.sqrt(np.mean(grade**2)))) if grade.size else 0.0,
+        "max_abs_deg": float(np.degrees(np.abs(grade).max())) if grade.size else 0.0,
+    }
     radii["learning"] = ev.learning_metrics(
         arr["t_ns"], trace.wheel_names, arr["active"], trace.reason
     )

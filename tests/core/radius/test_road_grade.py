@@ -125,3 +125,18 @@ def test_sliding_line_slope_variance_matches_least_squares() -> None:
     assert fit.span() == pytest.approx(a[-1, 0] - a[0, 0])
     fit.clear()
     assert not fit.pts and math.isnan(fit.slope_var())
+
+
+def test_the_imu_grade_holds_in_reverse() -> None:
+    """Reversing at 3 m/s with the nose 5 % up: the road falls along the travel (the fixes'
+    altitude drops by sin(0.05) per metre), f_x = dv/dt + g sin(theta_nose). With the signed
+    speed in ``f_x v`` the IMU grade is the travel's, -0.05, and confirms the altitude."""
+    fit = RoadGradeFit()
+    speed = -3.0
+    for k in range(int(60.0 / DT_S)):
+        fit.roll(DT_S, abs(speed), G_M_S2 * math.sin(0.05), speed)
+        if k % 10 == 9:
+            fit.fix(200.0 - math.sin(0.05) * fit.distance_m)
+    assert fit.imu_grade_rad == pytest.approx(-0.05, abs=2e-3)
+    assert fit.source == "altitude"
+    assert fit.counts["imu"] == 0

@@ -66,6 +66,8 @@ class RadiusTrace:
     vel_accepted: list[bool] = field(default_factory=list)
     gnss_enu_m: list[NDArray[np.float64]] = field(default_factory=list)
     road_grade_rad: list[float] = field(default_factory=list)
+    #: fixes per source of the road grade (``road_grade.GRADE_SOURCES``), at the latest sample
+    road_grade_counts: dict[str, int] = field(default_factory=dict)
     rear_brake_decel_m_s2: list[float] = field(default_factory=list)
     dropped: dict[str, int] = field(default_factory=dict)
     resample_count: int = 0
@@ -217,6 +219,7 @@ def _record(trace: RadiusTrace, estimator: RadiusEstimator, upd: Any, t_ns: int)
     trace.pose_var.append(np.diag(np.asarray(est.pose_cov, dtype=float)).copy())
     trace.speed_m_s.append(float(est.speed_m_s))
     trace.road_grade_rad.append(float(getattr(est, "road_grade_rad", 0.0)))
+    trace.road_grade_counts = dict(getattr(est, "road_grade_counts", {}))
     trace.rear_brake_decel_m_s2.append(float(getattr(est, "rear_brake_decel_m_s2", 0.0)))
     trace.n_eff.append(float(est.n_eff))
     trace.state.append(str(est.state))

@@ -7,6 +7,7 @@ on the stiffness and tyre-force statuses those each of these estimators dropped.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
@@ -76,6 +77,11 @@ def statuses(
         # processed out of stamp order: arrived more than reorder_delay_s behind the wheel speeds
         for key, count in sorted(pipeline.buffer.late.items()):
             values[f"late.{key}"] = str(count)
+        # the road grade of the slope-distance correction and where it came from
+        values["road_grade_deg"] = f"{math.degrees(est.road_grade_rad):.2f}"
+        values["road_grade.source"] = est.road_grade_source
+        for source, count in sorted(est.road_grade_counts.items()):
+            values[f"road_grade.fixes.{source}"] = str(count)
         if pipeline.axles is not None:
             for axle in ("front", "rear"):
                 values[f"axle.{axle}.split"] = pipeline.axles.status(axle).reason

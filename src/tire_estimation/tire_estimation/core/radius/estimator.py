@@ -329,10 +329,13 @@ class RadiusEstimator(GnssHandling, Reporting, Gates):
         w3, w4 = ws[RL:].tolist()
         if last is not None and (t_ns - last) * 1e-9 <= self.config.max_gap_s:
             # slope distance rolled by the rear wheels (nominal radius) for the grade fit
-            rolled = 0.5 * self.model.nominal_radius_m * (abs(w3) + abs(w4))
+            r_half = 0.5 * self.model.nominal_radius_m
             imu = self._imu
             fx = float(imu[2][0]) if imu is not None and self._imu_fresh(t_ns) else None
-            self.grade.roll((t_ns - last) * 1e-9, rolled, fx)
+            # signed forward speed for the IMU altitude (f_x v holds in reverse too)
+            self.grade.roll(
+                (t_ns - last) * 1e-9, r_half * (abs(w3) + abs(w4)), fx, r_half * (w3 + w4)
+            )
         elif last is not None:
             self.grade.restart_imu()  # the integral of f_x v cannot span a wheel-speed gap
         if self._horizontal:

@@ -172,18 +172,27 @@ class RoadGradeFit:
         self.check_nis = math.nan
         self._gate = float(chdtri(1, 1.0 - GRADE_CHECK_PROBABILITY))
 
-    def roll(self, dt_s: float, rolled_m_s: float, fx_m_s2: float | None = None) -> None:
-        """Add ``dt_s`` at the rolling speed ``rolled_m_s`` to the distance; ``fx_m_s2`` is the
-        IMU's longitudinal specific force over the step (None: no fresh IMU, which restarts
-        the IMU grade)."""
+    def roll(
+        self,
+        dt_s: float,
+        rolled_m_s: float,
+        fx_m_s2: float | None = None,
+        forward_m_s: float | None = None,
+    ) -> None:
+        """Add ``dt_s`` at the rolling speed ``rolled_m_s`` (>= 0) to the distance;
+        ``fx_m_s2`` is the IMU's longitudinal specific force over the step (None: no fresh IMU,
+        which restarts the IMU grade) and ``forward_m_s`` the signed speed along ``base_link``
+        x (negative in reverse; None: ``rolled_m_s``)."""
         self.distance_m += dt_s * rolled_m_s
-        self._speed_m_s = rolled_m_s
+        v = rolled_m_s if forward_m_s is None else forward_m_s
+        self._speed_m_s = v
         if fx_m_s2 is None:
             self.restart_imu()
             return
         self._imu_continuous = True
-        # specific force times speed: f_x v = d(v^2 / 2)/dt + g dz/dt
-        self._work_m2_s2 += fx_m_s2 * rolled_m_s * dt_s
+        # specific force times the signed speed: f_x v = d(v^2 / 2)/dt + g dz/dt (in reverse
+        # both v and the nose-up grade's sign flip, dz/dt = v sin(theta) keeps its meaning)
+        self._work_m2_s2 += fx_m_s2 * v * dt_s
 
     def restart_imu(self) -> None:
         """Restart the IMU grade (no fresh IMU, or a wheel-speed gap that the integral of
