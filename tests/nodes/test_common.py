@@ -242,3 +242,28 @@ def _detector_feed(feeder: Any, executor: Any, qos_mod: Any, proc: Any) -> None:
         radii.publish(feed.radii(MU_CAL))
         executor.spin_once(timeout_sec=0.005)
     _spin_until(executor, lambda: len(statuses) >= 20, proc, 15.0)
+
+
+# --- the executor -----------------------------------------------------------------------------
+def test_nodes_spin_in_the_events_executor_or_the_single_threaded_one_without_it(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    import sys
+
+    rclpy, executors = import_ros("rclpy", "rclpy.executors")
+    from tire_estimation.nodes.common import make_executor
+
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    try:
+        events = make_executor(context)
+        # the C++ executor is no rclpy.executors.Executor (it only looks like one)
+        assert type(events).__name__ == "EventsExecutor"
+        assert not isinstance(events, executors.SingleThreadedExecutor)
+        events.shutdown()
+        monkeypatch.setitem(sys.modules, "rclpy.experimental", None)  # import fails
+        fallback = make_executor(context)
+        assert type(fallback) is executors.SingleThreadedExecutor
+        fallback.shutdown()
+    finally:
+        rclpy.shutdown(context=context)

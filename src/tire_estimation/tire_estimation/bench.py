@@ -379,6 +379,133 @@ def node_callback_time(
             "stiffness_learning_at_end": bool(learning)}  # fmt: skip
 
 
+def _cpu_s(stat: Path) -> float:
+    """User plus system CPU time in a Linux ``/proc`` ``stat`` file, s."""
+    fields = stat.read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def _process_cpu_s(pid: int) -> float:
+    """User plus system CPU time of process ``pid`` so far, s."""
+    return _cpu_s(Path(f"/proc/{pid}/stat"))
+
+
+def _thread_cpu_s(pid: int) -> dict[str, float]:
+    """CPU time of the threads of process ``pid`` so far by thread name, s: the main thread
+    (the Python callbacks) as ``main``, the middleware's threads under their own names."""
+    out: dict[str, float] = {}
+    for task in Path(f"/proc/{pid}/task").iterdir():
+        name = "main" if task.name == str(pid) else (task / "comm").read_text().strip()
+        out[name] = out.get(name, 0.0) + _cpu_s(task / "stat")
+    return out
+
+
+def node_keepup(
+    bag: Path, rate: float, stiffness: bool = True, n_particles: int = 300
+) -> dict[str, Any]:
+    """Whether ``estimator_node`` (its own process, ``use_sim_time``, reliable QoS, every
+    estimator on unless ``stiffness`` False) keeps up with ``bag`` played over DDS at ``rate``
+    times real time by :class:`~tire_estimation.nodes.bag_player.BagPlayer` in this process,
+    as tests/nodes/test_integration_dds.py plays it. After the play and a 3 s pause one more
+    ``/clock`` 2 s of bag time on makes the node publish its final ``/diagnostics``.
+
+    Returns, from that report: ``received_pct`` (messages the node received over those in the
+    bag, per input stream), ``late`` (samples processed out of stamp order because they
+    arrived behind the wheel speeds) and ``dropped`` (every drop counter, e.g. stale fixes);
+    with ``play_wall_s``, and the CPU time during the play, s: of the node process, of its
+    threads by name (``main``: the Python callbacks) and of this process (player and
+    listener)."""
+    import rclpy
+    from diagnostic_msgs.msg import DiagnosticArray
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from rosbags.rosbag2 import Reader
+    from rosgraph_msgs.msg import Clock
+
+    from tire_estimation.bag.reader import read_bag
+    from tire_estimation.bag.topics import INPUT_STREAMS
+    from tire_estimation.nodes.bag_player import BagPlayer
+
+    exe = shutil.which("estimator_node")
+    if exe is None:
+        return {"error": "estimator_node not on PATH (source env.sh)"}
+    counts = {k: v.count for k, v in read_bag(bag, topics=[]).topics.items()}
+    with Reader(bag) as reader:
+        end_ns = int(reader.end_time)
+    proc = subprocess.Popen(
+        [exe, "--ros-args", "-p", "use_sim_time:=true",
+         "-p", f"vehicle_file:={bag / 'vehicle.yaml'}", "-p", "persistence_file:=''",
+         "-p", "sensor_qos:=reliable", "-p", f"radius.n_particles:={n_particles}",
+         "-p", f"stiffness_enabled:={str(stiffness).lower()}", "--log-level", "warn"],
+        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=os.environ.copy(),
+    )  # fmt: skip
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    reports: list[Any] = []
+    executor = SingleThreadedExecutor(context=context)
+    try:
+        listener = rclpy.create_node("keepup_listener", context=context)
+        listener.create_subscription(DiagnosticArray, "/diagnostics", reports.append, 10)
+        executor.add_node(listener)
+        spinner = threading.Thread(target=executor.spin, daemon=True)
+        spinner.start()
+        player = BagPlayer(bag, context=context)
+        deadline = time.monotonic() + 30.0
+        while listener.count_subscribers("/vehicle/wheel_speeds") < 1:
+            if time.monotonic() > deadline or proc.poll() is not None:
+                return {"error": "estimator_node did not subscribe"}
+            time.sleep(0.2)
+        time.sleep(1.0)
+        reliable = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+        threads0 = _thread_cpu_s(proc.pid)
+        node_cpu0, own_cpu0, wall0 = _process_cpu_s(proc.pid), time.process_time(), time.time()
+        player.play(rate=rate, qos=reliable)
+        play_wall_s = time.time() - wall0
+        node_cpu_s = _process_cpu_s(proc.pid) - node_cpu0
+        threads = _thread_cpu_s(proc.pid)
+        node_threads = {
+            k: round(v - threads0.get(k, 0.0), 2)
+            for k, v in threads.items()
+            if v > threads0.get(k, 0.0)
+        }
+        own_cpu_s = time.process_time() - own_cpu0
+        time.sleep(3.0)
+        n_reports = len(reports)
+        clock = Clock()
+        clock.clock.sec, clock.clock.nanosec = divmod(end_ns + 2_000_000_000, 1_000_000_000)
+        player.clock_pub.publish(clock)
+        deadline = time.monotonic() + 5.0
+        while len(reports) == n_reports and time.monotonic() < deadline:
+            time.sleep(0.05)
+    finally:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(timeout=15)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+        executor.shutdown()
+        rclpy.shutdown(context=context)
+        spinner.join(timeout=5.0)
+    values = {
+        kv.key: kv.value
+        for arr in reports[-1:]
+        for st in arr.status
+        if st.name == "tire_estimation: radius estimator"
+        for kv in st.values
+    }
+    received = {
+        stream: round(100.0 * int(values.get(f"received.{stream}", 0)) / counts[topic], 2)
+        for topic, stream in INPUT_STREAMS.items()
+        if counts.get(topic)
+    }
+    late = {k[5:]: int(v) for k, v in values.items() if k.startswith("late.")}
+    dropped = {k[8:]: int(v) for k, v in values.items() if k.startswith("dropped.")}
+    return {"rate": rate, "stiffness": stiffness, "load": os.getloadavg()[0],
+            "received_pct": received, "late": late, "dropped": dropped,
+            "play_wall_s": round(play_wall_s, 2), "node_cpu_s": round(node_cpu_s, 2),
+            "node_threads_cpu_s": node_threads, "player_cpu_s": round(own_cpu_s, 2)}  # fmt: skip
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run all benchmarks and print JSON."""
     parser = argparse.ArgumentParser(description="tire_estimation benchmarks")
