@@ -267,3 +267,47 @@ def test_nodes_spin_in_the_events_executor_or_the_single_threaded_one_without_it
         fallback.shutdown()
     finally:
         rclpy.shutdown(context=context)
+
+
+def test_the_spinning_console_script_answers_its_lifecycle_services(tmp_path: Path) -> None:
+    """Without autostart, a lifecycle manager's configure and activate reach the node through
+    the executor it spins in; a signal then stops it with exit 0."""
+    rclpy, executors = import_ros("rclpy", "rclpy.executors")
+    from lifecycle_msgs.msg import State, Transition
+    from lifecycle_msgs.srv import ChangeState, GetState
+
+    exe = shutil.which("estimator_node")
+    assert exe is not None, "estimator_node console script not on PATH (source env.sh)"
+    log = tmp_path / "estimator_node.log"
+    with log.open("w") as out:
+        proc = subprocess.Popen(
+            [exe, "--ros-args", "-p", "autostart:=false", "-p", "persistence_file:=''"],
+            stdout=out, stderr=subprocess.STDOUT, env=os.environ.copy(),
+        )  # fmt: skip
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    executor = executors.SingleThreadedExecutor(context=context)
+    try:
+        manager = rclpy.create_node("lifecycle_test_manager", context=context)
+        executor.add_node(manager)
+        change = manager.create_client(ChangeState, "/estimator_node/change_state")
+        get = manager.create_client(GetState, "/estimator_node/get_state")
+        assert change.wait_for_service(timeout_sec=30.0), log.read_text()
+        assert get.wait_for_service(timeout_sec=10.0), log.read_text()
+        for transition in (Transition.TRANSITION_CONFIGURE, Transition.TRANSITION_ACTIVATE):
+            future = change.call_async(ChangeState.Request(transition=Transition(id=transition)))
+            _spin_until(executor, future.done, proc, 30.0)
+            assert future.result().success, log.read_text()
+        future = get.call_async(GetState.Request())
+        _spin_until(executor, future.done, proc, 10.0)
+        assert future.result().current_state.id == State.PRIMARY_STATE_ACTIVE
+        assert "estimator_node up:" in log.read_text()
+        code, text = _stop(proc, signal.SIGINT, log)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        executor.shutdown()
+        rclpy.shutdown(context=context)
+    assert code == 0, text
+    assert "Traceback" not in text, text
