@@ -294,13 +294,30 @@ def test_the_spinning_console_script_answers_its_lifecycle_services(tmp_path: Pa
         get = manager.create_client(GetState, "/estimator_node/get_state")
         assert change.wait_for_service(timeout_sec=30.0), log.read_text()
         assert get.wait_for_service(timeout_sec=10.0), log.read_text()
+
+        def call(client: Any, request: Any, what: str, resend_s: float = 30.0) -> Any:
+            """The answer to ``request``, sent again every ``resend_s`` (a request sent while
+            discovery is still matching the service's endpoints can be lost)."""
+            deadline = time.monotonic() + 30.0
+            while True:
+                future = client.call_async(request)
+                resend = time.monotonic() + resend_s
+                while not future.done() and time.monotonic() < resend:
+                    assert proc.poll() is None, log.read_text()
+                    assert time.monotonic() < deadline, f"no answer to {what}: {log.read_text()}"
+                    executor.spin_once(timeout_sec=0.05)
+                if future.done():
+                    return future.result()
+                client.remove_pending_request(future)
+
+        # get_state changes nothing: asked until it is answered, the services are reachable
+        state = call(get, GetState.Request(), "get_state", resend_s=2.0).current_state
+        assert state.id == State.PRIMARY_STATE_UNCONFIGURED
         for transition in (Transition.TRANSITION_CONFIGURE, Transition.TRANSITION_ACTIVATE):
-            future = change.call_async(ChangeState.Request(transition=Transition(id=transition)))
-            _spin_until(executor, future.done, proc, 30.0)
-            assert future.result().success, log.read_text()
-        future = get.call_async(GetState.Request())
-        _spin_until(executor, future.done, proc, 10.0)
-        assert future.result().current_state.id == State.PRIMARY_STATE_ACTIVE
+            request = ChangeState.Request(transition=Transition(id=transition))
+            assert call(change, request, f"transition {transition}").success, log.read_text()
+        state = call(get, GetState.Request(), "get_state").current_state
+        assert state.id == State.PRIMARY_STATE_ACTIVE
         assert "estimator_node up:" in log.read_text()
         code, text = _stop(proc, signal.SIGINT, log)
     finally:

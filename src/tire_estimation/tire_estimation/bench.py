@@ -410,12 +410,17 @@ def _thread_cpu_s(pid: int) -> dict[str, float]:
 
 
 def node_keepup(
-    bag: Path, rate: float, stiffness: bool = True, n_particles: int = 300
+    bag: Path,
+    rate: float,
+    stiffness: bool = True,
+    n_particles: int = 300,
+    params: tuple[str, ...] = (),
 ) -> dict[str, Any]:
     """Whether ``estimator_node`` (its own process, ``use_sim_time``, reliable QoS, every
-    estimator on unless ``stiffness`` False) keeps up with ``bag`` played over DDS at ``rate``
-    times real time by :class:`~tire_estimation.nodes.bag_player.BagPlayer` in this process,
-    as tests/nodes/test_integration_dds.py plays it. After the play and a 3 s pause one more
+    estimator on unless ``stiffness`` False; ``params``: more ``name:=value`` parameters)
+    keeps up with ``bag`` played over DDS at ``rate`` times real time by
+    :class:`~tire_estimation.nodes.bag_player.BagPlayer` in this process, as
+    tests/nodes/test_integration_dds.py plays it. After the play and a 3 s pause one more
     ``/clock`` 2 s of bag time on makes the node publish its final ``/diagnostics``.
 
     Returns, from that report: ``received_pct`` (messages the node received over those in the
@@ -445,7 +450,8 @@ def node_keepup(
         [exe, "--ros-args", "-p", "use_sim_time:=true",
          "-p", f"vehicle_file:={bag / 'vehicle.yaml'}", "-p", "persistence_file:=''",
          "-p", "sensor_qos:=reliable", "-p", f"radius.n_particles:={n_particles}",
-         "-p", f"stiffness_enabled:={str(stiffness).lower()}", "--log-level", "warn"],
+         "-p", f"stiffness_enabled:={str(stiffness).lower()}",
+         *(arg for param in params for arg in ("-p", param)), "--log-level", "warn"],
         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=os.environ.copy(),
     )  # fmt: skip
     context = rclpy.Context()
