@@ -21,9 +21,9 @@ from tests.conftest import import_ros
 pytestmark = [pytest.mark.ros, pytest.mark.serial]
 
 MINUTES = 4.0
-# bag seconds per wall second: every estimator on, the node takes about 0.11 s of CPU per bag
-# second (tire_estimation.bench.node_keepup), so 2x leaves a loaded 2-core machine a wide margin
-# (5x kept 98-99 % with the load average at 4, 10x does not keep up)
+# bag seconds per wall second: with every estimator on the node's callback thread takes about
+# 0.15 s of CPU per bag second (tire_estimation.bench.node_keepup), so 2x leaves a shared 2-core
+# machine a wide margin (3x kept every message; 5x is marginal, 10x does not keep up)
 RATE = 2.0
 
 
