@@ -242,3 +242,89 @@ def _detector_feed(feeder: Any, executor: Any, qos_mod: Any, proc: Any) -> None:
         radii.publish(feed.radii(MU_CAL))
         executor.spin_once(timeout_sec=0.005)
     _spin_until(executor, lambda: len(statuses) >= 20, proc, 15.0)
+
+
+# --- the executor -----------------------------------------------------------------------------
+def test_nodes_spin_in_the_events_executor_or_the_single_threaded_one_without_it(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    import sys
+
+    rclpy, executors = import_ros("rclpy", "rclpy.executors")
+    from tire_estimation.nodes.common import make_executor
+
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    try:
+        events = make_executor(context)
+        # the C++ executor is no rclpy.executors.Executor (it only looks like one)
+        assert type(events).__name__ == "EventsExecutor"
+        assert not isinstance(events, executors.SingleThreadedExecutor)
+        events.shutdown()
+        monkeypatch.setitem(sys.modules, "rclpy.experimental", None)  # import fails
+        fallback = make_executor(context)
+        assert type(fallback) is executors.SingleThreadedExecutor
+        fallback.shutdown()
+    finally:
+        rclpy.shutdown(context=context)
+
+
+def test_the_spinning_console_script_answers_its_lifecycle_services(tmp_path: Path) -> None:
+    """Without autostart, a lifecycle manager's configure and activate reach the node through
+    the executor it spins in; a signal then stops it with exit 0."""
+    rclpy, executors = import_ros("rclpy", "rclpy.executors")
+    from lifecycle_msgs.msg import State, Transition
+    from lifecycle_msgs.srv import ChangeState, GetState
+
+    exe = shutil.which("estimator_node")
+    assert exe is not None, "estimator_node console script not on PATH (source env.sh)"
+    log = tmp_path / "estimator_node.log"
+    with log.open("w") as out:
+        proc = subprocess.Popen(
+            [exe, "--ros-args", "-p", "autostart:=false", "-p", "persistence_file:=''"],
+            stdout=out, stderr=subprocess.STDOUT, env=os.environ.copy(),
+        )  # fmt: skip
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    executor = executors.SingleThreadedExecutor(context=context)
+    try:
+        manager = rclpy.create_node("lifecycle_test_manager", context=context)
+        executor.add_node(manager)
+        change = manager.create_client(ChangeState, "/estimator_node/change_state")
+        get = manager.create_client(GetState, "/estimator_node/get_state")
+        assert change.wait_for_service(timeout_sec=30.0), log.read_text()
+        assert get.wait_for_service(timeout_sec=10.0), log.read_text()
+
+        def call(client: Any, request: Any, what: str, resend_s: float = 30.0) -> Any:
+            """The answer to ``request``, sent again every ``resend_s`` (a request sent while
+            discovery is still matching the service's endpoints can be lost)."""
+            deadline = time.monotonic() + 30.0
+            while True:
+                future = client.call_async(request)
+                resend = time.monotonic() + resend_s
+                while not future.done() and time.monotonic() < resend:
+                    assert proc.poll() is None, log.read_text()
+                    assert time.monotonic() < deadline, f"no answer to {what}: {log.read_text()}"
+                    executor.spin_once(timeout_sec=0.05)
+                if future.done():
+                    return future.result()
+                client.remove_pending_request(future)
+
+        # get_state changes nothing: asked until it is answered, the services are reachable
+        state = call(get, GetState.Request(), "get_state", resend_s=2.0).current_state
+        assert state.id == State.PRIMARY_STATE_UNCONFIGURED
+        for transition in (Transition.TRANSITION_CONFIGURE, Transition.TRANSITION_ACTIVATE):
+            request = ChangeState.Request(transition=Transition(id=transition))
+            assert call(change, request, f"transition {transition}").success, log.read_text()
+        state = call(get, GetState.Request(), "get_state").current_state
+        assert state.id == State.PRIMARY_STATE_ACTIVE
+        assert "estimator_node up:" in log.read_text()
+        code, text = _stop(proc, signal.SIGINT, log)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        executor.shutdown()
+        rclpy.shutdown(context=context)
+    assert code == 0, text
+    assert "Traceback" not in text, text

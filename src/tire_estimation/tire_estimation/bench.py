@@ -303,8 +303,10 @@ def node_callback_time(
     fixes at 10 Hz, odometry published after every wheel-speed sample. A 25 m/s drive with a
     0.5 Hz, 2 deg sine steer (the stiffness MPF learns); ``stiffness`` False: the node without
     the stiffness MPF (``stiffness_enabled:=false``), the steering and IMU still delivered.
-    ``skip_s`` of header time at the start are not counted. Percentiles over single callbacks
-    and over the callbacks of one 10 ms input period (``tick_*``)."""
+    ``skip_s`` of header time at the start are not counted. Percentiles of the wall time of
+    single callbacks and of the callbacks of one 10 ms input period (``tick_*``), and of the
+    CPU time of that thread per period (``tick_cpu_*``: what the callbacks cost without the
+    time the process waited for a core on a shared machine)."""
     import math
 
     import rclpy
@@ -335,6 +337,7 @@ def node_callback_time(
         t0 = time.time_ns()
         wall: list[float] = []
         tick: list[float] = []
+        tick_cpu: list[float] = []
         east = north = heading = 0.0
         for k in range(int(seconds * 100)):
             stamp = divmod(t0 + k * 10_000_000, 1_000_000_000)
@@ -358,6 +361,7 @@ def node_callback_time(
                 fix.latitude, fix.longitude, fix.altitude = float(la), float(lo), float(al)
                 calls.append((on_fix, fix))
             total = 0.0
+            cpu0 = time.thread_time()
             for callback, msg in calls:
                 start = time.perf_counter()
                 callback(msg)
@@ -367,16 +371,154 @@ def node_callback_time(
                     wall.append(dt)
             if k >= skip_s * 100:
                 tick.append(total)
+                tick_cpu.append(time.thread_time() - cpu0)
         learning = node.stiffness is not None and node.stiffness.estimate().active
         node.destroy_node()
     finally:
         rclpy.shutdown()
     ms, tick_ms = np.asarray(wall) * 1e3, np.asarray(tick) * 1e3
+    cpu_ms = np.asarray(tick_cpu) * 1e3
     return {"callbacks": int(ms.size), "p50_ms": float(np.median(ms)),
             "p99_ms": float(np.quantile(ms, 0.99)), "max_ms": float(ms.max()),
             "tick_p50_ms": float(np.median(tick_ms)),
             "tick_p99_ms": float(np.quantile(tick_ms, 0.99)),
+            "tick_cpu_mean_ms": float(cpu_ms.mean()),
+            "tick_cpu_p50_ms": float(np.median(cpu_ms)),
+            "tick_cpu_p99_ms": float(np.quantile(cpu_ms, 0.99)),
             "stiffness_learning_at_end": bool(learning)}  # fmt: skip
+
+
+def _cpu_s(stat: Path) -> float:
+    """User plus system CPU time in a Linux ``/proc`` ``stat`` file, s."""
+    fields = stat.read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def _process_cpu_s(pid: int) -> float:
+    """User plus system CPU time of process ``pid`` so far, s."""
+    return _cpu_s(Path(f"/proc/{pid}/stat"))
+
+
+def _thread_cpu_s(pid: int) -> dict[str, float]:
+    """CPU time of the threads of process ``pid`` so far by thread name, s: the main thread
+    (the Python callbacks) as ``main``, the middleware's threads under their own names."""
+    out: dict[str, float] = {}
+    for task in Path(f"/proc/{pid}/task").iterdir():
+        name = "main" if task.name == str(pid) else (task / "comm").read_text().strip()
+        out[name] = out.get(name, 0.0) + _cpu_s(task / "stat")
+    return out
+
+
+def node_keepup(
+    bag: Path,
+    rate: float,
+    stiffness: bool = True,
+    n_particles: int = 300,
+    params: tuple[str, ...] = (),
+) -> dict[str, Any]:
+    """Whether ``estimator_node`` (its own process, ``use_sim_time``, reliable QoS, every
+    estimator on unless ``stiffness`` False; ``params``: more ``name:=value`` parameters)
+    keeps up with ``bag`` played over DDS at ``rate`` times real time by
+    :class:`~tire_estimation.nodes.bag_player.BagPlayer` in this process, as
+    tests/nodes/test_integration_dds.py plays it. After the play and a 3 s pause one more
+    ``/clock`` 2 s of bag time on makes the node publish its final ``/diagnostics``.
+
+    Returns, from that report: ``received_pct`` (messages the node received over those in the
+    bag, per input stream), ``late`` (samples processed out of stamp order because they
+    arrived behind the wheel speeds) and ``dropped`` (every drop counter, e.g. stale fixes);
+    with ``play_wall_s``, and the CPU time during the play, s: of the node process, of its
+    threads by name (``main``: the Python callbacks) and of this process (player and
+    listener)."""
+    import rclpy
+    from diagnostic_msgs.msg import DiagnosticArray
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from rosbags.rosbag2 import Reader
+    from rosgraph_msgs.msg import Clock
+
+    from tire_estimation.bag.reader import read_bag
+    from tire_estimation.bag.topics import INPUT_STREAMS
+    from tire_estimation.nodes.bag_player import BagPlayer
+
+    exe = shutil.which("estimator_node")
+    if exe is None:
+        return {"error": "estimator_node not on PATH (source env.sh)"}
+    counts = {k: v.count for k, v in read_bag(bag, topics=[]).topics.items()}
+    with Reader(bag) as reader:
+        end_ns = int(reader.end_time)
+    proc = subprocess.Popen(
+        [exe, "--ros-args", "-p", "use_sim_time:=true",
+         "-p", f"vehicle_file:={bag / 'vehicle.yaml'}", "-p", "persistence_file:=''",
+         "-p", "sensor_qos:=reliable", "-p", f"radius.n_particles:={n_particles}",
+         "-p", f"stiffness_enabled:={str(stiffness).lower()}",
+         *(arg for param in params for arg in ("-p", param)), "--log-level", "warn"],
+        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=os.environ.copy(),
+    )  # fmt: skip
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    reports: list[Any] = []
+    executor = SingleThreadedExecutor(context=context)
+    try:
+        listener = rclpy.create_node("keepup_listener", context=context)
+        listener.create_subscription(DiagnosticArray, "/diagnostics", reports.append, 10)
+        executor.add_node(listener)
+        spinner = threading.Thread(target=executor.spin, daemon=True)
+        spinner.start()
+        player = BagPlayer(bag, context=context)
+        deadline = time.monotonic() + 30.0
+        while listener.count_subscribers("/vehicle/wheel_speeds") < 1:
+            if time.monotonic() > deadline or proc.poll() is not None:
+                return {"error": "estimator_node did not subscribe"}
+            time.sleep(0.2)
+        time.sleep(1.0)
+        reliable = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+        threads0 = _thread_cpu_s(proc.pid)
+        node_cpu0, own_cpu0, wall0 = _process_cpu_s(proc.pid), time.process_time(), time.time()
+        player.play(rate=rate, qos=reliable)
+        play_wall_s = time.time() - wall0
+        node_cpu_s = _process_cpu_s(proc.pid) - node_cpu0
+        threads = _thread_cpu_s(proc.pid)
+        node_threads = {
+            k: round(v - threads0.get(k, 0.0), 2)
+            for k, v in threads.items()
+            if v > threads0.get(k, 0.0)
+        }
+        own_cpu_s = time.process_time() - own_cpu0
+        time.sleep(3.0)
+        n_reports = len(reports)
+        clock = Clock()
+        clock.clock.sec, clock.clock.nanosec = divmod(end_ns + 2_000_000_000, 1_000_000_000)
+        player.clock_pub.publish(clock)
+        deadline = time.monotonic() + 5.0
+        while len(reports) == n_reports and time.monotonic() < deadline:
+            time.sleep(0.05)
+    finally:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(timeout=15)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+        executor.shutdown()
+        rclpy.shutdown(context=context)
+        spinner.join(timeout=5.0)
+    values = {
+        kv.key: kv.value
+        for arr in reports[-1:]
+        for st in arr.status
+        if st.name == "tire_estimation: radius estimator"
+        for kv in st.values
+    }
+    received = {
+        stream: round(100.0 * int(values.get(f"received.{stream}", 0)) / counts[topic], 2)
+        for topic, stream in INPUT_STREAMS.items()
+        if counts.get(topic)
+    }
+    late = {k[5:]: int(v) for k, v in values.items() if k.startswith("late.")}
+    dropped = {k[8:]: int(v) for k, v in values.items() if k.startswith("dropped.")}
+    return {"rate": rate, "stiffness": stiffness, "load": os.getloadavg()[0],
+            "received_pct": received, "late": late, "dropped": dropped,
+            "play_wall_s": round(play_wall_s, 2), "node_cpu_s": round(node_cpu_s, 2),
+            "node_threads_cpu_s": node_threads, "player_cpu_s": round(own_cpu_s, 2)}  # fmt: skip
 
 
 def main(argv: list[str] | None = None) -> int:

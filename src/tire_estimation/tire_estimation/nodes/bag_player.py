@@ -3,7 +3,9 @@
 ``ros2 bag play`` is not installable from PyPI; this small player reads the raw CDR of each
 message with ``rosbags`` and publishes the bytes unchanged (``Publisher.publish(bytes)``), in
 log-time order, paced by ``rate`` (0 = as fast as possible). ``/clock`` follows the bag time so
-nodes with ``use_sim_time:=true`` see the recorded time.
+nodes with ``use_sim_time:=true`` see the recorded time: it is published before the first
+message and then before each message at least ``clock_period_s`` of bag time after the last
+``/clock`` (default :data:`CLOCK_PERIOD_S`; 0: before every message).
 """
 
 from __future__ import annotations
@@ -27,6 +29,9 @@ from tire_estimation.errors import BagError
 
 #: Topics played by default: the estimator's inputs (never the truth).
 DEFAULT_TOPICS = topics.INPUT_TOPICS
+#: bag time between two ``/clock`` messages, s: 100 Hz, as often as the fastest input stream
+#: (a ``/clock`` per message would double what a subscribing node has to take in)
+CLOCK_PERIOD_S = 0.01
 
 
 def message_class(msgtype: str) -> type:
@@ -49,10 +54,15 @@ class BagPlayer(Node):
         self.published = 0
 
     def play(
-        self, rate: float = 1.0, qos: QoSProfile = qos_profile_sensor_data, progress: bool = False
+        self,
+        rate: float = 1.0,
+        qos: QoSProfile = qos_profile_sensor_data,
+        progress: bool = False,
+        clock_period_s: float = CLOCK_PERIOD_S,
     ) -> int:
         """Publish every message of the chosen topics; return how many were published
-        (``progress``: a progress bar on stderr)."""
+        (``progress``: a progress bar on stderr; ``clock_period_s``: bag time between two
+        ``/clock`` messages, 0 for one before every message)."""
         try:
             reader = Reader(self.bag)
             reader.open()
@@ -74,16 +84,23 @@ class BagPlayer(Node):
             wall0: float | None = None
             bag0 = 0
             clock = Clock()
+            clock_period_ns = round(clock_period_s * 1e9)
+            next_clock_ns = -1
+            publish_clock = self.clock_pub.publish
+            publish = {topic: pub.publish for topic, pub in self.publishers_by_topic.items()}
+            monotonic = time.monotonic
             for conn, t_ns, raw in reader.messages(connections=conns):
                 if wall0 is None:
-                    wall0, bag0 = time.monotonic(), t_ns
+                    wall0, bag0 = monotonic(), t_ns
                 if rate > 0:
-                    delay = (t_ns - bag0) * 1e-9 / rate - (time.monotonic() - wall0)
+                    delay = (t_ns - bag0) * 1e-9 / rate - (monotonic() - wall0)
                     if delay > 0:
                         time.sleep(delay)
-                clock.clock.sec, clock.clock.nanosec = divmod(t_ns, 1_000_000_000)
-                self.clock_pub.publish(clock)
-                self.publishers_by_topic[conn.topic].publish(bytes(raw))
+                if t_ns >= next_clock_ns:
+                    clock.clock.sec, clock.clock.nanosec = divmod(t_ns, 1_000_000_000)
+                    publish_clock(clock)
+                    next_clock_ns = t_ns + clock_period_ns
+                publish[conn.topic](bytes(raw))
                 self.published += 1
                 if bar is not None and self.published % 1000 == 0:
                     bar.update(1000)

@@ -38,7 +38,25 @@ _TWIST_COV = np.diag([0.01, 0.01, 0.01, 1e6, 1e6, 1e-4]).reshape(36)
 #: variance of what the corrected wheel odometry does not measure (vy, vz, roll and pitch rate)
 UNMEASURED_VAR = 1e6
 
+#: the 6x6 pose covariance of the odometry without its planar block: z, roll, pitch unknown
+_POSE_COV_UNKNOWN = (0.0,) * 14 + (1e6,) + (0.0,) * 6 + (1e6,) + (0.0,) * 6 + (1e6,) + (0.0,) * 7
+#: the 6x6 covariance of the corrected twist without its (vx, yaw rate) block
+_TWIST_UNMEASURED = tuple(
+    UNMEASURED_VAR if i == j and i not in (0, 5) else 0.0 for i in range(6) for j in range(6)
+)
+
 M = TypeVar("M")
+
+
+def _embedded(block: object, axes: tuple[int, ...], base: tuple[float, ...]) -> list[float]:
+    """The row-major 6x6 covariance ``base`` with ``block`` (len(axes) square) at the rows and
+    columns ``axes``: plain floats (cheaper than a NumPy scatter for 36 values)."""
+    cov = list(base)
+    rows = np.asarray(block, dtype=float).tolist()
+    for a, row in zip(axes, rows, strict=True):
+        for b, value in zip(axes, row, strict=True):
+            cov[6 * a + b] = value
+    return cov
 
 
 def _stamped(msg: M, t_ns: int, frame_id: str) -> M:
@@ -59,10 +77,7 @@ def odometry_msg(est: RadiusEstimate, t_ns: int, names: Names = CONTRACT_NAMES) 
     # quaternion of a rotation about z by yaw: (0, 0, sin(yaw / 2), cos(yaw / 2))
     msg.pose.pose.orientation.z = math.sin(0.5 * yaw)
     msg.pose.pose.orientation.w = math.cos(0.5 * yaw)
-    cov = np.zeros((6, 6))
-    cov[np.ix_(_PLANAR, _PLANAR)] = est.pose_cov
-    cov[2, 2] = cov[3, 3] = cov[4, 4] = 1e6
-    msg.pose.covariance = cov.reshape(36)
+    msg.pose.covariance = _embedded(est.pose_cov, _PLANAR, _POSE_COV_UNKNOWN)
     msg.twist.twist.linear.x = float(est.speed_m_s)
     msg.twist.twist.angular.z = float(est.yaw_rate_rad_s)
     msg.twist.covariance = _TWIST_COV
@@ -93,9 +108,7 @@ def twist_msg(twist: CorrectedTwist, names: Names = CONTRACT_NAMES) -> TwistWith
     msg = _stamped(TwistWithCovarianceStamped(), twist.t_ns, names.base_frame)
     msg.twist.twist.linear.x = float(twist.vx_m_s)
     msg.twist.twist.angular.z = float(twist.yaw_rate_rad_s)
-    cov = np.diag([0.0, UNMEASURED_VAR, UNMEASURED_VAR, UNMEASURED_VAR, UNMEASURED_VAR, 0.0])
-    cov[np.ix_((0, 5), (0, 5))] = twist.covariance
-    msg.twist.covariance = cov.reshape(36)
+    msg.twist.covariance = _embedded(twist.covariance, (0, 5), _TWIST_UNMEASURED)
     return msg
 
 
@@ -142,7 +155,7 @@ def lateral_msg(est: LateralEstimate, t_ns: int, names: Names = CONTRACT_NAMES) 
     msg.lateral_velocity_m_s = float(est.vy_m_s)
     msg.yaw_rate_rad_s = float(est.yaw_rate_rad_s)
     msg.sideslip_rad = float(est.sideslip_rad)
-    msg.covariance = [float(v) for v in np.asarray(est.covariance, dtype=float).ravel()]
+    msg.covariance = np.asarray(est.covariance, dtype=float).ravel().tolist()
     msg.axle_lateral_force_n = [float(v) for v in est.axle_lateral_force_n]
     msg.linearity = _LINEARITY.get(est.linearity, LateralState.LINEARITY_UNKNOWN)
     return msg
