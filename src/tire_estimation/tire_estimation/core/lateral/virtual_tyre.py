@@ -70,7 +70,8 @@ def inverse_magic_formula(
 ) -> float:
     """Slip angle (rad) on the rising branch of eq. (11) that gives ``fy_n``.
 
-    Solved numerically (Brent's method on eq. 11 over [0, alpha_peak]); eq. (11) is odd in the
+    Solved in closed form up to the inner argument phi, whose inverse is found by a bracketed
+    Newton iteration (:func:`_inverse_shape`); eq. (11) is odd in the
     slip angle, so the sign of the force is carried over. A force at or above the peak D
     (sensor noise, or a tyre beyond its peak) returns the peak slip angle.
 
@@ -87,13 +88,34 @@ def inverse_magic_formula(
         return math.copysign(alpha_peak, fy_n)
     if f_abs == 0.0:
         return 0.0
-    from scipy.optimize import brentq
+    # Tuononen 2009 eq. (11) solved for alpha: D sin(C atan(phi(B alpha))) = |Fy| on the
+    # rising branch gives phi(x) = tan(asin(|Fy| / D) / C), x = B alpha
+    phi = math.tan(math.asin(f_abs / d_n) / c)
+    x = _inverse_shape(phi, e, xp)
+    return math.copysign(x / b_1_rad, fy_n)
 
-    # Tuononen 2009 eq. (11) solved for alpha: D sin(C atan(phi(B alpha))) - |Fy| = 0
-    alpha = brentq(
-        lambda a: magic_formula(a, b_1_rad, c, d_n, e) - f_abs, 0.0, alpha_peak, xtol=1e-10
-    )
-    return math.copysign(float(alpha), fy_n)
+
+def _inverse_shape(phi: float, e: float, x_hi: float) -> float:
+    """The x in [0, x_hi] with phi(x) = x - E (x - atan x) = ``phi`` (E < 1: phi is strictly
+    increasing, phi'(x) = 1 - E + E / (1 + x^2) > 0). Newton's method kept inside a shrinking
+    bracket (bisection when a step leaves it), to 1e-14 relative."""
+    lo, hi = 0.0, x_hi
+    x = min(max(phi, 0.0), x_hi)
+    for _ in range(100):
+        g = _shape(x, e) - phi
+        if g > 0.0:
+            hi = x
+        else:
+            lo = x
+        # Newton step on phi(x) - phi_target, phi'(x) = 1 - E + E / (1 + x^2)
+        step = g / (1.0 - e + e / (1.0 + x * x))
+        x_new = x - step
+        if not lo < x_new < hi:
+            x_new = 0.5 * (lo + hi)
+        if abs(x_new - x) <= 1e-14 * max(1.0, abs(x)):
+            return x_new
+        x = x_new
+    return x
 
 
 def virtual_load(
