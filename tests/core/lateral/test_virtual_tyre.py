@@ -25,7 +25,12 @@ def test_inverse_is_the_root_of_eq_11_on_the_rising_branch(c: float, e: float) -
         b, d = rng.uniform(5.0, 20.0), rng.uniform(1000.0, 8000.0)
         f = rng.uniform(-0.998, 0.998) * d
         alpha = inverse_magic_formula(f, b, c, d, e, x_peak)
-        ref = brentq(lambda a: magic_formula(a, b, c, d, e) - abs(f), 0.0, x_peak / b, xtol=1e-14)
+        ref = brentq(
+            lambda a, b=b, d=d, f=f: magic_formula(a, b, c, d, e) - abs(f),
+            0.0,
+            x_peak / b,
+            xtol=1e-14,
+        )
         assert alpha == pytest.approx(math.copysign(ref, f), abs=1e-12)
         assert magic_formula(alpha, b, c, d, e) == pytest.approx(f, rel=1e-9)
 
