@@ -152,12 +152,8 @@ def _road_grade(est: RadiusEstimator, gain: float, t_ns: int, ws: F64) -> F64:
         return ws
     # the wheels roll along the slope, the pose and GNSS are horizontal:
     # ds_horizontal = ds cos(theta); the common mode of each axle is reduced by
-    # gain (1 - cos theta), the left-right difference (the yaw rate) is kept.
-    # 1 - cos(theta) ~ theta^2 / 2, and a fitted grade with noise variance s^2 has
-    # E[theta_hat^2] = theta^2 + s^2: theta_hat^2 - s^2 is the unbiased estimate of theta^2
-    # (else altitude noise alone reads as hills on a flat road)
-    excess = max(0.0, 1.0 - math.cos(grade) - 0.5 * est.grade.grade_var_rad2)
-    eps = gain * excess
+    # gain (1 - cos theta), the left-right difference (the yaw rate) is kept
+    eps = gain * (1.0 - math.cos(grade))
     mf = 0.5 * float(ws[FL] + ws[FR])
     mr = 0.5 * float(ws[RL] + ws[RR])
     return ws - eps * np.array([mf, mf, mr, mr])

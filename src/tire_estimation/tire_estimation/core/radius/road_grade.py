@@ -161,8 +161,6 @@ class RoadGradeFit:
         self._imu_continuous = False
         #: grade used by the correction (positive uphill), rad; 0 until a window is available
         self.grade_rad = 0.0
-        #: variance of :attr:`grade_rad` from its fit's own scatter, rad^2 (0 without a grade)
-        self.grade_var_rad2 = 0.0
         #: where :attr:`grade_rad` came from at the latest fix (one of :data:`GRADE_SOURCES`)
         self.source = "none"
         #: fixes (with a full window) per source of the grade
@@ -244,11 +242,7 @@ class RoadGradeFit:
         self.counts[source] += 1
         if source == "altitude":
             self.grade_rad = self.altitude_grade_rad
-            var = fit.slope_var()
         elif source == "imu":
             self.grade_rad = self.imu_grade_rad
-            var = imu.slope_var()
         else:
             self.grade_rad = 0.0
-            var = 0.0
-        self.grade_var_rad2 = var if math.isfinite(var) else 0.0
