@@ -75,7 +75,7 @@ MAX_VARIANCE = 1e12
 
 def checked_covariance(values: Any, what: str) -> F64 | None:
     """A covariance given as 9 (3x3) or 4 (2x2) values, row-major, first two axes horizontal
-    (ENU east, north): the (n, n) matrix, or None when absent or all zero (ROS: not reported).
+    (ENU east, north): the (dim, dim) matrix, or None when absent or all zero (ROS: not reported).
 
     Raises InputError ``wrong_length`` (another number of values) or ``bad_covariance``: a value
     not finite, the matrix not symmetric or not positive semi-definite, or its horizontal 2x2
@@ -87,31 +87,31 @@ def checked_covariance(values: Any, what: str) -> F64 | None:
         flat = np.asarray(values, dtype=np.float64).reshape(-1)
     except (TypeError, ValueError) as exc:
         raise InputError("bad_covariance", f"{what}: {exc}") from exc
-    n = 3 if flat.size == 9 else 2 if flat.size == 4 else 0
-    if n == 0:
+    dim = 3 if flat.size == 9 else 2 if flat.size == 4 else 0
+    if dim == 0:
         raise InputError("wrong_length", f"{what}: need 9 (3x3) or 4 values, got {flat.size}")
     c = flat.tolist()
     if not all(math.isfinite(v) for v in c):
         raise InputError("bad_covariance", f"{what} is not finite: {c}")
     if not any(c):
         return None
-    diag = [c[i * n + i] for i in range(n)]
+    diag = [c[i * dim + i] for i in range(dim)]
     if min(diag) < 0.0:
         raise InputError("bad_covariance", f"{what} has a negative variance: {diag}")
     if max(diag) > MAX_VARIANCE:
         raise InputError("bad_covariance", f"{what} has a variance above {MAX_VARIANCE:g}")
-    for i in range(n):
-        for j in range(i + 1, n):
-            cij, cji = c[i * n + j], c[j * n + i]
+    for i in range(dim):
+        for j in range(i + 1, dim):
+            cij, cji = c[i * dim + j], c[j * dim + i]
             scale = math.sqrt(diag[i] * diag[j])
             if abs(cij - cji) > COVARIANCE_RTOL * scale:
                 raise InputError("bad_covariance", f"{what} is not symmetric: {c}")
             # every 2x2 principal minor of a positive semi-definite matrix is >= 0
             if diag[i] * diag[j] - cij * cji < -COVARIANCE_RTOL * diag[i] * diag[j]:
                 raise InputError("bad_covariance", f"{what} is not positive semi-definite: {c}")
-    if not (diag[0] > 0.0 and diag[0] * diag[1] - c[1] * c[n] > 0.0):
+    if not (diag[0] > 0.0 and diag[0] * diag[1] - c[1] * c[dim] > 0.0):
         raise InputError("bad_covariance", f"{what}: horizontal block not positive definite")
-    if n == 3:
+    if dim == 3:
         det = (
             c[0] * (c[4] * c[8] - c[5] * c[7])
             - c[1] * (c[3] * c[8] - c[5] * c[6])
@@ -119,7 +119,7 @@ def checked_covariance(values: Any, what: str) -> F64 | None:
         )
         if det < -COVARIANCE_RTOL * diag[0] * diag[1] * diag[2]:
             raise InputError("bad_covariance", f"{what} is not positive semi-definite: {c}")
-    return flat.reshape(n, n)
+    return flat.reshape(dim, dim)
 
 
 def merged_counts(*counts: Mapping[str, int]) -> dict[str, int]:
