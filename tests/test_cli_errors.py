@@ -355,11 +355,6 @@ case("rank_seeds_zero", lambda w: w.replay("--rank-effects", "--rank-seeds", "0"
 case("rank_seeds_negative", lambda w: w.replay("--rank-effects", "--rank-seeds", "-1"))
 case("rank_seeds_without_rank_effects", lambda w: w.replay("--rank-seeds", "2"), "rank-effects")
 case(
-    "write_config_without_rank_effects",
-    lambda w: w.replay("--write-config", str(w.root / "c.yaml")),
-    "rank-effects",
-)
-case(
     "write_config_is_a_directory",
     lambda w: w.replay("--rank-effects", "--write-config", w.dir()),
     "--write-config",

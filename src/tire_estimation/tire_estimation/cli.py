@@ -265,10 +265,11 @@ def build_parser() -> argparse.ArgumentParser:
         type=Path,
         default=None,
         metavar="FILE",
-        help="with --rank-effects: add the significant effects to the model one at a time "
-        "(at most 3, each at its profile estimate, ranking the rest again), write them as a "
-        "params file that --config and the node's --params-file load, and report the fit "
-        "before and after",
+        help="add the effects found to the model, write them as a params file that --config "
+        "and the node's --params-file load, and report the fit before and after: without "
+        "--rank-effects the significant effects of the sensor agreement at their sizes (one "
+        "re-run); with it, one at a time at its profile estimate, ranking the rest again "
+        "(at most 3)",
     )
     rep.add_argument(
         "--no-stiffness",

@@ -484,10 +484,6 @@ def _run(
     if rank_seeds > 1 and not rank_effects:
         raise ConfigError("rank_seeds", rank_seeds, "needs rank_effects (--rank-effects)")
     if write_config is not None:
-        if not rank_effects:
-            raise ConfigError(
-                "write_config", str(write_config), "needs rank_effects (--rank-effects)"
-            )
         if Path(write_config).is_dir():
             raise ConfigError("--write-config", str(write_config), "is a directory")
         check_new_path(Path(write_config), "--write-config", overwrite=True)
@@ -620,6 +616,8 @@ def _run(
             closed_loop = _close_loop(
                 bag, cfg, trace, residual_report, rank_seeds, write_config, rerun
             )
+    elif write_config is not None and len(trace.innov_t_ns):
+        closed_loop = _close_loop_from_sensors(bag, cfg, trace, write_config, rerun)
     t_run = time.perf_counter()
     metrics = build_metrics(
         bag, trace, cfg, lateral, imu_lateral, residual_report, detection, pipeline.axles
@@ -939,24 +937,9 @@ def _close_loop(
         cfg_k = RadiusEstimatorConfig.from_dict({**cfg_k.to_dict(), field: top["estimate"]})
         trace_k = rerun(cfg_k)
         report_k = _assess_effects(cfg_k, trace_k, rerun, n_seeds)
-    # the whole radius section that differs from the defaults (the run's own settings and the
-    # added effects), so that --config FILE alone reproduces the "after" run
-    defaults = RadiusEstimatorConfig().to_dict()
-    params = {f"radius.{k}": v for k, v in cfg_k.to_dict().items() if v != defaults.get(k)}
-    text = "# Effects found in the residuals of " + str(bag.path) + " and sized by their\n"
-    text += "# profile likelihood (tire-estimation replay --rank-effects --write-config):\n"
-    for e in added:
-        text += f"#   {e['effect']}: {e['estimate']:g} {e['unit']} (score {e['score']:.1f})\n"
-    for name, why in not_sized.items():
-        text += f"#   left out: {name}: {why}\n"
-    if not added:
-        text += "#   none sized above the likelihood-ratio threshold: the model is not changed\n"
-    text += yaml.safe_dump({NODE_NAME: {"ros__parameters": params}}, sort_keys=True)
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        atomic_write_text(path, text)
-    except OSError as exc:
-        raise ConfigError("--write-config", str(path), f"cannot write: {exc}") from exc
+    header = "# Effects found in the residuals of " + str(bag.path) + " and sized by their\n"
+    header += "# profile likelihood (tire-estimation replay --rank-effects --write-config):\n"
+    _write_params(path, header, cfg_k, added, not_sized, "the likelihood-ratio threshold")
     return {
         "config_file": str(path),
         "effects": added,
@@ -964,6 +947,84 @@ def _close_loop(
         "before": before,
         "after": _fit_summary(bag, trace_k, report_k),
     }
+
+
+def _close_loop_from_sensors(
+    bag: ReportBag,
+    cfg: RadiusEstimatorConfig,
+    trace: RadiusTrace,
+    path: Path,
+    rerun: Callable[[RadiusEstimatorConfig], RadiusTrace],
+) -> dict[str, Any]:
+    """Add every effect the sensor agreement finds significant and material to the model at
+    its size (net of what ``cfg`` declares: the new value is the declared one plus the size),
+    re-run once, write the params file and return the fit before and after."""
+    from tire_estimation.evaluation import residuals
+
+    report = residuals.analyze_trace(trace)
+    added: list[dict[str, Any]] = []
+    values = cfg.to_dict()
+    not_sized: dict[str, str] = {}
+    for e in report["suspected_effects"]:
+        if e.get("source") != "sensor agreement":
+            continue
+        if e["score"] < residuals.SCORE_THRESHOLD or not e.get("material"):
+            continue
+        effect = residuals.BY_NAME[e["effect"]]
+        lo, hi = effect.limits
+        value = values[effect.config_field] + e["estimate"]
+        if not lo <= value <= hi:
+            not_sized[e["effect"]] = f"{value:g} {effect.unit} is outside {lo:g} .. {hi:g}"
+            continue
+        values[effect.config_field] = value
+        added.append(
+            {
+                **{k: e[k] for k in ("effect", "score", "unit")},
+                "estimate": value,
+                "field": effect.config_field,
+            }
+        )
+    cfg_after = RadiusEstimatorConfig.from_dict(values)
+    trace_after = rerun(cfg_after) if added else trace
+    header = "# Effects found in " + str(bag.path) + " by the sensor agreement (the wheel\n"
+    header += "# speeds, the gyro and the fixes against the GNSS velocity) at their sizes\n"
+    header += "# (tire-estimation replay --write-config):\n"
+    _write_params(path, header, cfg_after, added, not_sized, "the threshold")
+    return {
+        "config_file": str(path),
+        "effects": added,
+        "not_sized": not_sized,
+        "before": _fit_summary(bag, trace, report),
+        "after": _fit_summary(bag, trace_after, residuals.analyze_trace(trace_after)),
+    }
+
+
+def _write_params(
+    path: Path,
+    header: str,
+    cfg: RadiusEstimatorConfig,
+    added: list[dict[str, Any]],
+    not_sized: dict[str, str],
+    threshold: str,
+) -> None:
+    """The params file of ``--write-config``: the whole radius section that differs from the
+    defaults (the run's own settings and the added effects), so that ``--config FILE`` alone
+    reproduces the "after" run, with the effects named in comments."""
+    defaults = RadiusEstimatorConfig().to_dict()
+    params = {f"radius.{k}": v for k, v in cfg.to_dict().items() if v != defaults.get(k)}
+    text = header
+    for e in added:
+        text += f"#   {e['effect']}: {e['estimate']:g} {e['unit']} (score {e['score']:.1f})\n"
+    for name, why in not_sized.items():
+        text += f"#   left out: {name}: {why}\n"
+    if not added:
+        text += f"#   none sized above {threshold}: the model is not changed\n"
+    text += yaml.safe_dump({NODE_NAME: {"ros__parameters": params}}, sort_keys=True)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        atomic_write_text(path, text)
+    except OSError as exc:
+        raise ConfigError("--write-config", str(path), f"cannot write: {exc}") from exc
 
 
 def _assess_effects(

@@ -15,6 +15,7 @@ the rear radii, ``mean over time and wheels of ((estimate - truth) / std)^2`` af
 from __future__ import annotations
 
 import argparse
+from collections import Counter
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -58,6 +59,9 @@ def run_one(
         "seed": seed,
         "consistent": res["consistent"],
         "suspected": [e["effect"] for e in res["suspected_effects"]],
+        "first_estimate": (
+            res["suspected_effects"][0].get("estimate") if res["suspected_effects"] else None
+        ),
         "mean_nis": tests.get("mean_nis"),
         "nis_ok": tests.get("mean_nis_ok"),
         "white": tests.get("white_decimated"),
@@ -92,6 +96,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         f"{sum(bool(r['nis_ok']) for r in rows)}, white on {sum(bool(r['white']) for r in rows)}"
         f"); NEES median {np.median(nees):.2f} (range {nees.min():.2f}-{nees.max():.2f}); "
         f"mean NIS median {np.median(nis):.2f}"
+    )
+    firsts = Counter(r["suspected"][0] for r in rows if not r["consistent"] and r["suspected"])
+    sizes = [r["first_estimate"] for r in rows if r["first_estimate"] is not None]
+    print(
+        "first suspected effect: "
+        + (", ".join(f"{name} {k}" for name, k in firsts.most_common()) or "none")
+        + (f"; its size median {np.median(sizes):.3g}" if sizes else "")
     )
     return 0
 

@@ -79,6 +79,7 @@ from tire_estimation.core.geodesy import LocalTangentPlane
 from tire_estimation.core.radius import effects as radius_effects
 from tire_estimation.core.radius.effects import BY_NAME, Effect
 from tire_estimation.core.radius.model import RL, RR
+from tire_estimation.evaluation import agreement
 from tire_estimation.evaluation.metrics import innovation_tests, ljung_box
 from tire_estimation.sim.streams import GnssStream, WheelSpeedStream
 
@@ -175,6 +176,7 @@ def analyze(
     min_speed_m_s: float = 1.0,
     road_grade_rad: F64 | None = None,
     rear_brake_decel_m_s2: F64 | None = None,
+    agreement: Mapping[str, Any] | None = None,
 ) -> dict[str, Any]:
     """The ``residuals`` block of metrics.json: consistency tests, regressions, ranked effects.
 
@@ -184,6 +186,11 @@ def analyze(
     :func:`profile_scan` for a calibrated size. ``road_grade_rad`` (per trace sample, the
     estimator's online grade) enables the ``road_grade`` signature, ``rear_brake_decel_m_s2``
     (per trace sample, the estimator's braking deceleration) the ``rear_brake_slip`` one.
+    ``agreement`` (:func:`~tire_estimation.evaluation.agreement.analyze`) replaces the
+    innovation signature of each effect it tested (wheel-speed time offset, velocity latency,
+    speed- and load-dependent radius, brake slip, lateral lever arm) by its own: a size from
+    the sensors, not attenuated by the filter, significant only when it also matters
+    (``tests.agreement``).
     """
     base = innovation_tests(innov_m, innov_cov_m2, nis, accepted)
     base.pop("consistent", None)
@@ -267,8 +274,8 @@ def analyze(
     if np.ptp(psi[keep]) > 0.2:
         b, se, _ = _ols(x_la, y_la)
         t_la = float(np.hypot(b[0] / se[0], b[1] / se[1]))
-        effects.append(_effect("gnss_lever_arm", t_la, float(b[0]), extra={"y_m": float(b[1])}))
         tests["lever_arm_fit_m"] = [float(b[0]), float(b[1])]
+        effects.append(_effect("gnss_lever_arm", t_la, float(b[0]), extra={"y_m": float(b[1])}))
     else:
         effects.append(_effect("gnss_lever_arm", 0.0, None))
     # speed^2 beyond speed
@@ -296,14 +303,18 @@ def analyze(
             slope, t_brake = _slope_beyond_time(xb, along[keep], o, tt)
             tests["along_track_on_time_and_brake"] = {"slope": slope, "t": t_brake}
             effects.append(_effect("rear_brake_slip", max(t_brake, 0.0), None))
-    effects.sort(key=lambda e: -e["score"])
+    if agreement is not None:
+        tests["agreement"] = dict(agreement)
+        effects = _with_agreement(effects, agreement)
+    # the effects that matter first, each group by score
+    effects.sort(key=lambda e: (not e.get("material", True), -e["score"]))
     nis_ok = True
     if "mean_nis_bounds_95" in base:
         _lo, hi = base["mean_nis_bounds_95"]
         # a mean NIS above the bound: the model misses something (below: R too pessimistic)
         nis_ok = bool(base["mean_nis"] <= hi)
     white = bool(p_a > 0.01 and p_c > 0.01)
-    significant = [e for e in effects if e["score"] >= SCORE_THRESHOLD]
+    significant = [e for e in effects if e["score"] >= SCORE_THRESHOLD and e.get("material", True)]
     tests["mean_nis_ok"] = nis_ok
     tests["white_decimated"] = white
     tests["score_threshold"] = SCORE_THRESHOLD
@@ -313,6 +324,39 @@ def analyze(
         "tests": tests,
         "suspected_effects": [] if consistent else significant or effects[:1],
     }
+
+
+def _with_agreement(
+    effects: list[dict[str, Any]], agreement: Mapping[str, Any]
+) -> list[dict[str, Any]]:
+    """``effects`` with the signature of every effect the sensor agreement tested replaced by
+    the agreement's (score ``|t|``, its size, ``material`` when it matters)."""
+    found: dict[str, dict[str, Any]] = {}
+    for relation in ("speed", "yaw_rate", "position"):
+        for name, fit in agreement.get(relation, {}).items():
+            if not isinstance(fit, dict):
+                continue
+            fit = dict(fit, relation=relation)
+            if name == "time_alignment":
+                # wheels late (d > 0) or the velocity late (d < 0): one regressor, two effects
+                late, other = (
+                    ("wheel_speed_time_offset", "gnss_velocity_latency")
+                    if fit["estimate"] >= 0.0
+                    else ("gnss_velocity_latency", "wheel_speed_time_offset")
+                )
+                found[late] = dict(fit, estimate=abs(fit["estimate"]))
+                found[other] = dict(fit, t=0.0, significant=False)
+            else:
+                found[name] = fit
+    out = [e for e in effects if e["effect"] not in found]
+    for name, fit in found.items():
+        eff = _effect(name, abs(fit["t"]), fit["estimate"])
+        eff["source"] = "sensor agreement"
+        eff["relation"] = fit["relation"]
+        eff["relative_rms"] = fit["relative_rms"]
+        eff["material"] = bool(fit["significant"] or abs(fit["t"]) < SCORE_THRESHOLD)
+        out.append(eff)
+    return out
 
 
 def _untested(base: dict[str, Any]) -> dict[str, Any]:
@@ -332,6 +376,14 @@ def _untested(base: dict[str, Any]) -> dict[str, Any]:
     return {"consistent": consistent, "tests": tests, "suspected_effects": []}
 
 
+#: what disagrees, per relation of the sensor agreement
+_AGREEMENT_WORDS = {
+    "speed": "the wheel speeds disagree with the GNSS velocity",
+    "yaw_rate": "the rear wheel-speed difference disagrees with the gyro",
+    "position": "the fixes disagree with the integrated GNSS velocity",
+}
+
+
 def explain(report: Mapping[str, Any]) -> list[str]:
     """The verdict of an :func:`analyze` (or :func:`assess`) report in plain words: one line
     per failed test, the most likely effect first; ``[]`` when the run is consistent."""
@@ -341,7 +393,16 @@ def explain(report: Mapping[str, Any]) -> list[str]:
     lines: list[str] = []
     for eff in report.get("suspected_effects", []):
         words = BY_NAME[eff["effect"]].words if eff["effect"] in BY_NAME else eff["effect"]
-        if eff["score"] >= SCORE_THRESHOLD:
+        if eff["score"] >= SCORE_THRESHOLD and eff.get("source") == "sensor agreement":
+            e = BY_NAME[eff["effect"]]
+            what = _AGREEMENT_WORDS.get(eff.get("relation", ""), "the sensors disagree")
+            lines.append(
+                f"{what} as {words} would make them: score {eff['score']:.1f} (significant from "
+                f"{SCORE_THRESHOLD:g}), sized {eff['estimate']:.3g} {e.unit} "
+                f"(`radius.{e.config_field}`), {100 * eff['relative_rms']:.3f} % of the wheel "
+                "speed RMS"
+            )
+        elif eff["score"] >= SCORE_THRESHOLD:
             lines.append(
                 f"the residuals follow a pattern of {words}: score {eff['score']:.1f} "
                 f"(significant from {SCORE_THRESHOLD:g}); `--rank-effects --write-config FILE` "
@@ -396,8 +457,14 @@ def _effect(
 
 
 def analyze_trace(trace: Any) -> dict[str, Any]:
-    """:func:`analyze` on a :class:`~tire_estimation.evaluation.runner.RadiusTrace`."""
+    """:func:`analyze` on a :class:`~tire_estimation.evaluation.runner.RadiusTrace`, with the
+    sensor agreement of its record when it has one."""
     a = trace.arrays()
+    params = getattr(trace, "agreement_params", None) or {}
+    rows = a.get("agreement_rows")
+    agree = None
+    if params and rows is not None and rows.shape[0] > 0:
+        agree = agreement.analyze(np.asarray(rows, dtype=float), params, SCORE_THRESHOLD)
     return analyze(
         np.asarray(trace.innov_t_ns, dtype=np.int64),
         a["innov_m"],
@@ -409,6 +476,7 @@ def analyze_trace(trace: Any) -> dict[str, Any]:
         a["speed_m_s"],
         road_grade_rad=a.get("road_grade_rad"),
         rear_brake_decel_m_s2=a.get("rear_brake_decel_m_s2"),
+        agreement=agree,
     )
 
 

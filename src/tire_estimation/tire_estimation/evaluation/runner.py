@@ -7,6 +7,7 @@ these recorders; :func:`run_radius` is the radius MPF alone over a sample sequen
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Any
@@ -25,6 +26,8 @@ from tire_estimation.core.radius.config import RadiusEstimatorConfig
 from tire_estimation.core.radius.estimator import RadiusEstimator
 from tire_estimation.core.samples import GnssFix, GnssVelocity, ImuSample, Sample, TireForces
 from tire_estimation.core.vehicle import VehicleParams
+from tire_estimation.evaluation.agreement import COLUMNS as AGREEMENT_COLUMNS
+from tire_estimation.evaluation.agreement import AgreementBins
 
 
 @dataclass
@@ -37,7 +40,9 @@ class RadiusTrace:
     (J, 2, 2), ``nis`` (J,), ``accepted`` (J,). GNSS velocity innovations of the velocities the
     estimator computed one for (``gnss_velocity_enabled``, while learning): ``vel_t_ns`` (V,),
     ``vel_innov_m_s`` (V, 2), ``vel_innov_cov_m2_s2`` (V, 2, 2), ``vel_nis`` (V,),
-    ``vel_accepted`` (V,).
+    ``vel_accepted`` (V,). Sensor agreement (:mod:`~tire_estimation.evaluation.agreement`):
+    ``agreement_rows`` (B, C), one per 1-s bin of GNSS velocities, with the vehicle and
+    configuration values its analysis needs in ``agreement_params``.
     """
 
     wheel_names: tuple[str, ...] = ()
@@ -69,6 +74,8 @@ class RadiusTrace:
     #: fixes per source of the road grade (``road_grade.GRADE_SOURCES``), at the latest sample
     road_grade_counts: dict[str, int] = field(default_factory=dict)
     rear_brake_decel_m_s2: list[float] = field(default_factory=list)
+    agreement_rows: list[NDArray[np.float64]] = field(default_factory=list)
+    agreement_params: dict[str, float] = field(default_factory=dict)
     dropped: dict[str, int] = field(default_factory=dict)
     resample_count: int = 0
     origin_lla: tuple[float, float, float] | None = None
@@ -109,6 +116,7 @@ class RadiusTrace:
             "gnss_enu_m": stack(self.gnss_enu_m, (2,)),
             "road_grade_rad": np.asarray(self.road_grade_rad, dtype=float),
             "rear_brake_decel_m_s2": np.asarray(self.rear_brake_decel_m_s2, dtype=float),
+            "agreement_rows": stack(self.agreement_rows, (len(AGREEMENT_COLUMNS),)),
         }
 
 
@@ -119,6 +127,7 @@ class RadiusRecorder:
     def __init__(self) -> None:
         self.trace = RadiusTrace()
         self._pending: tuple[int, Any] | None = None
+        self._bins: AgreementBins | None = None
 
     def on_sample(self, pipeline: EstimationPipeline, sample: Sample, result: Any) -> None:
         """Record the fix's innovation and the estimate; a velocity's innovation."""
@@ -127,6 +136,8 @@ class RadiusRecorder:
         if kind is GnssVelocity:
             if result is not None:
                 _record_velocity(self.trace, result)
+            if pipeline.radius is not None:
+                self._agreement(pipeline.radius, sample)
             if pending is not None and pending[0] == sample.t_ns:
                 self._flush(pipeline)
                 return
@@ -134,6 +145,7 @@ class RadiusRecorder:
             self._flush(pipeline)
         if kind is GnssFix and pipeline.radius is not None:
             self._pending = (sample.t_ns, result)
+            self._agreement_fix(pipeline.radius, sample)
 
     def _flush(self, pipeline: EstimationPipeline) -> None:
         assert self._pending is not None and pipeline.radius is not None
@@ -141,13 +153,56 @@ class RadiusRecorder:
         self._pending = None
         _record(self.trace, pipeline.radius, update, t_ns)
 
+    def _agreement(self, estimator: RadiusEstimator, sample: GnssVelocity) -> None:
+        """Bin a GNSS velocity with the estimator's wheel and IMU inputs of its time."""
+        snap = estimator.sensor_snapshot(sample.t_ns)
+        if snap is None or not estimator.config.gnss_velocity_enabled:
+            return
+        bins = self._bins
+        if bins is None:
+            model = estimator.model
+            bins = self._bins = AgreementBins(
+                model.nominal_radius_m, model.track_width_m, self.trace.agreement_rows
+            )
+            veh, cfg = estimator.vehicle, estimator.config
+            self.trace.agreement_params = {
+                "nominal_radius_m": model.nominal_radius_m,
+                "track_width_m": model.track_width_m,
+                "mass_kg": veh.mass_kg,
+                "cg_height_m": veh.cg_height_m,
+                "cg_to_front_axle_m": veh.cg_to_front_axle_m,
+                "wheelbase_m": veh.wheelbase_m,
+                "velocity_shift_s": estimator.velocity_shift_s,
+                "fix_shift_s": estimator.fix_shift_s,
+                "lever_arm_y_m": float(estimator.lever_arm_m[1]),
+                "gnss_velocity_enabled": float(cfg.gnss_velocity_enabled),
+            }
+        bins.add(
+            sample.t_ns, sample.velocity_enu_m_s, snap.rear_rad_s, snap.gyro_z_rad_s,
+            snap.lateral_specific_force_m_s2, snap.brake_decel_m_s2, snap.learning,
+            snap.rear_locked,
+        )  # fmt: skip
+
+    def _agreement_fix(self, estimator: RadiusEstimator, sample: GnssFix) -> None:
+        """A fix in the estimator's ENU frame into the agreement record (once it has a
+        velocity)."""
+        datum = estimator.datum
+        if self._bins is None or datum is None:
+            return
+        alt = sample.alt_m if math.isfinite(sample.alt_m) else datum.origin_lla[2]
+        east, north, _up = datum.to_enu(sample.lat_deg, sample.lon_deg, alt)
+        self._bins.add_fix(sample.t_ns, (float(east), float(north)), estimator.learning)
+
     def on_output(self, pipeline: EstimationPipeline, output: Output) -> None:
         """Outputs are not part of this trace."""
 
     def flush(self, pipeline: EstimationPipeline) -> None:
-        """Record the fix still waiting for a velocity of its stamp (after the last sample)."""
+        """Record the fix still waiting for a velocity of its stamp and the open agreement bin
+        (after the last sample)."""
         if self._pending is not None:
             self._flush(pipeline)
+        if self._bins is not None:
+            self._bins.flush()
 
     def finish(self, pipeline: EstimationPipeline) -> RadiusTrace:
         """The trace with the run's counters (call after the last sample)."""

@@ -65,6 +65,28 @@ class _Stream:
     last_t_ns: int | None = None
 
 
+@dataclass(frozen=True)
+class SensorSnapshot:
+    """What the estimator's wheel and IMU inputs say at one instant, for the sensor-agreement
+    record of the residual analysis (``evaluation.agreement``).
+
+    Attributes:
+        rear_rad_s: newest rear wheel speeds (rl, rr) after the configured corrections, rad/s.
+        gyro_z_rad_s: yaw rate of a fresh IMU sample, rad/s (None: no fresh IMU).
+        lateral_specific_force_m_s2: lateral specific force of a fresh IMU sample, m/s^2.
+        brake_decel_m_s2: braking deceleration beyond the driving resistances, m/s^2.
+        learning: the radii are being learned.
+        rear_locked: the axle check finds the rear wheels cannot be told apart.
+    """
+
+    rear_rad_s: tuple[float, float]
+    gyro_z_rad_s: float | None
+    lateral_specific_force_m_s2: float | None
+    brake_decel_m_s2: float
+    learning: bool
+    rear_locked: bool
+
+
 if TYPE_CHECKING:
     from tire_estimation.core.geodesy import LocalTangentPlane
 
@@ -201,6 +223,38 @@ class RadiusEstimator(GnssHandling, Reporting, Gates):
         ws = self._prev_ws if self._prev_ws is not None else np.zeros(4)
         # eq. (6a) with the learned mean radius errors
         return finite_or_zero(self._speed_yaw_rate(ws)[0])
+
+    @property
+    def velocity_shift_s(self) -> float:
+        """A GNSS velocity stamped ``t`` is compared with the wheels at ``t`` + this, s (the
+        configured velocity latency and wheel-speed time offset)."""
+        return self._velocity_shift_s
+
+    @property
+    def fix_shift_s(self) -> float:
+        """A GNSS fix stamped ``t`` is compared with the pose at ``t`` + this, s (the configured
+        fix latency and wheel-speed time offset)."""
+        return self._fix_shift_s
+
+    @property
+    def learning(self) -> bool:
+        """The radii are being learned (the newest wheel-speed step passed the gates)."""
+        return self._active
+
+    def sensor_snapshot(self, t_ns: int) -> SensorSnapshot | None:
+        """The corrected rear wheel speeds and a fresh IMU at ``t_ns`` (None before the first
+        wheel-speed sample)."""
+        if self._prev_ws is None:
+            return None
+        imu = self._imu if self._imu_fresh(t_ns) else None
+        return SensorSnapshot(
+            self._prev_rear,
+            None if imu is None else float(imu[1][2]),
+            None if imu is None else float(imu[2][1]),
+            self.braking_decel_at(t_ns),
+            self._active,
+            self.axles.locked("rear"),
+        )
 
     @property
     def active_time_s(self) -> float:
