@@ -939,14 +939,11 @@ def _close_loop(
         report_k = _assess_effects(cfg_k, trace_k, rerun, n_seeds)
     header = "# Effects found in the residuals of " + str(bag.path) + " and sized by their\n"
     header += "# profile likelihood (tire-estimation replay --rank-effects --write-config):\n"
-    _write_params(path, header, cfg_k, added, not_sized, "the likelihood-ratio threshold")
-    return {
-        "config_file": str(path),
-        "effects": added,
-        "not_sized": not_sized,
-        "before": before,
-        "after": _fit_summary(bag, trace_k, report_k),
-    }
+    after = _fit_summary(bag, trace_k, report_k)
+    threshold_words = "the likelihood-ratio threshold"
+    return _write_closed_loop(
+        path, header, cfg_k, added, not_sized, threshold_words, before, after
+    )
 
 
 def _close_loop_from_sensors(
@@ -989,27 +986,27 @@ def _close_loop_from_sensors(
     header = "# Effects found in " + str(bag.path) + " by the sensor agreement (the wheel\n"
     header += "# speeds, the gyro and the fixes against the GNSS velocity) at their sizes\n"
     header += "# (tire-estimation replay --write-config):\n"
-    _write_params(path, header, cfg_after, added, not_sized, "the threshold")
-    return {
-        "config_file": str(path),
-        "effects": added,
-        "not_sized": not_sized,
-        "before": _fit_summary(bag, trace, report),
-        "after": _fit_summary(bag, trace_after, residuals.analyze_trace(trace_after)),
-    }
+    before = _fit_summary(bag, trace, report)
+    after = _fit_summary(bag, trace_after, residuals.analyze_trace(trace_after))
+    return _write_closed_loop(
+        path, header, cfg_after, added, not_sized, "the threshold", before, after
+    )
 
 
-def _write_params(
+def _write_closed_loop(
     path: Path,
     header: str,
     cfg: RadiusEstimatorConfig,
     added: list[dict[str, Any]],
     not_sized: dict[str, str],
     threshold: str,
-) -> None:
-    """The params file of ``--write-config``: the whole radius section that differs from the
-    defaults (the run's own settings and the added effects), so that ``--config FILE`` alone
-    reproduces the "after" run, with the effects named in comments."""
+    before: dict[str, Any],
+    after: dict[str, Any],
+) -> dict[str, Any]:
+    """Write the params file of ``--write-config`` (the whole radius section that differs from
+    the defaults: the run's own settings and the added effects, so that ``--config FILE`` alone
+    reproduces the "after" run, with the effects named in comments) and return the report's
+    ``closed_loop`` block."""
     defaults = RadiusEstimatorConfig().to_dict()
     params = {f"radius.{k}": v for k, v in cfg.to_dict().items() if v != defaults.get(k)}
     text = header
@@ -1025,6 +1022,13 @@ def _write_params(
         atomic_write_text(path, text)
     except OSError as exc:
         raise ConfigError("--write-config", str(path), f"cannot write: {exc}") from exc
+    return {
+        "config_file": str(path),
+        "effects": added,
+        "not_sized": not_sized,
+        "before": before,
+        "after": after,
+    }
 
 
 def _assess_effects(

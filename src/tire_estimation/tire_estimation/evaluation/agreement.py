@@ -128,6 +128,11 @@ class AgreementBins:
             self._doppler_m += 0.5 * dt * np.array([ve + last[1], vn + last[2]])
         self._v_last = (t_ns, ve, vn)
 
+    def new_segment(self) -> None:
+        """Start the integration of the velocity again at the next velocity (the fixes' frame
+        changed)."""
+        self._v_last = None
+
     def add_fix(self, t_ns: int, enu_m: tuple[float, float], learning: bool) -> None:
         """One GNSS fix in the estimator's ENU frame: its offset from the integrated Doppler
         velocity (extrapolated from the newest velocity to the fix's stamp)."""

@@ -176,7 +176,7 @@ def analyze(
     min_speed_m_s: float = 1.0,
     road_grade_rad: F64 | None = None,
     rear_brake_decel_m_s2: F64 | None = None,
-    agreement: Mapping[str, Any] | None = None,
+    sensor_agreement: Mapping[str, Any] | None = None,
 ) -> dict[str, Any]:
     """The ``residuals`` block of metrics.json: consistency tests, regressions, ranked effects.
 
@@ -186,7 +186,7 @@ def analyze(
     :func:`profile_scan` for a calibrated size. ``road_grade_rad`` (per trace sample, the
     estimator's online grade) enables the ``road_grade`` signature, ``rear_brake_decel_m_s2``
     (per trace sample, the estimator's braking deceleration) the ``rear_brake_slip`` one.
-    ``agreement`` (:func:`~tire_estimation.evaluation.agreement.analyze`) replaces the
+    ``sensor_agreement`` (:func:`~tire_estimation.evaluation.agreement.analyze`) replaces the
     innovation signature of each effect it tested (wheel-speed time offset, velocity latency,
     speed- and load-dependent radius, brake slip, lateral lever arm) by its own: a size from
     the sensors, not attenuated by the filter, significant only when it also matters
@@ -274,8 +274,8 @@ def analyze(
     if np.ptp(psi[keep]) > 0.2:
         b, se, _ = _ols(x_la, y_la)
         t_la = float(np.hypot(b[0] / se[0], b[1] / se[1]))
-        tests["lever_arm_fit_m"] = [float(b[0]), float(b[1])]
         effects.append(_effect("gnss_lever_arm", t_la, float(b[0]), extra={"y_m": float(b[1])}))
+        tests["lever_arm_fit_m"] = [float(b[0]), float(b[1])]
     else:
         effects.append(_effect("gnss_lever_arm", 0.0, None))
     # speed^2 beyond speed
@@ -303,9 +303,9 @@ def analyze(
             slope, t_brake = _slope_beyond_time(xb, along[keep], o, tt)
             tests["along_track_on_time_and_brake"] = {"slope": slope, "t": t_brake}
             effects.append(_effect("rear_brake_slip", max(t_brake, 0.0), None))
-    if agreement is not None:
-        tests["agreement"] = dict(agreement)
-        effects = _with_agreement(effects, agreement)
+    if sensor_agreement is not None:
+        tests["agreement"] = dict(sensor_agreement)
+        effects = _with_agreement(effects, sensor_agreement)
     # the effects that matter first, each group by score
     effects.sort(key=lambda e: (not e.get("material", True), -e["score"]))
     nis_ok = True
@@ -399,8 +399,8 @@ def explain(report: Mapping[str, Any]) -> list[str]:
             lines.append(
                 f"{what} as {words} would make them: score {eff['score']:.1f} (significant from "
                 f"{SCORE_THRESHOLD:g}), sized {eff['estimate']:.3g} {e.unit} "
-                f"(`radius.{e.config_field}`), {100 * eff['relative_rms']:.3f} % of the wheel "
-                "speed RMS"
+                f"(`radius.{e.config_field}`), {100 * eff['relative_rms']:.3f} % of the speed, "
+                "RMS"
             )
         elif eff["score"] >= SCORE_THRESHOLD:
             lines.append(
@@ -476,7 +476,7 @@ def analyze_trace(trace: Any) -> dict[str, Any]:
         a["speed_m_s"],
         road_grade_rad=a.get("road_grade_rad"),
         rear_brake_decel_m_s2=a.get("rear_brake_decel_m_s2"),
-        agreement=agree,
+        sensor_agreement=agree,
     )
 
 

@@ -128,6 +128,7 @@ class RadiusRecorder:
         self.trace = RadiusTrace()
         self._pending: tuple[int, Any] | None = None
         self._bins: AgreementBins | None = None
+        self._datum: object | None = None
 
     def on_sample(self, pipeline: EstimationPipeline, sample: Sample, result: Any) -> None:
         """Record the fix's innovation and the estimate; a velocity's innovation."""
@@ -164,7 +165,7 @@ class RadiusRecorder:
             bins = self._bins = AgreementBins(
                 model.nominal_radius_m, model.track_width_m, self.trace.agreement_rows
             )
-            veh, cfg = estimator.vehicle, estimator.config
+            veh = estimator.vehicle
             self.trace.agreement_params = {
                 "nominal_radius_m": model.nominal_radius_m,
                 "track_width_m": model.track_width_m,
@@ -175,7 +176,6 @@ class RadiusRecorder:
                 "velocity_shift_s": estimator.velocity_shift_s,
                 "fix_shift_s": estimator.fix_shift_s,
                 "lever_arm_y_m": float(estimator.lever_arm_m[1]),
-                "gnss_velocity_enabled": float(cfg.gnss_velocity_enabled),
             }
         bins.add(
             sample.t_ns, sample.velocity_enu_m_s, snap.rear_rad_s, snap.gyro_z_rad_s,
@@ -189,6 +189,11 @@ class RadiusRecorder:
         datum = estimator.datum
         if self._bins is None or datum is None:
             return
+        if datum is not self._datum:
+            # a new ENU origin (the estimator was reset): the fixes jump, so the integration
+            # of the velocity starts again
+            self._datum = datum
+            self._bins.new_segment()
         alt = sample.alt_m if math.isfinite(sample.alt_m) else datum.origin_lla[2]
         east, north, _up = datum.to_enu(sample.lat_deg, sample.lon_deg, alt)
         self._bins.add_fix(sample.t_ns, (float(east), float(north)), estimator.learning)
