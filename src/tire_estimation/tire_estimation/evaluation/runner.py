@@ -7,7 +7,6 @@ these recorders; :func:`run_radius` is the radius MPF alone over a sample sequen
 
 from __future__ import annotations
 
-import math
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Any
@@ -194,9 +193,11 @@ class RadiusRecorder:
             # of the velocity starts again
             self._datum = datum
             self._bins.new_segment()
-        alt = sample.alt_m if math.isfinite(sample.alt_m) else datum.origin_lla[2]
-        east, north, _up = datum.to_enu(sample.lat_deg, sample.lon_deg, alt)
-        self._bins.add_fix(sample.t_ns, (float(east), float(north)), estimator.learning)
+        fix = estimator.last_fix_enu
+        if fix is None or fix[0] != sample.t_ns:
+            return  # the fix was dropped
+        east, north = fix[1].tolist()
+        self._bins.add_fix(sample.t_ns, (east, north), estimator.learning)
 
     def on_output(self, pipeline: EstimationPipeline, output: Output) -> None:
         """Outputs are not part of this trace."""

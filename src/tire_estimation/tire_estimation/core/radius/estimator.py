@@ -200,6 +200,7 @@ class RadiusEstimator(GnssHandling, Reporting, Gates):
         self._t_last_fix_ns: int | None = None
         #: altitude of the last fix that reported one, m (used for a fix without altitude)
         self._last_alt_m = 0.0
+        self.last_fix_enu = None
         self._active_time_s = 0.0
         #: road grade: wheel-travelled (slope) distance and the grade fitted over it
         self.grade = RoadGradeFit(self.config.road_grade_source)

@@ -116,6 +116,8 @@ class GnssHandling:
     _gate: float
     _fix_shift_s: float
     _velocity_shift_s: float
+    #: stamp and (east, north) of the newest fix in the ``map`` frame, m (None before one)
+    last_fix_enu: tuple[int, F64] | None
     _ltp: Any
     _streams: dict[str, Any]
     _speed_hist: deque[tuple[int, float, float]]
@@ -198,6 +200,7 @@ class GnssHandling:
             return GnssUpdate(t_ns, zeros2, eye2, 0.0, False, "bad_value")
         if has_alt:
             self.grade.fix(float(u))
+        self.last_fix_enu = (t_ns, y)
         return self.on_gnss_enu(t_ns, y, r)
 
     def _gnss_cov(self, cov: Any, default_std: float | None = None) -> F64:
