@@ -43,6 +43,7 @@ def _drive(
     learning: bool = True,
     fix_latency_s: float = 0.0,
     velocity_latency_s: float = 0.0,
+    nan_every: int = 0,
 ) -> np.ndarray:
     rng = np.random.default_rng(seed)
     bins = agreement.AgreementBins(RN, LT)
@@ -75,6 +76,8 @@ def _drive(
     w_r = (omega + yaw * LT / 2.0 / radius) * radius / (radius + load_coeff * dfz)
     vel = at(vel_f, t - velocity_latency_s) + rng.normal(0.0, 0.05, (t.size, 2))
     fix = at(pos_f, t - fix_latency_s) + rng.normal(0.0, 0.3, (t.size, 2))
+    if nan_every:
+        vel[::nan_every] = np.nan
     for k in range(t.size):
         stamp = round(t[k] * 1e9) + 1_000_000_000
         # a fix before the velocity of its stamp (the pipeline's order)
@@ -152,6 +155,15 @@ def test_a_declared_fix_latency_is_not_reported_again() -> None:
     res = _fit(_drive(fix_latency_s=0.2), fix_shift_s=-0.2)
     assert abs(res["position"]["gnss_latency"]["estimate"]) < 0.02
     assert _significant(res) == set()
+
+
+def test_a_velocity_that_is_not_finite_is_left_out() -> None:
+    # one velocity in 50 is NaN: the fits stay finite and still size a fix latency
+    rows = _drive(fix_latency_s=0.2, nan_every=50)
+    assert np.all(np.isfinite(rows[:, agreement.COLUMNS.index("u_m_s")]))
+    res = _fit(rows)
+    assert res["position"]["gnss_latency"]["estimate"] == pytest.approx(0.2, abs=0.02)
+    assert _significant(res) == {"gnss_latency"}
 
 
 def test_a_small_effect_is_significant_but_not_material() -> None:

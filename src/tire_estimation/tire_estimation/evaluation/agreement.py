@@ -161,9 +161,14 @@ class AgreementBins:
         learning: bool,
         rear_locked: bool,
     ) -> None:
-        """One GNSS velocity with the wheel and IMU inputs of its time."""
+        """One GNSS velocity with the wheel and IMU inputs of its time (a velocity that is not
+        finite is left out, and the integration starts again after it)."""
+        ve, vn = float(velocity_enu_m_s[0]), float(velocity_enu_m_s[1])
+        if not math.isfinite(ve + vn):
+            self._v_last = None
+            return
         s = self._to_bin(t_ns)
-        self._integrate(t_ns, float(velocity_enu_m_s[0]), float(velocity_enu_m_s[1]))
+        self._integrate(t_ns, ve, vn)
         w3, w4 = rear_rad_s
         u = 0.5 * self.nominal_radius_m * (w3 + w4)
         s[_C["n_all"]] += 1.0
@@ -171,7 +176,7 @@ class AgreementBins:
         if not learning or abs(u) < MIN_SPEED_M_S:
             return
         # the Doppler ground speed, signed like the wheels (reverse driving)
-        v = math.hypot(float(velocity_enu_m_s[0]), float(velocity_enu_m_s[1]))
+        v = math.hypot(ve, vn)
         s[_C["n_used"]] += 1.0
         s[_C["v_gnss_m_s"]] += math.copysign(v, u)
         s[_C["u_m_s"]] += u
