@@ -271,7 +271,7 @@ def analyze(
     col = {name: rows[:, i] for i, name in enumerate(COLUMNS)}
     rn = params["nominal_radius_m"]
     # the wheels' acceleration from all samples of neighbouring bins (central differences)
-    accel = np.gradient(col["u_all_m_s"], col["t_s"]) if rows.shape[0] > 1 else 0.0
+    accel = np.gradient(col["u_all_m_s"], col["t_s"])
     n_used = col["n_used"]
     full = n_used >= 0.8 * max(float(np.max(col["n_all"])), 1.0)
     out["speed"] = _speed(col, accel, full, rn, params, score_threshold)
@@ -282,7 +282,7 @@ def analyze(
 
 def _speed(
     col: dict[str, F64],
-    accel: Any,
+    accel: F64,
     full: NDArray[np.bool_],
     rn: float,
     params: dict[str, float],
@@ -293,7 +293,7 @@ def _speed(
     n = int(ok.sum())
     if n < MIN_BINS:
         return {"bins": n, "note": "too few bins while learning with a GNSS velocity"}
-    t, u, a = col["t_s"][ok], col["u_m_s"][ok], np.asarray(accel)[ok]
+    t, u, a = col["t_s"][ok], col["u_m_s"][ok], accel[ok]
     # the configured alignment and lever arm (the estimator's own model): the wheels at
     # t + shift, the antenna's along-track speed v - r a_y
     u_model = u + a * params["velocity_shift_s"]
@@ -326,7 +326,7 @@ def _speed(
 
 def _position(
     col: dict[str, F64],
-    accel: Any,
+    accel: F64,
     params: dict[str, float],
     speed: dict[str, Any],
     score_threshold: float,
@@ -366,7 +366,7 @@ def _position(
         latency = -(c_p + fit["estimate"])
         se_l = math.hypot(se_p, fit["estimate"] / fit["t"])
     speed_m_s = np.maximum(np.hypot(ve, vn), MIN_SPEED_M_S)
-    a = np.asarray(accel)[ok] if np.ndim(accel) else np.zeros(n)
+    a = accel[ok]
     return {
         "bins": n,
         "fix_vs_velocity_s": c_p,
