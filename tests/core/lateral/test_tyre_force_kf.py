@@ -10,7 +10,9 @@ import re
 import numpy as np
 import pytest
 
+from tests.core.lateral import reference_tyre_force as reference
 from tests.core.lateral.reference_single_track import expm_small
+from tire_estimation.core.lateral import tyre_force_kernels
 from tire_estimation.core.lateral.estimate import LateralEstimate
 from tire_estimation.core.lateral.single_track import (
     SingleTrackModel,
@@ -22,7 +24,6 @@ from tire_estimation.core.lateral.single_track import (
 from tire_estimation.core.lateral.tyre_force_filter import (
     HysteresisRelay,
     axle_force_deviation,
-    transition_matrix,
 )
 from tire_estimation.core.lateral.tyre_force_kf import (
     TUONONEN_2009_VEHICLE,
@@ -101,7 +102,7 @@ def test_virtual_sensor_reproduces_a_measured_wheel_in_the_linear_range() -> Non
 
 # --------------------------------------------------------------------------- equations
 def test_transition_matrix_is_eq_21() -> None:
-    a = transition_matrix(0.01, 20.0, 1500.0, 2500.0, 1.1, 1.6)
+    a = reference.transition_matrix(0.01, 20.0, 1500.0, 2500.0, 1.1, 1.6)
     expected = np.array(
         [
             [1.0, -0.01 * 20.0, 0.01 / 1500.0, 0.01 / 1500.0],
@@ -111,6 +112,36 @@ def test_transition_matrix_is_eq_21() -> None:
         ]
     )
     np.testing.assert_allclose(a, expected)
+
+
+@pytest.mark.parametrize("rows", [[0, 1, 2, 3], [0, 1, 2], [0, 1, 3], [0, 1]])
+def test_compiled_kf_step_equals_the_numpy_reference(rows: list[int]) -> None:
+    rng = np.random.default_rng(len(rows) + rows[-1])
+    consts = tyre_force_kernels.kf_constants(1500.0, 2500.0, 1.1, 1.6, [1e-4, 1e-5, 4e4, 4e4])
+    for _ in range(20):
+        x = rng.normal(size=4) * np.array([0.3, 0.1, 3000.0, 3000.0])
+        g = rng.normal(size=(4, 4)) * np.array([0.1, 0.03, 300.0, 300.0])
+        p = g @ g.T + np.eye(4) * 1e-3
+        dt, vx, moment = 0.01, float(rng.uniform(5.0, 40.0)), float(rng.normal() * 500.0)
+        z = x[rows] + rng.normal(size=len(rows)) * np.array([0.1, 0.01, 200.0, 200.0])[rows]
+        r_diag = np.array([1e-3, 1e-4, 9e4, 9e4])[rows]
+        x_ref, p_ref = reference.predict(x, p, consts, dt, vx, moment)
+        x_ref, p_ref = reference.update(x_ref, p_ref, rows, z, r_diag)
+        x_c, p_c = x.copy(), p.copy()
+        tyre_force_kernels.predict(x_c, p_c, consts, dt, vx, moment)
+        finite = tyre_force_kernels.update(x_c, p_c, np.array(rows, dtype=np.intp), z, r_diag)
+        assert finite
+        np.testing.assert_allclose(x_c, x_ref, rtol=1e-10, atol=1e-12)
+        np.testing.assert_allclose(p_c, p_ref, rtol=1e-9, atol=1e-12 * float(np.abs(p_ref).max()))
+
+
+def test_compiled_kf_update_says_when_it_diverged() -> None:
+    consts = tyre_force_kernels.kf_constants(1500.0, 2500.0, 1.1, 1.6, [1e-4, 1e-5, 4e4, 4e4])
+    x, p = np.zeros(4), np.eye(4)
+    tyre_force_kernels.predict(x, p, consts, 0.01, 20.0, 0.0)
+    rows = np.arange(4, dtype=np.intp)
+    z = np.array([0.0, 0.0, np.inf, 0.0])
+    assert not tyre_force_kernels.update(x, p, rows, z, np.ones(4))
 
 
 def test_axle_force_deviation_is_eq_29() -> None:

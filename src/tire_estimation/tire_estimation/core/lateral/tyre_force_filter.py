@@ -9,9 +9,13 @@ front-end that feeds them is :class:`.tyre_force_kf.TyreForceEstimator`.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
+from numpy.typing import NDArray
 
 from tire_estimation.core.arrays import F64
+from tire_estimation.core.lateral import tyre_force_kernels as kernels
 from tire_estimation.errors import ConfigError
 
 # Fig. 7 relay thresholds on the eq. (29) deviation after the low-pass below. The paper gives
@@ -61,40 +65,22 @@ class HysteresisRelay:
         return self.state
 
 
-def axle_force_deviation(single_track_n: F64, measured_n: F64) -> float:
+def axle_force_deviation(
+    single_track_n: Sequence[float] | F64, measured_n: Sequence[float] | F64
+) -> float:
     """Eq. (29): |Fy,f,onetrack - Fy,f,measured| + |Fy,r,onetrack - Fy,r,measured|, N.
 
     Args:
         single_track_n: (2,) [front, rear] axle forces of the single-track model, N.
         measured_n: (2,) [front, rear] measured (sensor + virtual) axle forces, N.
     """
-    d = np.asarray(single_track_n, dtype=float) - np.asarray(measured_n, dtype=float)
     # Tuononen 2009 eq. (29)
-    return float(abs(d[0]) + abs(d[1]))
-
-
-def transition_matrix(
-    dt_s: float, vx_m_s: float, mass_kg: float, yaw_inertia_kg_m2: float, lf_m: float, lr_m: float
-) -> F64:
-    """(4, 4) state transition of eq. (21) for x = [vy, r, Fy_f, Fy_r] over ``dt_s``."""
-    ts = dt_s
-    # Tuononen 2009 eq. (21): discretized eq. (19)-(20), forces as identity (random walk)
-    return np.array(
-        [
-            [1.0, -ts * vx_m_s, ts / mass_kg, ts / mass_kg],
-            [0.0, 1.0, lf_m / yaw_inertia_kg_m2 * ts, -lr_m / yaw_inertia_kg_m2 * ts],
-            [0.0, 0.0, 1.0, 0.0],
-            [0.0, 0.0, 0.0, 1.0],
-        ]
-    )
-
-
-#: Measurement matrix of eq. (22): every state is measured (vy, r by the single-track model).
-MEASUREMENT_MATRIX: F64 = np.eye(4)
+    return float(abs(single_track_n[0] - measured_n[0]) + abs(single_track_n[1] - measured_n[1]))
 
 
 class TyreForceKF:
-    """The Kalman filter of Tuononen 2009 eq. (1)-(8), (21)-(22) on x = [vy_cg, r, Ff, Fr].
+    """The Kalman filter of Tuononen 2009 eq. (1)-(8), (21)-(22) on x = [vy_cg, r, Ff, Fr]
+    (the compiled step of :mod:`.tyre_force_kernels`).
 
     Args:
         mass_kg, yaw_inertia_kg_m2, lf_m, lr_m: vehicle parameters (Table 1).
@@ -109,11 +95,7 @@ class TyreForceKF:
         lr_m: float,
         q_diag: F64,
     ) -> None:
-        self.mass_kg = mass_kg
-        self.yaw_inertia_kg_m2 = yaw_inertia_kg_m2
-        self.lf_m = lf_m
-        self.lr_m = lr_m
-        self.q: F64 = np.diag(np.asarray(q_diag, dtype=float))
+        self._consts = kernels.kf_constants(mass_kg, yaw_inertia_kg_m2, lf_m, lr_m, q_diag)
         self.x: F64 = np.zeros(4)
         self.p: F64 = np.eye(4)
 
@@ -123,37 +105,19 @@ class TyreForceKF:
         self.p = np.diag(np.asarray(p0_diag, dtype=float))
 
     def predict(self, dt_s: float, vx_m_s: float, yaw_moment_nm: float = 0.0) -> None:
-        """Time update over ``dt_s`` with forward speed ``vx_m_s`` (eq. 1, 5).
+        """Time update over ``dt_s`` with forward speed ``vx_m_s`` (eq. 1, 5, 21);
+        ``yaw_moment_nm``: known extra yaw moment (N m) held over the step (0 in the paper)."""
+        kernels.predict(self.x, self.p, self._consts, dt_s, vx_m_s, yaw_moment_nm)
 
-        ``yaw_moment_nm``: known extra yaw moment (N m) held over the step (0 in the paper).
-        """
-        a = transition_matrix(
-            dt_s, vx_m_s, self.mass_kg, self.yaw_inertia_kg_m2, self.lf_m, self.lr_m
-        )
-        # eq. (1): x_k^- = A x_k-1  (+ the known moment input on the yaw rate, beyond eq. 21)
-        self.x = a @ self.x
-        self.x[1] += dt_s * yaw_moment_nm / self.yaw_inertia_kg_m2
-        # a priori covariance: P_k^- = A P A^T + Q
-        self.p = a @ self.p @ a.T + self.q
-
-    def update(self, z: F64, h: F64, r_diag: F64) -> None:
-        """Measurement update with z (n,), H (n, 4) and diagonal R (n,) (eq. 2, 7, 8)."""
-        r = np.diag(np.asarray(r_diag, dtype=float))
-        s = h @ self.p @ h.T + r
-        # eq. (7): K = P^- H^T (H P^- H^T + R)^-1
-        k = np.linalg.solve(s, h @ self.p).T
-        # eq. (8): x_k = x_k^- + K (z_k - H x_k^-)
-        self.x = self.x + k @ (z - h @ self.x)
-        # a posteriori covariance (Joseph form, keeps P symmetric positive definite)
-        i_kh = np.eye(4) - k @ h
-        self.p = i_kh @ self.p @ i_kh.T + k @ r @ k.T
-        self.p = 0.5 * (self.p + self.p.T)
+    def update(self, rows: NDArray[np.intp], z: F64, r_diag: F64) -> bool:
+        """Measurement update (eq. 2, 7, 8) with the state rows ``rows`` (n,) measured as ``z``
+        (n,) with diagonal R ``r_diag`` (n,) (eq. 22: the identity, rows of unmeasured axles
+        left out); False when the state or covariance is no longer finite."""
+        return bool(kernels.update(self.x, self.p, rows, z, r_diag))
 
 
 __all__ = [
-    "MEASUREMENT_MATRIX",
     "HysteresisRelay",
     "TyreForceKF",
     "axle_force_deviation",
-    "transition_matrix",
 ]

@@ -49,7 +49,6 @@ from tire_estimation.core.lateral.tyre_force_filter import (
     INITIAL_FORCE_VARIANCE_N2,
     INITIAL_VY_VARIANCE_M2_S2,
     INITIAL_YAW_RATE_VARIANCE_RAD2_S2,
-    MEASUREMENT_MATRIX,
     RELAY_OFF_THRESHOLD_N,
     RELAY_ON_THRESHOLD_N,
     HysteresisRelay,
@@ -169,9 +168,18 @@ class _Held:
     value: Any = None
 
 
-def _finite(kind: str, values: F64) -> None:
-    if not np.all(np.isfinite(values)):
+def _finite(kind: str, values: list[float]) -> None:
+    if not all(map(math.isfinite, values)):
         raise InputError("nan", f"{kind}: non-finite value in {values!r}")
+
+
+#: the state rows measured (eq. 22) by which axles have a force: vy and r always
+_ROWS = {
+    (True, True): np.array([0, 1, 2, 3], dtype=np.intp),
+    (True, False): np.array([0, 1, 2], dtype=np.intp),
+    (False, True): np.array([0, 1, 3], dtype=np.intp),
+    (False, False): np.array([0, 1], dtype=np.intp),
+}
 
 
 class TyreForceEstimator:
@@ -232,10 +240,10 @@ class TyreForceEstimator:
         self._t_ns: int | None = None
         self._initialized = False
         self._linearity = "unknown"
-        self._deviation_lp_n = np.zeros(2)
+        self._deviation_lp_n = (0.0, 0.0)
         self._moment_nm = 0.0
         self._deviation_n = 0.0
-        self._measured_axle_n = np.zeros(2)
+        self._measured_axle_n = (0.0, 0.0)
         #: Steer angle of the previous filter step (start of the single-track model's step).
         self._st_delta_rad = 0.0
 
@@ -247,11 +255,11 @@ class TyreForceEstimator:
         return stamp_after(stream, t_ns, self._held[stream].t_ns)
 
     @staticmethod
-    def _vector(kind: str, values: Any, n: int) -> F64:
+    def _vector(kind: str, values: Any, n: int) -> list[float]:
         arr = np.asarray(values, dtype=float).reshape(-1)
         if arr.shape != (n,):
             raise InputError("wrong_length", f"{kind}: need {n} values, got {arr.size}")
-        return arr
+        return arr.tolist()
 
     def _fresh(self, stream: str, t_ns: int) -> bool:
         held = self._held[stream]
@@ -266,7 +274,7 @@ class TyreForceEstimator:
         try:
             t = self._check_stamp("steering", t_ns)
             angle = float(angle_rad)
-            _finite("steering", np.array([angle]))
+            _finite("steering", [angle])
             if abs(angle) > 1.2:
                 raise InputError("out_of_range", f"steering angle {angle} rad")
         except (InputError, TypeError, ValueError) as exc:
@@ -284,7 +292,7 @@ class TyreForceEstimator:
             t = self._check_stamp("wheels", t_ns)
             ws = self._vector("wheel speeds", wheel_speed_rad_s, 4)
             _finite("wheel speeds", ws)
-            if np.any(np.abs(ws) > 1000.0):
+            if max(map(abs, ws)) > 1000.0:
                 raise InputError("out_of_range", f"wheel speed above 1000 rad/s: {ws}")
         except (InputError, TypeError, ValueError) as exc:
             self._drop("wheel_speeds", exc.kind if isinstance(exc, InputError) else "bad_value")
@@ -308,15 +316,17 @@ class TyreForceEstimator:
             fx = self._vector("fx", fx_n, 4)
             fy = self._vector("fy", fy_n, 4)
             fz = self._vector("fz", fz_n, 4)
-            ok = np.asarray(valid, dtype=bool).reshape(-1)
-            if ok.shape != (4,):
-                raise InputError("wrong_length", f"valid: need 4 flags, got {ok.size}")
-            if not np.any(ok):
+            flags = np.asarray(valid, dtype=bool).reshape(-1)
+            if flags.shape != (4,):
+                raise InputError("wrong_length", f"valid: need 4 flags, got {flags.size}")
+            ok: list[bool] = flags.tolist()
+            if not any(ok):
                 raise InputError("no_valid_sensor", "no tyre-force sensor is valid")
-            _finite("tyre forces", np.concatenate([fx[ok], fy[ok], fz[ok]]))
-            if np.any(np.abs(np.concatenate([fx[ok], fy[ok], fz[ok]])) > 1e6):
+            used = [f[i] for f in (fx, fy, fz) for i in range(4) if ok[i]]
+            _finite("tyre forces", used)
+            if max(map(abs, used)) > 1e6:
                 raise InputError("out_of_range", "tyre force above 1e6 N")
-            if np.any(fz[ok] < 0.0):
+            if any(fz[i] < 0.0 for i in range(4) if ok[i]):
                 raise InputError("out_of_range", f"negative vertical load {fz}")
             if not self._fresh("steering", t):
                 raise InputError("no_steering", "no fresh steering angle")
@@ -331,41 +341,45 @@ class TyreForceEstimator:
 
     # ------------------------------------------------------------------ filter step
     def _axle_forces(
-        self, dt_s: float, fx: F64, fy: F64, fz: F64, ok: F64, delta: float
-    ) -> tuple[F64, F64, float]:
-        """Measured (sensor + virtual) axle lateral forces in body axes [front, rear] (N, (2,)),
-        which axles are measured ((2,) bool), and the track yaw moment (N m, 0 when an axle is
-        not measured)."""
-        out = np.zeros(2)
-        have = np.zeros(2, dtype=bool)
+        self,
+        dt_s: float,
+        fx: list[float],
+        fy: list[float],
+        fz: list[float],
+        ok: list[bool],
+        delta: float,
+    ) -> tuple[tuple[float, float], tuple[bool, bool], float]:
+        """Measured (sensor + virtual) axle lateral forces in body axes [front, rear] (N),
+        which axles are measured, and the track yaw moment (N m, 0 when an axle is not
+        measured)."""
+        out = [0.0, 0.0]
+        have = [False, False]
         moment = 0.0
         half_track = 0.5 * self.vehicle.track_width_m
         for axle, (i, j) in enumerate(((0, 1), (2, 3))):
             # per-wheel [left, right] forces in the wheel frames
             if ok[i] and ok[j]:
-                fy_w = np.array([fy[i], fy[j]])
-                fx_w = np.array([fx[i], fx[j]])
+                fy_l, fy_r, fx_l, fx_r = fy[i], fy[j], fx[i], fx[j]
             elif ok[i] or ok[j]:
                 s, v = (i, j) if ok[i] else (j, i)
                 self._learn_static_load(dt_s, s, fy[s], fz[s])
                 fz_v = virtual_load(fz[s], self.static_load_n[s], self.static_load_n[v])
                 fy_v = self.tyres[axle].virtual_force(fy[s], fz[s], fz_v)
-                fy_w = np.array([fy[s], fy_v]) if s == i else np.array([fy_v, fy[s]])
+                fy_l, fy_r = (fy[s], fy_v) if s == i else (fy_v, fy[s])
                 # longitudinal force of the virtual wheel: that of its axle partner
-                fx_w = np.array([fx[s], fx[s]])
+                fx_l = fx_r = fx[s]
             else:
                 continue
             have[axle] = True
             steer = delta if axle == 0 else 0.0
+            cos_s, sin_s = math.cos(steer), math.sin(steer)
             # wheel frame -> body axes (front wheels steered by delta; beyond the paper)
-            fy_body = fy_w * math.cos(steer) + fx_w * math.sin(steer)
-            fx_body = fx_w * math.cos(steer) - fy_w * math.sin(steer)
-            out[axle] = fy_body.sum()
+            out[axle] = (fy_l * cos_s + fx_l * sin_s) + (fy_r * cos_s + fx_r * sin_s)
             # yaw moment of the body-x forces: -y_i Fx_i with y = +half (left), -half (right)
-            moment += -half_track * (fx_body[0] - fx_body[1])
-        if not np.all(have):
+            moment += -half_track * ((fx_l * cos_s - fy_l * sin_s) - (fx_r * cos_s - fy_r * sin_s))
+        if not (have[0] and have[1]):
             moment = 0.0
-        return out, have, moment
+        return (out[0], out[1]), (have[0], have[1]), moment
 
     def _learn_static_load(self, dt_s: float, i: int, fy: float, fz: float) -> None:
         """Eq. (12) static load: average of Fz,1 recorded while Fy,1 ~ 0."""
@@ -392,9 +406,11 @@ class TyreForceEstimator:
         self._t_ns = t
         self._linearity = "unknown" if vx < self.config.min_speed_m_s else "linear"
         self.relay.state = False
-        self._deviation_lp_n = np.zeros(2)
+        self._deviation_lp_n = (0.0, 0.0)
 
-    def _step(self, t: int, fx: F64, fy: F64, fz: F64, ok: F64) -> None:
+    def _step(
+        self, t: int, fx: list[float], fy: list[float], fz: list[float], ok: list[bool]
+    ) -> None:
         c = self.config
         vx = float(self._speed_m_s or 0.0)
         delta = float(self._held["steering"].value)
@@ -403,12 +419,13 @@ class TyreForceEstimator:
             self._drop("tire_forces", "gap")
             self._initialized = False
         measured, have, moment = self._axle_forces(dt, fx, fy, fz, ok, delta)
-        if not np.all(have):
+        if not (have[0] and have[1]):
             self._drop("tire_forces", "axle_unobserved")
         self._measured_axle_n = measured
         if not self._initialized or vx < c.min_speed_m_s:
             self._moment_nm = moment
-            self._initialize(t, max(vx, 0.0), delta, np.where(have, measured, self.kf.x[2:]))
+            held = [measured[a] if have[a] else float(self.kf.x[2 + a]) for a in range(2)]
+            self._initialize(t, max(vx, 0.0), delta, np.array(held))
             return
         self._t_ns = t
         # reference model (eq. 23-28): open-loop vy, r and nominal axle forces; the steer
@@ -420,28 +437,30 @@ class TyreForceEstimator:
         # linearity (eq. 29) and relay (Fig. 7), on the axles that are measured
         # low-pass of the signed per-axle differences (beyond the paper: removes the bias that
         # the sensor noise gives |.| in eq. 29 before the relay sees it)
-        diff = np.where(have, f_st - measured, 0.0)
         w = min(1.0, dt / DEVIATION_FILTER_TIME_CONSTANT_S)
-        self._deviation_lp_n += w * (diff - self._deviation_lp_n)
-        self._deviation_n = axle_force_deviation(self._deviation_lp_n, np.zeros(2))
+        lp = self._deviation_lp_n
+        d0 = float(f_st[0]) - measured[0] if have[0] else 0.0
+        d1 = float(f_st[1]) - measured[1] if have[1] else 0.0
+        lp = (lp[0] + w * (d0 - lp[0]), lp[1] + w * (d1 - lp[1]))
+        self._deviation_lp_n = lp
+        self._deviation_n = axle_force_deviation(lp, (0.0, 0.0))
         nonlinear = self.relay.update(self._deviation_n)
         self._linearity = "nonlinear" if nonlinear else "linear"
         if nonlinear:
-            r_st = (c.nonlinear_vy_variance_m2_s2, c.nonlinear_yaw_rate_variance_rad2_s2)
+            r_st = [c.nonlinear_vy_variance_m2_s2, c.nonlinear_yaw_rate_variance_rad2_s2]
         else:
-            r_st = (c.linear_vy_variance_m2_s2, c.linear_yaw_rate_variance_rad2_s2)
+            r_st = [c.linear_vy_variance_m2_s2, c.linear_yaw_rate_variance_rad2_s2]
         # eq. (21): prediction with the forward speed as the time-varying parameter
         self.kf.predict(dt, vx, self._moment_nm)
         self._moment_nm = moment
         # eq. (22): z = [vy_st, r_st, Ff, Fr] (rows of absent axles removed)
-        rows = [0, 1] + [2 + a for a in range(2) if have[a]]
-        z = np.concatenate([st, measured[have]])
-        r_diag = [r_st[0], r_st[1]] + [c.force_variance_n2] * int(have.sum())
-        h = MEASUREMENT_MATRIX[rows]
-        self.kf.update(z, h, np.asarray(r_diag))
-        if not np.all(np.isfinite(self.kf.x)) or not np.all(np.isfinite(self.kf.p)):
+        present = [a for a in range(2) if have[a]]
+        z = np.array([float(st[0]), float(st[1]), *(measured[a] for a in present)])
+        r_diag = np.array(r_st + [c.force_variance_n2] * len(present))
+        if not self.kf.update(_ROWS[have], z, r_diag):
             self._drop("tire_forces", "diverged")
-            self._initialize(t, vx, delta, np.where(have, measured, 0.0))
+            forces = np.array([measured[a] if have[a] else 0.0 for a in range(2)])
+            self._initialize(t, vx, delta, forces)
 
     # ------------------------------------------------------------------ outputs
     @property
@@ -457,18 +476,22 @@ class TyreForceEstimator:
     @property
     def measured_axle_force_n(self) -> F64:
         """Last measured (sensor + virtual) axle lateral forces [front, rear], N, (2,)."""
-        return self._measured_axle_n.copy()
+        return np.array(self._measured_axle_n)
 
     def _to_base_link(
         self, t_ns: int, vx: float, x2: F64, p2: F64, forces: F64, source: str
     ) -> LateralEstimate:
         lr = self.vehicle.lr_m
-        # base_link = CG - lr along x: vy_base = vy_cg - lr r
-        jac = np.array([[1.0, -lr], [0.0, 1.0]])
+        # base_link = CG - lr along x: vy_base = vy_cg - lr r, covariance J P J^T with
+        # J = [[1, -lr], [0, 1]]
         vy = float(x2[0] - lr * x2[1])
+        p00, p01, p10, p11 = float(p2[0, 0]), float(p2[0, 1]), float(p2[1, 0]), float(p2[1, 1])
         cov = np.zeros((3, 3))
         cov[0, 0] = self.config.speed_variance_m2_s2
-        cov[1:, 1:] = jac @ p2 @ jac.T
+        cov[1, 1] = (p00 - lr * p10) - lr * (p01 - lr * p11)
+        cov[1, 2] = p01 - lr * p11
+        cov[2, 1] = p10 - lr * p11
+        cov[2, 2] = p11
         return LateralEstimate(
             t_ns=t_ns,
             vx_m_s=vx,

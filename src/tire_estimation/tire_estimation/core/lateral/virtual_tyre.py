@@ -6,7 +6,9 @@ Formula (eq. 11) gives the slip angle of the sensor tyre from its measured (Fy, 
 same formula gives the virtual tyre's force at that slip angle and its own load. The virtual
 tyre's vertical load comes from the measured load change (eq. 12-13).
 
-Units: forces N, slip angles rad. Functions are scalar (called once per axle and sample).
+Units: forces N, slip angles rad. Functions are scalar (called once per axle and sample) and
+compiled (Numba, ``cache=True``), except the peak search of :func:`peak_slip_factor` (once per
+tyre).
 """
 
 from __future__ import annotations
@@ -14,6 +16,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import cached_property
+
+import numba
 
 #: Fraction of the peak force above which the measured force is treated as saturated.
 SATURATION_FRACTION = 0.999
@@ -31,11 +35,13 @@ MF_CURVATURE_E = -0.5
 MF_FRICTION_MU = 1.0
 
 
+@numba.njit(cache=True)
 def _shape(x: float, e: float) -> float:
     """phi(x) = x - E (x - atan x), the inner argument of eq. (11) for x = B alpha."""
     return x - e * (x - math.atan(x))
 
 
+@numba.njit(cache=True)
 def magic_formula(alpha_rad: float, b_1_rad: float, c: float, d_n: float, e: float) -> float:
     """Lateral force of eq. (11), N, for slip angle ``alpha_rad`` (rad).
 
@@ -81,6 +87,14 @@ def inverse_magic_formula(
         x_peak: B alpha at the peak (from :func:`peak_slip_factor`); computed when None.
     """
     xp = peak_slip_factor(c, e) if x_peak is None else x_peak
+    return _inverse_magic_formula(fy_n, b_1_rad, c, d_n, e, xp)
+
+
+@numba.njit(cache=True)
+def _inverse_magic_formula(
+    fy_n: float, b_1_rad: float, c: float, d_n: float, e: float, xp: float
+) -> float:
+    """:func:`inverse_magic_formula` with the peak's ``x_peak`` given."""
     alpha_peak = xp / b_1_rad
     f_abs = abs(fy_n)
     f_max = d_n  # sin(C atan(phi(x*))) = 1
@@ -95,6 +109,7 @@ def inverse_magic_formula(
     return math.copysign(x / b_1_rad, fy_n)
 
 
+@numba.njit(cache=True)
 def _inverse_shape(phi: float, e: float, x_hi: float) -> float:
     """The x in [0, x_hi] with phi(x) = x - E (x - atan x) = ``phi`` (E < 1: phi is strictly
     increasing, phi'(x) = 1 - E + E / (1 + x^2) > 0). Newton's method kept inside a shrinking
@@ -118,6 +133,7 @@ def _inverse_shape(phi: float, e: float, x_hi: float) -> float:
     return x
 
 
+@numba.njit(cache=True)
 def virtual_load(
     fz_measured_n: float, fz_measured_static_n: float, fz_virtual_static_n: float
 ) -> float:
@@ -161,9 +177,7 @@ class MagicFormulaTyre:
 
     def factors(self, fz_n: float) -> tuple[float, float]:
         """(B 1/rad, D N) at vertical load ``fz_n`` (N)."""
-        d = self.mu * max(MIN_LOAD_N, fz_n)
-        # small-slip slope dFy/dalpha = B C D = cornering stiffness
-        return self.cornering_stiffness_n_rad / (self.c * d), d
+        return _factors(self.cornering_stiffness_n_rad, self.c, self.mu, fz_n)
 
     def force(self, alpha_rad: float, fz_n: float) -> float:
         """Eq. (11) at slip angle ``alpha_rad`` (rad) and load ``fz_n`` (N): Fy, N."""
@@ -179,5 +193,35 @@ class MagicFormulaTyre:
         self, fy_measured_n: float, fz_measured_n: float, fz_virtual_n: float
     ) -> float:
         """Virtual tyre lateral force, N, at the sensor tyre's slip angle."""
-        alpha = self.slip_angle(fy_measured_n, fz_measured_n)
-        return self.force(alpha, fz_virtual_n)
+        return _virtual_force(
+            fy_measured_n, fz_measured_n, fz_virtual_n, self.cornering_stiffness_n_rad,
+            self.c, self.e, self.mu, self.x_peak,
+        )  # fmt: skip
+
+
+@numba.njit(cache=True)
+def _factors(
+    cornering_stiffness_n_rad: float, c: float, mu: float, fz_n: float
+) -> tuple[float, float]:
+    """(B 1/rad, D N) of :meth:`MagicFormulaTyre.factors`."""
+    d = mu * max(MIN_LOAD_N, fz_n)
+    # small-slip slope dFy/dalpha = B C D = cornering stiffness
+    return cornering_stiffness_n_rad / (c * d), d
+
+
+@numba.njit(cache=True)
+def _virtual_force(
+    fy_measured_n: float,
+    fz_measured_n: float,
+    fz_virtual_n: float,
+    cornering_stiffness_n_rad: float,
+    c: float,
+    e: float,
+    mu: float,
+    x_peak: float,
+) -> float:
+    """:meth:`MagicFormulaTyre.virtual_force` in one compiled call."""
+    b, d = _factors(cornering_stiffness_n_rad, c, mu, fz_measured_n)
+    alpha = _inverse_magic_formula(fy_measured_n, b, c, d, e, x_peak)
+    b_v, d_v = _factors(cornering_stiffness_n_rad, c, mu, fz_virtual_n)
+    return magic_formula(alpha, b_v, c, d_v, e)
