@@ -97,6 +97,35 @@ def test_one_stream_jumping_alone_is_mapped_onto_the_others() -> None:
     assert all(b > a for a, b in itertools.pairwise(gnss_internal))
 
 
+def test_admit_now_takes_what_admit_would_release_at_once_and_leaves_the_rest() -> None:
+    """admit_now, with admit for the samples it leaves, releases what admit alone releases and
+    leaves the guard in the same state (outliers, a jump of one stream, a step back)."""
+    events = []
+    for k in range(300):
+        t = 10**12 + k * 10 * MS
+        events.append(("wheel", t - (HOUR if k >= 200 else 0)))
+        if k % 10 == 0:
+            events.append(("gnss", t + (2 * HOUR if k >= 100 else 0)))
+    events.insert(50, ("wheel", events[49][1] + 2 * HOUR))
+    plain: ClockGuard[int] = ClockGuard()
+    fast: ClockGuard[int] = ClockGuard()
+    at_once = 0
+    for k, (stream, t_ns) in enumerate(events):
+        expected = plain.admit(stream, t_ns, k)
+        u_ns = fast.admit_now(stream, t_ns)
+        if u_ns is None:
+            assert fast.admit(stream, t_ns, k) == expected
+        else:
+            at_once += 1
+            assert [(u_ns, k)] == expected
+        assert fast.present_ns == plain.present_ns
+        assert fast.held() == plain.held()
+    assert 0 < at_once < len(events)
+    assert fast.dropped == plain.dropped and fast.jumps == plain.jumps
+    assert fast.offset_ns("wheel") == plain.offset_ns("wheel") != 0
+    assert fast.offset_ns("gnss") == plain.offset_ns("gnss") != 0
+
+
 def test_suspects_never_confirmed_are_dropped_at_the_end() -> None:
     guard: ClockGuard[int] = ClockGuard(ClockGuardConfig(confirm_samples=5))
     out = _feed(guard, [("wheel", 10**12), ("wheel", 10**12 + HOUR), ("wheel", 10**12 + HOUR)])

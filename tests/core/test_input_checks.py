@@ -8,7 +8,9 @@ import pytest
 from tire_estimation.core.input_checks import (
     checked_covariance,
     drop_key,
+    finite_vector,
     merged_counts,
+    stamp_after,
     unique_names,
 )
 from tire_estimation.errors import InputError
@@ -76,3 +78,57 @@ def test_a_known_name_given_twice_is_refused() -> None:
 def test_drop_counters_are_keyed_by_stream_and_kind() -> None:
     assert drop_key("gnss_fix", "bad_covariance") == "gnss_fix:bad_covariance"
     assert merged_counts({"a:x": 1, "b:y": 2}, {"a:x": 3}) == {"a:x": 4, "b:y": 2}
+
+
+@pytest.mark.parametrize(
+    ("value", "n", "expected"),
+    [
+        (np.array([1.0, -2.0, 3.0]), 3, [1.0, -2.0, 3.0]),
+        ([1, 2, 3], 3, [1.0, 2.0, 3.0]),
+        (np.array([[1.0], [2.0]]), 2, [1.0, 2.0]),
+        (np.array([1e308, 1e308]), 2, [1e308, 1e308]),  # finite, their sum is not
+        (0.25, 1, [0.25]),
+        (np.float32(0.5), 1, [0.5]),
+    ],
+)
+def test_finite_vectors_pass_as_float_vectors(value: object, n: int, expected: list) -> None:
+    v = finite_vector(value, n, "x")
+    assert v.dtype == np.float64 and v.shape == (n,)
+    assert v.tolist() == expected
+
+
+@pytest.mark.parametrize(
+    ("value", "n", "kind"),
+    [
+        (np.array([1.0, NAN, 3.0]), 3, "nan"),
+        (np.array([INF, 1.0, 1.0]), 3, "nan"),
+        (np.array([INF, -INF]), 2, "nan"),
+        ([1.0, NAN], 2, "nan"),
+        (NAN, 1, "nan"),
+        (INF, 1, "nan"),
+        (np.array([1.0, 2.0]), 3, "wrong_length"),
+        (1.0, 2, "wrong_length"),
+    ],
+)
+def test_a_vector_not_finite_or_of_another_length_is_refused(
+    value: object, n: int, kind: str
+) -> None:
+    with pytest.raises(InputError) as err:
+        finite_vector(value, n, "x")
+    assert err.value.kind == kind
+
+
+def test_a_stamp_must_be_an_integer_after_the_last() -> None:
+    assert stamp_after("imu", 5, None) == 5
+    assert stamp_after("imu", 6, 5) == 6
+    stamp = stamp_after("imu", np.int64(7), 6)
+    assert stamp == 7 and type(stamp) is int
+    for t_ns, last, kind in [
+        (5, 5, "duplicate"),
+        (4, 5, "out_of_order"),
+        (True, None, "bad_stamp"),
+        (5.0, None, "bad_stamp"),
+    ]:
+        with pytest.raises(InputError) as err:
+            stamp_after("imu", t_ns, last)
+        assert err.value.kind == kind

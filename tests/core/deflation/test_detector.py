@@ -131,6 +131,21 @@ def test_cusum_matches_hand_computed_sequence() -> None:
     assert st.any_alarm
 
 
+@pytest.mark.parametrize("common_channel", [False, True])
+def test_latched_alarms_are_the_alarm_flags_of_the_status(common_channel: bool) -> None:
+    det = DeflationDetector(plain_config(common_channel=common_channel))
+    assert det.latched_alarms() == (set(), False)
+    for k in range(12):
+        # wheel_rl loses 4 mm after calibration, wheel_rr 2 mm from the 8th second on
+        rl, rr = (-4e-3 if k >= 2 else 0.0), (-2e-3 if k >= 8 else 0.0)
+        feed(det, float(k), (rl, rr))
+        st = det.status()
+        wheels, common = det.latched_alarms()
+        assert wheels == {w.wheel_name for w in st.wheels if w.alarm}
+        assert common == (st.common is not None and st.common.alarm)
+    assert det.latched_alarms()[0] == {"wheel_rl"}
+
+
 def test_cusum_increment_is_weighted_by_dt_over_reference_period() -> None:
     # the same signal at twice the rate gives the same g (increments weighted by dt / T_ref)
     det = DeflationDetector(plain_config(threshold_m=1.0))

@@ -115,3 +115,26 @@ def test_a_valid_state_restores_and_the_band_follows_the_nominal_radius() -> Non
     wide = RadiusEstimatorConfig(n_particles=100, prior_radius_error_std_m=0.03)
     est = RadiusEstimator(wide, VEH, np.random.default_rng(0))
     est.load_state_dict(json.loads(json.dumps(est.state_dict())))
+
+
+@pytest.mark.parametrize("wheels", ["rear", "all"])
+def test_radius_errors_are_those_of_the_estimate(wheels: str) -> None:
+    """At every wheel-speed sample, fixes or not (queued predictions), learning or not."""
+    drive = make_drive(duration_s=40.0, gnss_rate_hz=1.0, seed=2)
+    est = RadiusEstimator(
+        RadiusEstimatorConfig(n_particles=100, wheels=wheels), VEH, np.random.default_rng(3)
+    )
+    seen: list[bool] = []
+
+    def check(k: int, t: int) -> None:
+        e = est.estimate()
+        names, errors, stds, active = est.radius_errors()
+        assert names == e.wheels
+        assert errors == e.radius_error_m.tolist()
+        assert stds == e.radius_error_std_m.tolist()
+        assert active == list(e.active)
+        seen.append(bool(e.active[-1]))
+
+    feed(est, drive, hook=check)
+    assert len(est.radius_errors()[0]) == (4 if wheels == "all" else 2)
+    assert any(seen) and not all(seen)

@@ -104,6 +104,23 @@ class ClockGuard(Generic[T]):
         for stream in self._held:
             self._drop_held(stream)
 
+    def admit_now(self, stream: str, t_ns: int) -> int | None:
+        """The internal stamp of a sample of ``stream`` stamped ``t_ns`` that goes on at once
+        and alone (near the present, nothing held on its stream), accepted as :meth:`admit`
+        accepts it; None, with nothing changed, for any other sample (give it to
+        :meth:`admit`)."""
+        present = self.present_ns
+        if present is None:
+            return None
+        u_ns = t_ns + self._offset.get(stream, 0)
+        tol = self._tol_ns
+        if present - tol <= u_ns <= present + tol and not self._held.get(stream):
+            if u_ns > present:
+                self.present_ns = u_ns
+            self._accepted += 1
+            return u_ns
+        return None
+
     def admit(self, stream: str, t_ns: int, item: T) -> list[tuple[int, T]]:
         """Take one sample of ``stream`` stamped ``t_ns``; return ``(internal stamp, item)`` of
         every sample that may go on now (this one, or held ones a new clock released)."""

@@ -28,6 +28,8 @@ def is_int(x: Any) -> bool:
 def stamp_after(stream: str, t_ns: Any, last_ns: int | None) -> int:
     """``t_ns`` as int when it is an integer stamp later than ``last_ns`` (None: the first);
     else ``bad_stamp``, ``duplicate`` or ``out_of_order``."""
+    if type(t_ns) is int and (last_ns is None or t_ns > last_ns):
+        return t_ns  # the common case, without the calls below
     if not is_int(t_ns):
         raise InputError("bad_stamp", f"{stream}: stamp must be an integer, got {t_ns!r}")
     t = int(t_ns)
@@ -37,8 +39,19 @@ def stamp_after(stream: str, t_ns: Any, last_ns: int | None) -> int:
     return t
 
 
+_F64 = np.dtype(np.float64)
+
+
 def finite_vector(value: Any, n: int, what: str) -> F64:
     """``value`` as a float vector of ``n`` finite entries; else ``wrong_length`` or ``nan``."""
+    if type(value) is np.ndarray and value.dtype == _F64 and value.shape == (n,):
+        # the common case: a float64 vector of n; finite when its sum is (a sum that
+        # overflows is checked entry by entry below)
+        total = sum(value.tolist())
+        if total - total == 0.0:
+            return value
+    elif n == 1 and type(value) is float and value - value == 0.0:
+        return np.array([value])
     v = np.asarray(value, dtype=float).reshape(-1)
     if v.shape != (n,):
         raise InputError("wrong_length", f"{what}: need {n} values, got {v.shape[0]}")
@@ -91,7 +104,8 @@ def checked_covariance(values: Any, what: str) -> F64 | None:
     if dim == 0:
         raise InputError("wrong_length", f"{what}: need 9 (3x3) or 4 values, got {flat.size}")
     c = flat.tolist()
-    if not all(math.isfinite(v) for v in c):
+    total = sum(c)  # finite when every value is (a sum that overflows: checked one by one)
+    if total - total != 0.0 and not all(map(math.isfinite, c)):
         raise InputError("bad_covariance", f"{what} is not finite: {c}")
     if not any(c):
         return None

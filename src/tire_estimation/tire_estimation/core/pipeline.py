@@ -316,6 +316,16 @@ class EstimationPipeline:
         # IMU-driven estimators that take speed, steering and IMU the same way
         self._lateral_imu: list[Any] = [self.stiffness] if self.stiffness is not None else []
         self._lateral_imu.extend(self.baselines.values())
+        # the estimators' input methods per stream, in routing order (bound once: the
+        # routing runs for every sample)
+        radius, tyre_force, lateral = self.radius, self.tyre_force, self._lateral_imu
+        self._to_wheel_speeds = tuple(
+            e.on_wheel_speeds for e in (radius, tyre_force, *lateral) if e is not None
+        )
+        self._to_imu = tuple(e.on_imu for e in (radius, *lateral) if e is not None)
+        self._to_steering = tuple(
+            e.on_steering for e in (radius, tyre_force, *lateral) if e is not None
+        )
 
     # ------------------------------------------------------------------ input
     def push(self, sample: Sample) -> list[Output]:
@@ -344,13 +354,18 @@ class EstimationPipeline:
         :meth:`flush`. The outputs go to the observers."""
         received = self.received
         process = self._process
+        admit_now = self.clock.admit_now
         admit = self.clock.admit
         buffer = self.buffer
         last: tuple[int, int] | None = None
         out: list[Output] = []
         for sample in samples:
-            received[sample.KIND] += 1
-            for t_ns, admitted in admit(sample.KIND, sample.t_ns, sample):
+            kind = sample.KIND
+            received[kind] += 1
+            # the common case, the sample alone goes on at once, without admit's list
+            u_ns = admit_now(kind, sample.t_ns)
+            released = admit(kind, sample.t_ns, sample) if u_ns is None else ((u_ns, sample),)
+            for t_ns, admitted in released:
                 if t_ns != admitted.t_ns:
                     admitted = replace(admitted, t_ns=t_ns)
                 key = (t_ns, admitted.PRIORITY)
@@ -389,48 +404,39 @@ class EstimationPipeline:
     def _process(self, sample: Sample, out: list[Output]) -> None:
         result: Any = None
         t = sample.t_ns
-        if type(sample) is WheelSpeeds:
+        kind = type(sample)
+        if kind is WheelSpeeds:
             ws = sample.wheel_speed_rad_s
-            if self.radius is not None:
-                self.radius.on_wheel_speeds(t, ws)
-            if self.tyre_force is not None:
-                self.tyre_force.on_wheel_speeds(t, ws)
-            for est in self._lateral_imu:
-                est.on_wheel_speeds(t, ws)
+            for on_wheel_speeds in self._to_wheel_speeds:
+                on_wheel_speeds(t, ws)
             if self.radius is not None:
                 if self.outputs:
                     self.wheel_noise.push(t, ws)
                 self._radius_outputs(t, out)
-        elif type(sample) is ImuSample:
+        elif kind is ImuSample:
             gyro, acc = sample.angular_velocity_rad_s, sample.linear_acceleration_m_s2
-            if self.radius is not None:
-                self.radius.on_imu(t, gyro, acc)
-            for est in self._lateral_imu:
-                est.on_imu(t, gyro, acc)
-            if self.stiffness is not None:
+            for on_imu in self._to_imu:
+                on_imu(t, gyro, acc)
+            if self.stiffness is not None and self.outputs:
                 self._stiffness_outputs(self.stiffness, t, out)
-        elif type(sample) is Steering:
+        elif kind is Steering:
             angle = sample.angle_rad
-            if self.radius is not None:
-                self.radius.on_steering(t, angle)
-            if self.tyre_force is not None:
-                self.tyre_force.on_steering(t, angle)
-            for est in self._lateral_imu:
-                est.on_steering(t, angle)
-        elif type(sample) is GnssFix:
+            for on_steering in self._to_steering:
+                on_steering(t, angle)
+        elif kind is GnssFix:
             if self.radius is not None:
                 result = self.radius.on_gnss_fix(
                     t, sample.lat_deg, sample.lon_deg, sample.alt_m, sample.covariance_m2
                 )
-        elif type(sample) is GnssVelocity:
+        elif kind is GnssVelocity:
             if self.radius is not None and self.radius.config.gnss_velocity_enabled:
                 result = self.radius.on_gnss_velocity(
                     t, sample.velocity_enu_m_s, sample.covariance_m2_s2
                 )
-        elif type(sample) is MeasuredVelocity:
+        elif kind is MeasuredVelocity:
             for est in self._lateral_imu:
                 est.on_velocity(t, sample.vx_m_s)
-        elif type(sample) is TireForces and self.tyre_force is not None:
+        elif kind is TireForces and self.tyre_force is not None:
             result = self.tyre_force.on_tire_forces(
                 t, sample.fx_n, sample.fy_n, sample.fz_n, sample.valid
             )
@@ -451,7 +457,9 @@ class EstimationPipeline:
 
     def _radius_outputs(self, t_ns: int, out: list[Output]) -> None:
         """Odometry and radii when their periods have elapsed; the detector sees both."""
-        odom_due, radii_due = self._due("odometry", t_ns), self._due("radii", t_ns)
+        last, period = self._last_ns, self._period_ns
+        odom_due = t_ns - last["odometry"] >= period["odometry"]
+        radii_due = t_ns - last["radii"] >= period["radii"]
         if not (odom_due or radii_due):
             return
         radius = self.radius
@@ -462,23 +470,24 @@ class EstimationPipeline:
                 return
             # what the detector consumes, the values the outputs would carry
             if odom_due:
-                self._last_ns["odometry"] = t_ns
+                last["odometry"] = t_ns
                 if radius.initialized:
                     monitor.on_odometry(t_ns, radius.speed_m_s())
-            if not radii_due:
-                return
+            if radii_due:
+                last["radii"] = t_ns
+                self._deflation_output(t_ns, RadiusErrors(t_ns, *radius.radius_errors()), out)
+            return
         est = radius.estimate()
-        if odom_due and self.outputs:
-            self._last_ns["odometry"] = t_ns
+        if odom_due:
+            last["odometry"] = t_ns
             if est.state != "initializing":
                 self._emit(OdometryOutput(t_ns, est), out)
                 if monitor is not None:
                     monitor.on_odometry(t_ns, float(est.speed_m_s))
         if radii_due:
-            self._last_ns["radii"] = t_ns
-            if self.outputs:
-                self._emit(RadiiOutput(t_ns, est), out)
-                self._wheel_odometry_output(t_ns, est, out)
+            last["radii"] = t_ns
+            self._emit(RadiiOutput(t_ns, est), out)
+            self._wheel_odometry_output(t_ns, est, out)
             if monitor is not None:
                 radii = RadiusErrors(
                     t_ns,
@@ -487,9 +496,14 @@ class EstimationPipeline:
                     [float(v) for v in est.radius_error_std_m],
                     [bool(v) for v in est.active],
                 )
-                step = monitor.on_radii(radii)
-                if step is not None:
-                    self._emit(DeflationOutput(t_ns, step), out)
+                self._deflation_output(t_ns, radii, out)
+
+    def _deflation_output(self, t_ns: int, radii: RadiusErrors, out: list[Output]) -> None:
+        """The detector's status after ``radii``, when it accepts them."""
+        assert self.monitor is not None
+        step = self.monitor.on_radii(radii)
+        if step is not None:
+            self._emit(DeflationOutput(t_ns, step), out)
 
     def _wheel_odometry_output(self, t_ns: int, est: RadiusEstimate, out: list[Output]) -> None:
         """The corrected twist and effective radii of ``est``; an estimate they cannot be

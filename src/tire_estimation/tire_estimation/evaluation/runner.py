@@ -416,14 +416,16 @@ class ImuLateralRecorder:
         """Count IMU steps; record the estimate when due."""
         if type(sample) is not ImuSample:
             return
-        self.trace.steps += 1
+        trace = self.trace
+        trace.steps += 1
         if not getattr(self._ready_of, "initialized", False):
             return
         t_ns = sample.t_ns
-        if self._next_ns is not None and t_ns < self._next_ns:
+        next_ns = self._next_ns
+        if next_ns is not None and t_ns < next_ns:
             return
         self._next_ns = t_ns + self._period_ns
-        _record_lateral(self.trace, self.estimator.estimate(), t_ns)
+        _record_lateral(trace, self.estimator.estimate(), t_ns)
 
     def on_output(self, pipeline: EstimationPipeline, output: Output) -> None:
         """Outputs are not part of this trace."""
@@ -492,10 +494,12 @@ def _record_lateral(trace: ImuLateralTrace, est: Any, t_ns: int) -> None:
     if hasattr(est, "stiffness"):
         if not trace.stiffness_names:
             trace.stiffness_names = tuple(est.names)
-            trace.nominal = np.asarray(est.nominal, dtype=float).copy()
-        trace.stiffness.append(np.asarray(est.stiffness, dtype=float).copy())
-        trace.stiffness_std.append(np.asarray(est.stiffness_std, dtype=float).copy())
+            trace.nominal = np.array(est.nominal, dtype=float)
+        # (np.array copies, as asarray followed by copy)
+        trace.stiffness.append(np.array(est.stiffness, dtype=float))
+        trace.stiffness_std.append(np.array(est.stiffness_std, dtype=float))
         trace.active.append(bool(est.active))
         trace.gyro_bias_rad_s.append(float(est.gyro_bias_rad_s[2]))
-    if getattr(est, "mean_log_predictive", None) is not None:
-        trace.mean_log_predictive = float(est.mean_log_predictive)
+    mean_log_predictive = getattr(est, "mean_log_predictive", None)
+    if mean_log_predictive is not None:
+        trace.mean_log_predictive = float(mean_log_predictive)

@@ -157,6 +157,12 @@ class DeflationDetector:
         """Status at the last accepted sample."""
         return self._status(self._t_prev_ns, accepted=True)
 
+    def latched_alarms(self) -> tuple[set[str], bool]:
+        """The wheels whose alarm is latched and whether the common channel's is: the
+        ``alarm`` flags of :meth:`status`, without making the status."""
+        wheels = {name for name, w in self._wheels.items() if w.alarm_t_ns is not None}
+        return wheels, self.config.common_channel and self._common.alarm_t_ns is not None
+
     def recalibrate(self) -> None:
         """Forget calibration, CUSUM sums and latched alarms; start a new calibration."""
         for name, old in self._wheels.items():

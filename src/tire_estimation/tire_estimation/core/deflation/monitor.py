@@ -126,9 +126,7 @@ class DeflationMonitor:
             self.events["radii_without_odometry"] += 1
         det = self.detector
         before = det.calibration_state
-        previous = det.status()
-        alarms_before = {w.wheel_name for w in previous.wheels if w.alarm}
-        common_before = previous.common is not None and previous.common.alarm
+        alarms_before, common_before = det.latched_alarms()
         status = det.step(radii, speed, self.braking)
         if not status.accepted:
             return None

@@ -153,6 +153,10 @@ class AxleCheck:
         self._yaw_rate: float | None = None
         self._last_t_ns: int | None = None
         self._fits = {axle: _AxleFit(c.block_s, c.memory_s) for axle in AXLES}
+        # per axle (name, left index, right index, fit), for the per-sample loop
+        self._axles = tuple((axle, i, j, self._fits[axle]) for axle, (i, j) in AXLES.items())
+        self._min_speed_m_s = c.min_speed_m_s
+        self._min_yaw_rate_rad_s = c.min_yaw_rate_rad_s
         self._turning = dict.fromkeys(AXLES, 0)
         # the slope of the last verdict, kept while the recent turns carry too little
         # information (a straight stretch does not undo what the turns showed)
@@ -168,19 +172,21 @@ class AxleCheck:
         r = self._yaw_rate
         if r is None or last is None:
             return
-        c = self.config
         dt_s = min(max((t_ns - last) * 1e-9, 0.0), _MAX_DT_S)
         x = r * self._gain_s
-        turning = abs(r) >= c.min_yaw_rate_rad_s
-        for axle, (i, j) in AXLES.items():
-            wl, wr = float(wheel_speed_rad_s[i]), float(wheel_speed_rad_s[j])
-            if not (math.isfinite(wl) and math.isfinite(wr)):
+        turning = abs(r) >= self._min_yaw_rate_rad_s
+        if type(wheel_speed_rad_s) is not list:
+            wheel_speed_rad_s = [float(v) for v in wheel_speed_rad_s]
+        radius_m, min_speed_m_s, isfinite = self._radius_m, self._min_speed_m_s, math.isfinite
+        for axle, i, j, fit in self._axles:
+            wl, wr = wheel_speed_rad_s[i], wheel_speed_rad_s[j]
+            if not (isfinite(wl) and isfinite(wr)):
                 continue
             w = 0.5 * (wl + wr)
-            if w * self._radius_m < c.min_speed_m_s:
+            if w * radius_m < min_speed_m_s:
                 continue
             self._turning[axle] += turning
-            self._fits[axle].add(t_ns, dt_s, x, w, wr - wl)
+            fit.add(t_ns, dt_s, x, w, wr - wl)
 
     def slope(self, axle: str) -> float:
         """Least-squares slope of the measured on the expected difference (split fitted per

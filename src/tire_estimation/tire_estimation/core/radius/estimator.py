@@ -352,6 +352,7 @@ class RadiusEstimator(GnssHandling, Reporting, Gates):
         stream = self._streams["wheel"]
         last = stream.last_t_ns
         ws: Any = None
+        vals: list[float] | None = None
         if (
             type(t_ns) is int
             and (last is None or t_ns > last)
@@ -365,6 +366,8 @@ class RadiusEstimator(GnssHandling, Reporting, Gates):
             total = sum(vals)
             if total - total == 0.0 and min(vals) >= -1000.0 and max(vals) <= 1000.0:
                 ws = np.array(vals)
+            else:
+                vals = None
         if ws is None:
             try:
                 self._check_order("wheel", t_ns)
@@ -374,14 +377,18 @@ class RadiusEstimator(GnssHandling, Reporting, Gates):
                 self._drop("wheel_speeds", kind)
                 return
             t_ns = int(t_ns)
-        self.axles.on_wheel_speeds(t_ns, ws)
+        checked = ws
+        self.axles.on_wheel_speeds(t_ns, ws if vals is None else vals)
         if self.axles.locked("rear"):
             # the rear wheels cannot be told apart (eq. 6b gives no heading change): the
             # heading change from the gyro, the axle's common radius from the mean speed
             ws = self._rear_heading_from_gyro(t_ns, ws)
         for correct, value in self._rolling:
             ws = correct(self, value, t_ns, ws)
-        w3, w4 = ws[RL:].tolist()
+        if ws is checked and vals is not None:
+            w3, w4 = vals[RL], vals[RL + 1]  # the same values, without the slice
+        else:
+            w3, w4 = ws[RL:].tolist()
         if last is not None and (t_ns - last) * 1e-9 <= self.config.max_gap_s:
             # slope distance rolled by the rear wheels (nominal radius) for the grade fit
             r_half = 0.5 * self.model.nominal_radius_m

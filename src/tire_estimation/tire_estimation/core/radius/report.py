@@ -122,9 +122,9 @@ class Reporting:
     _prev_ws: F64 | None
     _t_pose_ns: int | None
 
-    def estimate(self) -> RadiusEstimate:
-        """Current estimate (always finite). Reading it changes nothing in the filter (the MPF's
-        queued predictions are not processed for it: :meth:`RadiusMPF.peek`)."""
+    def _radii(self) -> tuple[MpfEstimate, tuple[str, ...], F64, F64, F64, tuple[bool, ...]]:
+        """The MPF estimate and, per wheel covered, the radius errors, their std, the noise std
+        and whether each is updated now (before :func:`sanitize`)."""
         # the estimate computed after the last fix is still valid if nothing changed since
         fresh = getattr(self, "_cache_version", -1) == self.mpf.version
         est = self._cache if fresh else self.mpf.peek()
@@ -147,6 +147,23 @@ class Reporting:
             std = np.concatenate([fstd, std])
             noise = np.concatenate([np.sqrt(np.maximum(np.diag(fe.noise_cov), 0.0)), noise])
             active = (self._active,) * 4
+        return est, wheels, mean, std, noise, active
+
+    def radius_errors(self) -> tuple[tuple[str, ...], list[float], list[float], list[bool]]:
+        """``wheels``, ``radius_error_m``, ``radius_error_std_m`` and ``active`` of
+        :meth:`estimate` (the same values, as lists), without the rest of it."""
+        _, wheels, mean, std, _, active = self._radii()
+        return (
+            tuple(wheels),
+            sanitize(mean).tolist(),
+            sanitize(std, 1.0).tolist(),
+            [bool(a) for a in active],
+        )
+
+    def estimate(self) -> RadiusEstimate:
+        """Current estimate (always finite). Reading it changes nothing in the filter (the MPF's
+        queued predictions are not processed for it: :meth:`RadiusMPF.peek`)."""
+        est, wheels, mean, std, noise, active = self._radii()
         ws = self._prev_ws if self._prev_ws is not None else np.zeros(4)
         # eq. (6) with the MMSE mean radius errors (the cache set above)
         v, yr = self._speed_yaw_rate(ws)
@@ -186,7 +203,7 @@ class Reporting:
                 if self.config.rear_brake_slip_s2_per_m
                 else self.braking_decel_at(int(self._t_pose_ns or 0))
             ),
-            rear_radius_error_cov_m2=sanitize(mc, 1.0),
+            rear_radius_error_cov_m2=sanitize(est.radius.mean_cov, 1.0),
             road_grade_source=self.grade.source,
             road_grade_counts=dict(self.grade.counts),
         )
