@@ -263,3 +263,23 @@ def test_a_speed_stamped_after_the_imu_sample_is_not_used() -> None:
             est.on_imu(t + k * 10_000_000, [0.0, 0.0, 0.0], [0.0, 0.0, 9.81])
     assert not future.initialized
     assert now.initialized
+
+
+@pytest.mark.parametrize("first_learning", ["mpf", "grid"])
+def test_the_trace_row_holds_the_values_of_the_estimate(first_learning: str) -> None:
+    cfg = StiffnessEstimatorConfig(n_particles=50, first_learning=first_learning)
+    est = StiffnessEstimator(cfg, VehicleParams(), np.random.default_rng(3))
+    # steering with longitudinal excitation: Cx and the cornering stiffness learned (for less
+    # than the grid's hand-over time, so that the grid's cornering stiffness is published)
+    t = _drive(est, 0.0, 2.0)
+    t = _drive(est, t, 1.5, steer=0.02, accel_x=np.sin(np.arange(150) * 0.05))
+    if first_learning == "grid":
+        assert est._published_grid() is not None  # the grid's cornering stiffness is published
+    e, row = est.estimate(), est.trace_row()
+    assert row.active == e.active is True
+    assert (row.vx_m_s, row.vy_m_s, row.yaw_rate_rad_s) == (e.vx_m_s, e.vy_m_s, e.yaw_rate_rad_s)
+    assert row.sideslip_rad == e.sideslip_rad
+    np.testing.assert_array_equal(row.stiffness, e.stiffness)
+    np.testing.assert_array_equal(row.stiffness_std, e.stiffness_std)
+    assert row.gyro_bias_rad_s == e.gyro_bias_rad_s[2]
+    assert row.mean_log_predictive == e.mean_log_predictive

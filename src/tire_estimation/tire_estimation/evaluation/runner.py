@@ -24,6 +24,7 @@ from tire_estimation.core.pipeline import (
 from tire_estimation.core.radius.config import RadiusEstimatorConfig
 from tire_estimation.core.radius.estimator import RadiusEstimator
 from tire_estimation.core.samples import GnssFix, GnssVelocity, ImuSample, Sample, TireForces
+from tire_estimation.core.stiffness.model import NAMES as STIFFNESS_NAMES
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.evaluation.agreement import COLUMNS as AGREEMENT_COLUMNS
 from tire_estimation.evaluation.agreement import AgreementBins
@@ -411,6 +412,8 @@ class ImuLateralRecorder:
         self._next_ns: int | None = None
         mpf = getattr(estimator, "mpf", None)
         self._ready_of = mpf if mpf is not None else estimator
+        # the stiffness MPF's trace row costs a fraction of its whole estimate
+        self._row = getattr(estimator, "trace_row", estimator.estimate)
 
     def on_sample(self, pipeline: EstimationPipeline, sample: Sample, result: Any) -> None:
         """Count IMU steps; record the estimate when due."""
@@ -425,7 +428,7 @@ class ImuLateralRecorder:
         if next_ns is not None and t_ns < next_ns:
             return
         self._next_ns = t_ns + self._period_ns
-        _record_lateral(trace, self.estimator.estimate(), t_ns)
+        _record_lateral(trace, self._row(), t_ns, self.estimator)
 
     def on_output(self, pipeline: EstimationPipeline, output: Output) -> None:
         """Outputs are not part of this trace."""
@@ -485,7 +488,9 @@ class DeflationRecorder:
             self.alarms.append(("all", output.t_ns if alarm_t is None else alarm_t))
 
 
-def _record_lateral(trace: ImuLateralTrace, est: Any, t_ns: int) -> None:
+def _record_lateral(trace: ImuLateralTrace, est: Any, t_ns: int, estimator: Any) -> None:
+    """Append ``est`` (an estimate, or a stiffness filter's :class:`TraceRow`) of
+    ``estimator``."""
     trace.t_ns.append(t_ns)
     trace.vx_m_s.append(float(est.vx_m_s))
     trace.vy_m_s.append(float(est.vy_m_s))
@@ -493,13 +498,14 @@ def _record_lateral(trace: ImuLateralTrace, est: Any, t_ns: int) -> None:
     trace.sideslip_rad.append(float(est.sideslip_rad))
     if hasattr(est, "stiffness"):
         if not trace.stiffness_names:
-            trace.stiffness_names = tuple(est.names)
-            trace.nominal = np.array(est.nominal, dtype=float)
+            trace.stiffness_names = tuple(getattr(est, "names", STIFFNESS_NAMES))
+            trace.nominal = np.array(estimator.nominal, dtype=float)
         # (np.array copies, as asarray followed by copy)
         trace.stiffness.append(np.array(est.stiffness, dtype=float))
         trace.stiffness_std.append(np.array(est.stiffness_std, dtype=float))
         trace.active.append(bool(est.active))
-        trace.gyro_bias_rad_s.append(float(est.gyro_bias_rad_s[2]))
+        bias = est.gyro_bias_rad_s
+        trace.gyro_bias_rad_s.append(float(bias if isinstance(bias, float) else bias[2]))
     mean_log_predictive = getattr(est, "mean_log_predictive", None)
     if mean_log_predictive is not None:
         trace.mean_log_predictive = float(mean_log_predictive)

@@ -23,7 +23,12 @@ from tire_estimation.core import state_checks as checks
 from tire_estimation.core.arrays import F64
 from tire_estimation.core.stiffness.config import StiffnessEstimatorConfig
 from tire_estimation.core.stiffness.filter import FilterEstimate, Measurement, StiffnessFilter
-from tire_estimation.core.stiffness.frontend import StiffnessEstimate, StiffnessFrontEnd
+from tire_estimation.core.stiffness.frontend import (
+    StiffnessEstimate,
+    StiffnessFrontEnd,
+    TraceRow,
+    sideslip,
+)
 from tire_estimation.core.stiffness.grid import GridConfig, GridEkf, posterior
 from tire_estimation.core.stiffness.model import (
     MAX_STIFFNESS_FRACTION,
@@ -195,18 +200,38 @@ class StiffnessEstimator(StiffnessFrontEnd[MpfFilter]):
     def estimate(self) -> StiffnessEstimate:
         """Current estimate (see :class:`StiffnessEstimate`)."""
         e = self.filter.estimate()
-        if self._grid is not None and self._grid.learned_s > 0.0:
-            # first_learning = grid: the grid's cornering stiffness until the hand-over, or until
-            # grid_publish_s
-            g = self._grid.estimate()
+        grid = self._published_grid()
+        if grid is not None:
             e = dataclasses.replace(
                 e,
-                stiffness=np.concatenate([e.stiffness[:1], g.stiffness[1:]]),
-                stiffness_std=np.concatenate([e.stiffness_std[:1], g.stiffness_std[1:]]),
+                stiffness=np.concatenate([e.stiffness[:1], grid.stiffness[1:]]),
+                stiffness_std=np.concatenate([e.stiffness_std[:1], grid.stiffness_std[1:]]),
             )
-        return self._published(
-            e, mean_log_predictive=self.mpf.log_evidence / max(self.mpf.evidence_steps, 1)
-        )
+        return self._published(e, mean_log_predictive=self._mean_log_predictive())
+
+    def trace_row(self) -> TraceRow:
+        """What a recorder keeps of :meth:`estimate` at every IMU sample, without building the
+        estimate: the same values."""
+        out = self.mpf.estimate_vector()
+        stiffness, stiffness_std = out[0:3].copy(), out[3:6].copy()
+        grid = self._published_grid()
+        if grid is not None:
+            stiffness[1:], stiffness_std[1:] = grid.stiffness[1:], grid.stiffness_std[1:]
+        vx, vy, r = out[9:12].tolist()
+        return TraceRow(
+            vx, vy, r, sideslip(vx, vy), stiffness, stiffness_std, self._active, float(out[23]),
+            self._mean_log_predictive(),
+        )  # fmt: skip
+
+    def _published_grid(self) -> FilterEstimate | None:
+        """``first_learning`` = ``grid``: the grid's estimate, whose cornering stiffness is
+        published until the hand-over, or until ``grid_publish_s``; else None."""
+        if self._grid is not None and self._grid.learned_s > 0.0:
+            return self._grid.estimate()
+        return None
+
+    def _mean_log_predictive(self) -> float:
+        return self.mpf.log_evidence / max(self.mpf.evidence_steps, 1)
 
     def state_dict(self) -> dict[str, Any]:
         """Learned stiffness statistics (JSON-serializable)."""

@@ -28,7 +28,7 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass
-from typing import Any, Generic, TypeAlias, TypeVar
+from typing import Any, Generic, NamedTuple, TypeAlias, TypeVar
 
 import numpy as np
 
@@ -120,6 +120,26 @@ class StiffnessEstimate:
     sideslip_rad: float
     covariance: F64
     mean_log_predictive: float | None = None
+
+
+class TraceRow(NamedTuple):
+    """The part of a :class:`StiffnessEstimate` a recorder keeps at every IMU sample."""
+
+    vx_m_s: float
+    vy_m_s: float
+    yaw_rate_rad_s: float
+    sideslip_rad: float
+    stiffness: F64
+    stiffness_std: F64
+    active: bool
+    #: yaw-rate (gyro z) bias, rad/s
+    gyro_bias_rad_s: float
+    mean_log_predictive: float | None
+
+
+def sideslip(vx_m_s: float, vy_m_s: float) -> float:
+    """Sideslip angle of the velocity (vx, vy), rad (vx floored at 1 mm/s)."""
+    return math.atan2(vy_m_s, max(vx_m_s, 1e-3))
 
 
 class SlidingWindow:
@@ -434,7 +454,7 @@ class StiffnessFrontEnd(Generic[F]):
             vx_m_s=vx,
             vy_m_s=vy,
             yaw_rate_rad_s=r,
-            sideslip_rad=math.atan2(vy, max(vx, 1e-3)),
+            sideslip_rad=sideslip(vx, vy),
             covariance=e.state_cov,
             mean_log_predictive=mean_log_predictive,
         )
@@ -445,5 +465,7 @@ __all__ = [
     "SlidingWindow",
     "StiffnessEstimate",
     "StiffnessFrontEnd",
+    "TraceRow",
+    "sideslip",
     "single_track_params",
 ]
