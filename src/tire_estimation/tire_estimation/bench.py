@@ -189,6 +189,36 @@ def imu_estimator_costs(bag: Path) -> dict[str, Any]:
             "stiffness_learning_fraction": learning / max(n_imu, 1)}  # fmt: skip
 
 
+def tyre_force_costs(bag: Path) -> dict[str, Any]:
+    """CPU time per tyre-force sample, µs, of the tyre-force KF (defaults) on ``bag``'s
+    samples, fed as the replay's pipeline feeds it (wheel speeds, steering, tyre forces) with
+    its estimate after each step, as the pipeline returns it; empty without tyre forces."""
+    from tire_estimation.bag.reader import read_bag
+    from tire_estimation.core.lateral.tyre_force_kf import TyreForceEstimator, TyreForceKFConfig
+    from tire_estimation.core.samples import Steering, TireForces, WheelSpeeds
+    from tire_estimation.sources import bag_samples
+
+    data = read_bag(bag)
+    samples = [s for s in bag_samples(data) if type(s) in (TireForces, WheelSpeeds, Steering)]
+    n = sum(type(s) is TireForces for s in samples)
+    if n == 0:
+        return {}
+    est = TyreForceEstimator(TyreForceKFConfig(), data.vehicle)
+    # the first steps load the compiled kernels: one pass before the timed one
+    for _pass in range(2):
+        est.reset()
+        start = time.process_time()
+        for s in samples:
+            if type(s) is TireForces:
+                est.on_tire_forces(s.t_ns, s.fx_n, s.fy_n, s.fz_n, s.valid)
+            elif type(s) is WheelSpeeds:
+                est.on_wheel_speeds(s.t_ns, s.wheel_speed_rad_s)
+            else:
+                est.on_steering(s.t_ns, s.angle_rad)
+        cpu_s = time.process_time() - start
+    return {"tire_force_samples": n, "tyre_force_kf_us": 1e6 * cpu_s / n}
+
+
 def replay_rtf(
     n_particles: int | None, bag: Path = DEMO_BAG, stiffness: bool = False
 ) -> dict[str, float]:
@@ -561,6 +591,7 @@ def main(argv: list[str] | None = None) -> int:
     # the default replay: every estimator (stiffness MPF and its linear-KF baseline included)
     results["replay_default"] = replay_rtf(None, args.replay_bag, stiffness=True)
     results["imu_estimators"] = imu_estimator_costs(args.replay_bag)
+    results["tyre_force"] = tyre_force_costs(args.replay_bag)
     results["replay_memory"] = memory_against_length(args.memory_bags)
     if not args.skip_node:
         results["node_callback"] = node_callback_time()
