@@ -72,6 +72,9 @@ GRAVITY_M_S2 = 9.81
 STATIC_LOAD_FY_THRESHOLD_N = 300.0
 #: time constant of that static-load average, s (slow against a lane change's load transfer).
 STATIC_LOAD_TIME_CONSTANT_S = 5.0
+#: variance reported for vx, (m/s)^2: the filter does not estimate it, it is the undriven
+#: axle's wheel speed at the nominal radius (0.1 m/s: a radius 0.3 % off at 30 m/s)
+SPEED_VARIANCE_M2_S2 = 0.01
 
 #: The vehicle of Tuononen 2009, Table 1 (track and CG height are not given: defaults).
 TUONONEN_2009_VEHICLE = VehicleParams(
@@ -124,8 +127,6 @@ class TyreForceKFConfig:
         input_timeout_s: steering / wheel-speed samples older than this are stale; a
             tyre-force sample without fresh steering and speed is dropped, s, in (0, 1e12].
             Default 0.5.
-        speed_variance_m2_s2: variance reported for vx (wheel speeds, nominal radius),
-            (m/s)^2, in (0, 1e12]. Default 0.01.
     """
 
     process_noise_vy_m2_s2: float = 0.01
@@ -139,7 +140,6 @@ class TyreForceKFConfig:
     min_speed_m_s: float = 5.0
     max_gap_s: float = 0.5
     input_timeout_s: float = 0.5
-    speed_variance_m2_s2: float = 0.01
 
     RULES: ClassVar[dict[str, Rule]] = {
         "min_speed_m_s": in_range(0.5, 100.0),
@@ -487,7 +487,7 @@ class TyreForceEstimator:
         vy = float(x2[0] - lr * x2[1])
         p00, p01, p10, p11 = float(p2[0, 0]), float(p2[0, 1]), float(p2[1, 0]), float(p2[1, 1])
         cov = np.zeros((3, 3))
-        cov[0, 0] = self.config.speed_variance_m2_s2
+        cov[0, 0] = SPEED_VARIANCE_M2_S2
         cov[1, 1] = (p00 - lr * p10) - lr * (p01 - lr * p11)
         cov[1, 2] = p01 - lr * p11
         cov[2, 1] = p10 - lr * p11
