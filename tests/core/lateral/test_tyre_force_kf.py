@@ -142,6 +142,9 @@ def test_compiled_kf_update_says_when_it_diverged() -> None:
     rows = np.arange(4, dtype=np.intp)
     z = np.array([0.0, 0.0, np.inf, 0.0])
     assert not tyre_force_kernels.update(x, p, rows, z, np.ones(4))
+    # a singular innovation covariance does not raise: the state is not finite
+    x, p = np.zeros(4), np.zeros((4, 4))
+    assert not tyre_force_kernels.update(x, p, rows, np.ones(4), np.zeros(4))
 
 
 def test_axle_force_deviation_is_eq_29() -> None:

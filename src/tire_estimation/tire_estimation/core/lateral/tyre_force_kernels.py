@@ -31,7 +31,7 @@ def kf_constants(
     )
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def predict(x: F64, p: F64, consts: F64, dt_s: float, vx_m_s: float, moment_nm: float) -> None:
     """Time update of ``x`` (4,) and ``p`` (4, 4) in place over ``dt_s`` at ``vx_m_s``, with
     a known yaw moment ``moment_nm`` held over the step."""
@@ -58,7 +58,7 @@ def predict(x: F64, p: F64, consts: F64, dt_s: float, vx_m_s: float, moment_nm: 
         p[i, i] += consts[4 + i]
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _solve(s: F64, b: F64) -> F64:
     """``s^-1 b`` of an (n, n) ``s`` and (n, k) ``b``: Gaussian elimination with partial
     pivoting (n <= 4)."""
@@ -91,7 +91,7 @@ def _solve(s: F64, b: F64) -> F64:
     return y
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def update(x: F64, p: F64, rows: np.ndarray, z: F64, r_diag: F64) -> bool:
     """Measurement update of ``x``, ``p`` in place with the rows ``rows`` (n,) of the identity
     measurement, ``z`` (n,) and diagonal ``R`` (n,); False when the result is not finite."""
