@@ -35,13 +35,13 @@ MF_CURVATURE_E = -0.5
 MF_FRICTION_MU = 1.0
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _shape(x: float, e: float) -> float:
     """phi(x) = x - E (x - atan x), the inner argument of eq. (11) for x = B alpha."""
     return x - e * (x - math.atan(x))
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def magic_formula(alpha_rad: float, b_1_rad: float, c: float, d_n: float, e: float) -> float:
     """Lateral force of eq. (11), N, for slip angle ``alpha_rad`` (rad).
 
@@ -90,7 +90,7 @@ def inverse_magic_formula(
     return _inverse_magic_formula(fy_n, b_1_rad, c, d_n, e, xp)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _inverse_magic_formula(
     fy_n: float, b_1_rad: float, c: float, d_n: float, e: float, xp: float
 ) -> float:
@@ -109,7 +109,7 @@ def _inverse_magic_formula(
     return math.copysign(x / b_1_rad, fy_n)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _inverse_shape(phi: float, e: float, x_hi: float) -> float:
     """The x in [0, x_hi] with phi(x) = x - E (x - atan x) = ``phi`` (E < 1: phi is strictly
     increasing, phi'(x) = 1 - E + E / (1 + x^2) > 0). Newton's method kept inside a shrinking
@@ -133,7 +133,7 @@ def _inverse_shape(phi: float, e: float, x_hi: float) -> float:
     return x
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def virtual_load(
     fz_measured_n: float, fz_measured_static_n: float, fz_virtual_static_n: float
 ) -> float:
@@ -199,7 +199,7 @@ class MagicFormulaTyre:
         )  # fmt: skip
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _factors(
     cornering_stiffness_n_rad: float, c: float, mu: float, fz_n: float
 ) -> tuple[float, float]:
@@ -209,7 +209,7 @@ def _factors(
     return cornering_stiffness_n_rad / (c * d), d
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _virtual_force(
     fy_measured_n: float,
     fz_measured_n: float,
