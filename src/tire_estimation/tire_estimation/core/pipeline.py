@@ -521,8 +521,9 @@ class EstimationPipeline:
     def _stiffness_outputs(
         self, stiffness: StiffnessEstimator, t_ns: int, out: list[Output]
     ) -> None:
-        """Stiffness at its period and, while the tyre-force KF is silent, the lateral state."""
-        if not self.outputs or not stiffness.mpf.initialized:
+        """Stiffness at its period and, while the tyre-force KF is silent, the lateral state
+        (called only when the pipeline makes outputs)."""
+        if not stiffness.mpf.initialized:
             return
         stiff_due = self._due("stiffness", t_ns)
         last_tf = self._last_tyre_force_ns

@@ -212,8 +212,8 @@ class StiffnessEstimator(StiffnessFrontEnd[MpfFilter]):
     def trace_row(self) -> TraceRow:
         """What a recorder keeps of :meth:`estimate` at every IMU sample, without building the
         estimate: the same values."""
-        out = self.mpf.estimate_vector()
-        stiffness, stiffness_std = out[0:3].copy(), out[3:6].copy()
+        out = self.mpf.estimate_vector()  # a new vector at every call: its slices are ours
+        stiffness, stiffness_std = out[0:3], out[3:6]
         grid = self._published_grid()
         if grid is not None:
             stiffness[1:], stiffness_std[1:] = grid.stiffness[1:], grid.stiffness_std[1:]
