@@ -29,3 +29,25 @@ def test_a_late_gnss_is_explained(tmp_path: Path, capsys: pytest.CaptureFixture[
     assert res["consistent"] is False
     assert res["why"] and all(isinstance(w, str) and len(w) > 20 for w in res["why"])
     assert printed.count("    why: ") == len(res["why"])
+
+
+def test_an_overstated_noise_alone_says_the_std_may_be_too_large() -> None:
+    """The summary's meaning of a False verdict: "too large" only when the mean NIS far below
+    its band is the one failure; with an effect or a high NIS it keeps "too small"."""
+    from tire_estimation.replay import _only_overstated_noise
+
+    tests = {
+        "mean_nis_ok": False,
+        "mean_nis": 0.03,
+        "mean_nis_bounds_95": [1.84, 2.17],
+        "white_decimated": True,
+        "score_threshold": 4.0,
+    }
+    weak = [{"effect": "rear_brake_slip", "score": 2.7, "material": True}]
+    assert _only_overstated_noise({"tests": tests, "suspected_effects": weak})
+    strong = [{"effect": "gnss_latency", "score": 5.5, "material": True}]
+    assert not _only_overstated_noise({"tests": tests, "suspected_effects": strong})
+    high = dict(tests, mean_nis=2.5)
+    assert not _only_overstated_noise({"tests": high, "suspected_effects": weak})
+    correlated = dict(tests, white_decimated=False)
+    assert not _only_overstated_noise({"tests": correlated, "suspected_effects": []})

@@ -608,3 +608,24 @@ def test_explain_says_why_in_words() -> None:
     assert all(e.words for e in rs.EFFECTS) and set(rs.DEFAULT_GRIDS) == set(rs.BY_NAME)
     report["suspected_effects"] = [{"effect": "road_grade", "score": 1.0}]
     assert rs.explain(report)[0].startswith("no known effect is significant; the closest is")
+
+
+@pytest.mark.parametrize(
+    ("mean_nis", "ok"),
+    [(2.0, True), (1.2, True), (0.6, True), (0.4, False), (0.03, False), (2.3, False)],
+)
+def test_mean_nis_fails_above_its_band_and_far_below_it(mean_nis: float, ok: bool) -> None:
+    """A mean NIS above the 95 % band fails; below the band it fails only when the stated
+    covariance is at least four times the scatter (mean NIS < 0.5), and the words say the
+    fixes are better than stated, not that something is missing."""
+    tests = {"mean_nis": mean_nis, "mean_nis_bounds_95": [1.9, 2.1]}
+    assert rs._mean_nis_ok(tests) is ok
+    report = {"consistent": False, "tests": {**tests, "mean_nis_ok": ok}, "suspected_effects": []}
+    lines = rs.explain(report)
+    if ok:
+        assert lines == []
+    elif mean_nis > 2.1:
+        assert "more than their stated accuracy" in lines[0]
+    else:
+        assert "scatter far less than the filter predicts" in lines[0]
+        assert f"1/{2.0 / mean_nis:.0f} of the predicted variance" in lines[0]

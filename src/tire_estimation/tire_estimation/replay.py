@@ -169,12 +169,34 @@ class ReplayReport:
                 else "the GNSS innovations do not fit the filter's noise model: an effect the "
                 "model lacks, or wrong noise settings; the reported std may be too small"
             )
+            if res["consistent"] is False and _only_overstated_noise(res):
+                meaning = (
+                    "the GNSS innovations are far smaller than the filter's noise model "
+                    "predicts: the reported std may be too large"
+                )
             lines.append(f"  innovations consistent: {res['consistent']} ({meaning})")
             lines.extend(f"    why: {why}" for why in res.get("why", []))
         elif res.get("tests", {}).get("note"):
             lines.append(f"  innovations not tested: {res['tests']['note']}")
         lines.append(f"  report: {self.out_dir / 'metrics.json'}")
         return "\n".join(lines)
+
+
+def _only_overstated_noise(res: dict[str, Any]) -> bool:
+    """Whether the only failed test of an inconsistent verdict is a mean NIS far below its
+    band (the stated noise larger than the innovations), with no effect significant."""
+    tests = res.get("tests", {})
+    bounds = tests.get("mean_nis_bounds_95")
+    if tests.get("mean_nis_ok") is not False or bounds is None:
+        return False
+    low = float(tests["mean_nis"]) < float(bounds[0])
+    others_pass = tests.get("white_decimated", True) and tests.get("white_normalized", True)
+    threshold = float(tests.get("score_threshold", 4.0))
+    no_effect = all(
+        e["score"] < threshold or not e.get("material", True)
+        for e in res.get("suspected_effects", [])
+    )
+    return bool(low and others_pass and no_effect and tests.get("likelihood_ratio_ok", True))
 
 
 def _closed_loop_lines(loop: dict[str, Any]) -> list[str]:

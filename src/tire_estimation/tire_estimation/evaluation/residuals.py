@@ -89,6 +89,11 @@ SCORE_THRESHOLD = 4.0
 #: (the correct-model innovations of a 10 Hz fix stream are correlated over a few fixes by the
 #: slowly varying GNSS error; 1 s spacing keeps the effective sample count honest).
 DECIMATION_S = 1.0
+#: A mean NIS below its 95 % band fails the verdict only when it is also below this share of
+#: its expectation (the dimension, 2): the fixes' stated covariance (with the modelled GNSS
+#: error) is then at least four times their scatter, their std at least twice. A smaller
+#: overstatement leaves the reported std conservative by less than that factor.
+NIS_LOW_MATERIAL_SHARE = 0.25
 
 
 #: the candidate effects: every switchable effect of the estimator (its config field, scan grid,
@@ -308,11 +313,7 @@ def analyze(
         effects = _with_agreement(effects, sensor_agreement)
     # the effects that matter first, each group by score
     effects.sort(key=lambda e: (not e.get("material", True), -e["score"]))
-    nis_ok = True
-    if "mean_nis_bounds_95" in base:
-        _lo, hi = base["mean_nis_bounds_95"]
-        # a mean NIS above the bound: the model misses something (below: R too pessimistic)
-        nis_ok = bool(base["mean_nis"] <= hi)
+    nis_ok = _mean_nis_ok(base)
     white = bool(p_a > 0.01 and p_c > 0.01)
     significant = [e for e in effects if e["score"] >= SCORE_THRESHOLD and e.get("material", True)]
     tests["mean_nis_ok"] = nis_ok
@@ -324,6 +325,19 @@ def analyze(
         "tests": tests,
         "suspected_effects": [] if consistent else significant or effects[:1],
     }
+
+
+def _mean_nis_ok(base: Mapping[str, Any]) -> bool:
+    """Whether the mean NIS of the accepted fixes fits the noise model: at most the upper 95 %
+    bound (above it the model misses something, or the stated covariance is too small), and
+    not materially below the lower bound (:data:`NIS_LOW_MATERIAL_SHARE`: the stated
+    covariance far larger than the fixes' scatter). True without a mean NIS."""
+    if "mean_nis_bounds_95" not in base:
+        return True
+    lo, hi = base["mean_nis_bounds_95"]
+    mean = float(base["mean_nis"])
+    too_low = mean < lo and mean < NIS_LOW_MATERIAL_SHARE * 2.0
+    return bool(mean <= hi and not too_low)
 
 
 def _with_agreement(
@@ -367,8 +381,7 @@ def _untested(base: dict[str, Any]) -> dict[str, Any]:
     tests["note"] = "too few innovations while moving to test for effects"
     if "mean_nis" not in base:
         return {"consistent": None, "tests": tests, "suspected_effects": []}
-    _lo, hi = base["mean_nis_bounds_95"]
-    tests["mean_nis_ok"] = bool(base["mean_nis"] <= hi)
+    tests["mean_nis_ok"] = _mean_nis_ok(base)
     tests["white_normalized"] = bool(
         base["ljung_box_p_east"] > 0.01 and base["ljung_box_p_north"] > 0.01
     )
@@ -414,12 +427,24 @@ def explain(report: Mapping[str, Any]) -> list[str]:
                 f"{eff['score']:.1f}, significant from {SCORE_THRESHOLD:g})"
             )
     if tests.get("mean_nis_ok") is False:
-        _lo, hi = tests["mean_nis_bounds_95"]
-        lines.append(
-            f"the fixes disagree with the model by more than their stated accuracy (mean NIS "
-            f"{tests['mean_nis']:.2f}, at most {hi:.2f} expected): a missing effect, or a fix "
-            "covariance that is too small"
-        )
+        lo, hi = tests["mean_nis_bounds_95"]
+        mean = float(tests["mean_nis"])
+        if mean > hi:
+            lines.append(
+                f"the fixes disagree with the model by more than their stated accuracy (mean "
+                f"NIS {mean:.2f}, at most {hi:.2f} expected): a missing effect, or a fix "
+                "covariance that is too small"
+            )
+        else:
+            # E[NIS] = 2 (the dimension) when the predicted innovation covariance is right
+            lines.append(
+                f"the fixes scatter far less than the filter predicts (mean NIS {mean:.2f}, at "
+                f"least {lo:.2f} expected: 1/{2.0 / max(mean, 1e-9):.0f} of the predicted "
+                "variance): the fix covariance overstates their error, or their error is mostly "
+                "slowly varying (the share radius.gnss_bias_fraction models, at most 0.9); the "
+                "filter weighs the fixes less than it could and the reported radius std may be "
+                "too large"
+            )
     if tests.get("white_decimated") is False:
         lb = tests.get("ljung_box_decimated", {})
         lines.append(
