@@ -270,6 +270,41 @@ def test_gates_pause_below_min_speed_and_when_braking():
     assert e.state == "running" and e.active == (True, True), e.state_reason
 
 
+def test_learning_pauses_while_no_fix_is_accepted():
+    """Without fixes nothing weighs the drawn radius errors: learning pauses after five fix
+    periods (at least 1 s), the NiW statistics stay as they were, and the next fix resumes."""
+    est = RadiusEstimator(RadiusEstimatorConfig(n_particles=100), VEH, np.random.default_rng(9))
+    m_ws = lambda v: np.full(4, v / R_NOM)  # noqa: E731
+    t = 0
+    for k in range(601):  # 6 s straight at 20 m/s, fixes at 10 Hz
+        t = k * 10_000_000
+        if k % 10 == 0:
+            est.on_gnss_enu(t, np.array([0.2 * k, 0.0]), np.eye(2))
+        est.on_wheel_speeds(t, m_ws(20.0))
+    assert est.estimate().state == "running"
+    assert est.fix_overdue(t + 990_000_000) is False  # within max(1 s, 5 x 0.1 s)
+    for k in range(601, 721):  # 1.2 s without a fix: paused from 1 s
+        est.on_wheel_speeds(k * 10_000_000, m_ws(20.0))
+    assert est.estimate().state_reason == "no GNSS fix"
+    gamma_before = float(est.mpf.stats.gamma)
+    for k in range(721, 801):
+        est.on_wheel_speeds(k * 10_000_000, m_ws(20.0))
+    e = est.estimate()
+    assert e.state == "paused" and e.state_reason == "no GNSS fix", e.state_reason
+    assert e.active == (False, False)
+    assert float(est.mpf.stats.gamma) == gamma_before
+    t = 801 * 10_000_000
+    est.on_gnss_enu(t, np.array([0.2 * 801, 0.0]), np.eye(2))
+    est.on_wheel_speeds(t + 10_000_000, m_ws(20.0))
+    assert est.estimate().state == "running"
+    # a 1 Hz receiver: the same 2 s without a fix is not yet overdue (5 periods)
+    slow = RadiusEstimator(RadiusEstimatorConfig(n_particles=100), VEH, np.random.default_rng(9))
+    for k in range(4):
+        slow.on_gnss_enu(k * 1_000_000_000, np.array([20.0 * k, 0.0]), np.eye(2))
+    assert slow.fix_overdue(5_000_000_000) is False
+    assert slow.fix_overdue(8_500_000_000) is True
+
+
 def test_heading_from_wheel_speeds_while_learning_below_steering_heading_speed():
     """Below ``STEERING_HEADING_SPEED_M_S`` the steer angle (eq. 31a) moves the heading only
     while the radii are paused; while they are learned, equal rear wheel speeds mean straight

@@ -198,6 +198,8 @@ class RadiusEstimator(GnssHandling, Reporting, Gates):
         self._reason = "waiting for wheel speeds"
         self._rejections = 0
         self._t_last_fix_ns: int | None = None
+        self._t_prev_received_ns: int | None = None
+        self._fix_period_s: float | None = None
         #: altitude of the last fix that reported one, m (used for a fix without altitude)
         self._last_alt_m = 0.0
         self.last_fix_enu = None
@@ -436,6 +438,8 @@ class RadiusEstimator(GnssHandling, Reporting, Gates):
         rear wheels as floats (eq. 3, zero-order hold); the gates use the newest sample's rear
         wheel speeds ``w3_new``, ``w4_new``."""
         active, reason, ax, _ay, steer = self._gates(t_ns, dt, w3_new, w4_new)
+        if active and self.fix_overdue(t_ns):
+            active, reason = False, "no GNSS fix"
         steer_for_front = steer if steer is not None else (self._steer[1] if self._steer else 0.0)
         if not self._pose_ok:
             # dead-reckon in the body frame of the anchor fix (two-fix heading initialization)

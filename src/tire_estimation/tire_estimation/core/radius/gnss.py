@@ -34,6 +34,17 @@ GNSS_MAX_REJECTIONS = 5
 #: half a minute of dead reckoning the pose is taken afresh from two fixes rather than trusted
 GNSS_MAX_GAP_S = 30.0
 
+#: learning pauses when no fix has been accepted for this many fix periods (the period taken
+#: from the fixes' own spacing): without fixes nothing weighs the radius errors the particles
+#: draw, so the NiW statistics would count draws as information and the std would shrink
+GNSS_LEARN_TIMEOUT_PERIODS = 5.0
+
+#: ... and at least this long, s (a fix or two missed at 10 Hz does not pause learning)
+GNSS_LEARN_TIMEOUT_MIN_S = 1.0
+
+#: fix spacings above this are outages, not the receiver's period, s
+GNSS_PERIOD_MAX_S = 5.0
+
 #: std of each horizontal velocity component used when a GNSS velocity has no covariance, m/s
 #: (the Doppler accuracy of a consumer receiver)
 GNSS_VELOCITY_DEFAULT_STD_M_S = 0.1
@@ -129,6 +140,8 @@ class GnssHandling:
     _reason: str
     _rejections: int
     _t_last_fix_ns: int | None
+    _t_prev_received_ns: int | None
+    _fix_period_s: float | None
     _last_alt_m: float
     _cache_version: int
 
@@ -213,10 +226,33 @@ class GnssHandling:
             return np.eye(2) * sd**2  # "covariance unknown"
         return np.ascontiguousarray(c[:2, :2])
 
+    def _track_fix_period(self, t_ns: int) -> None:
+        """The receiver's fix period: exponential mean (weight 0.1) of the spacing of the fixes
+        received, outages (above :data:`GNSS_PERIOD_MAX_S`) left out."""
+        prev = self._t_prev_received_ns
+        self._t_prev_received_ns = t_ns
+        if prev is None:
+            return
+        dt = (t_ns - prev) * 1e-9
+        if 0.0 < dt <= GNSS_PERIOD_MAX_S:
+            p = self._fix_period_s
+            self._fix_period_s = dt if p is None else p + 0.1 * (dt - p)
+
+    def fix_overdue(self, t_ns: int) -> bool:
+        """Whether no fix has been accepted for :data:`GNSS_LEARN_TIMEOUT_PERIODS` fix periods
+        (at least :data:`GNSS_LEARN_TIMEOUT_MIN_S`) before ``t_ns``: learning pauses."""
+        last = self._t_last_fix_ns
+        if last is None:
+            return False
+        period = self._fix_period_s or 0.0
+        timeout = max(GNSS_LEARN_TIMEOUT_MIN_S, GNSS_LEARN_TIMEOUT_PERIODS * period)
+        return (t_ns - last) * 1e-9 > timeout
+
     def on_gnss_enu(self, t_ns: int, y_m: F64, r_m2: F64) -> GnssUpdate:
         """GNSS update with a fix already in the local ENU frame (east, north) and its (2, 2)
         covariance. Called by :meth:`on_gnss_fix`; usable directly by tests and simulations."""
         zeros2 = np.zeros(2)
+        self._track_fix_period(t_ns)
         self.mpf.observe_fix_cov(r_m2)
         if self.kf is not None:
             self.kf.observe_fix_cov(r_m2)
