@@ -36,7 +36,7 @@ from tire_estimation.core.input_checks import merged_counts
 from tire_estimation.core.lateral.linear_kf import LinearLateralKF, LinearLateralKFConfig
 from tire_estimation.core.lateral.tyre_force_kf import TyreForceKFConfig
 from tire_estimation.core.pipeline import EstimationPipeline, Observer, PipelineConfig
-from tire_estimation.core.radius.axle_check import AxleCheck
+from tire_estimation.core.radius.axle_check import LOST_SPEED_SHARE, AxleCheck
 from tire_estimation.core.radius.config import RadiusEstimatorConfig
 from tire_estimation.core.stiffness.config import StiffnessEstimatorConfig
 from tire_estimation.core.vehicle import VehicleParams
@@ -127,6 +127,12 @@ class ReplayReport:
             lines.append(
                 f"  REAR AXLE: the left-right split is {rear['reason']}: {common} (mean of the "
                 "two estimates above, which do not tell the two tyres apart)"
+            )
+        for w, lost_s in (r.get("signal_lost_s") or {}).items():
+            lines.append(
+                f"  WHEEL SIGNAL LOST: {w} read below {100 * LOST_SPEED_SHARE:.0f} % of the other "
+                f"wheels' speed for {lost_s:.1f} s; the radii were not learned then (the pose "
+                "used the other rear wheel and the gyro)"
             )
         base = r.get("baseline")
         if base and base.get("final_error_vs_truth_m"):
@@ -808,6 +814,7 @@ def build_metrics(
     radii["nominal_radius_m"] = nominal
     if axles is not None:
         radii["axles"] = {a: dataclasses.asdict(axles.status(a)) for a in ("front", "rear")}
+        radii["signal_lost_s"] = axles.lost_signals()
     grade = arr["road_grade_rad"]
     # the grade the correction used: fixes per source (the GNSS altitude confirmed by the IMU,
     # the IMU's where they disagreed, none) and its size over the drive

@@ -144,3 +144,63 @@ def test_a_spool_turns_the_heading_over_to_the_gyro_and_a_free_axle_does_not() -
         assert rear.split_observable is (not locked), rear
         assert (p.radius.gyro_heading_samples > 1000) is locked
         assert p.axles.status("front").split_observable is True
+
+
+def _dead_rear_left(sim: SimResult, start_s: float, end_s: float) -> SimResult:
+    """The rear-left wheel reads 0 from ``start_s`` to ``end_s`` (a dead sensor)."""
+    ws = sim.wheel_speeds.wheel_speed_rad_s.copy()
+    t = (sim.wheel_speeds.t_ns - sim.wheel_speeds.t_ns[0]) * 1e-9
+    ws[(t >= start_s) & (t < end_s), 2] = 0.0
+    return dataclasses.replace(
+        sim, wheel_speeds=dataclasses.replace(sim.wheel_speeds, wheel_speed_rad_s=ws)
+    )
+
+
+def test_signal_lost_at_once_and_back_after_half_a_second() -> None:
+    """A wheel reading below 20 % of the others loses its signal at the first such sample; it
+    is back after 0.5 s of readings like theirs; a tight turn (inner wheel 73 % of the others)
+    is not a loss; below the check's speed nothing is judged."""
+    check = AxleCheck(VehicleParams())
+    w = 20.0 / VehicleParams().nominal_tire_radius_m
+    t = 0
+    for _ in range(10):
+        t += 10_000_000
+        check.on_wheel_speeds(t, [w, w, 0.73 * w, w])
+    assert not check.signal_lost(2)
+    check.on_wheel_speeds(t + 10_000_000, [w, w, 0.0, w])
+    assert check.signal_lost(2) and not check.signal_lost(3)
+    t += 10_000_000
+    for k in range(1, 50):  # 0.49 s back
+        check.on_wheel_speeds(t + k * 10_000_000, [w, w, w, w])
+    assert check.signal_lost(2)
+    check.on_wheel_speeds(t + 51 * 10_000_000, [w, w, w, w])
+    assert not check.signal_lost(2)
+    assert check.lost_signals() == {"wheel_rl": pytest.approx(0.5, abs=0.02)}
+    slow = AxleCheck(VehicleParams())
+    for k in range(1, 10):
+        slow.on_wheel_speeds(k * 10_000_000, [1.0, 1.0, 0.0, 1.0])  # 0.31 m/s
+    assert not slow.signal_lost(2)
+
+
+def test_a_dead_rear_wheel_pauses_learning_and_keeps_the_pose() -> None:
+    """A rear wheel that reads 0 for 10 s: the estimator says so, learns nothing meanwhile,
+    keeps its pose (the live wheel and the gyro), and the axle verdict is not spoiled."""
+    sim = _dead_rear_left(_drive(), 10.0, 20.0)
+    cfg = RadiusEstimatorConfig(n_particles=50)
+    p = EstimationPipeline(PipelineConfig(radius=cfg), sim.vehicle)
+    samples = list(sim_samples(sim, tire_forces=False))
+    t0 = samples[0].t_ns
+    reasons = set()
+    for s in samples:
+        p.push(s)
+        if p.radius is not None and 12e9 < s.t_ns - t0 < 19e9:
+            reasons.add(p.radius.estimate().state_reason)
+    assert p.radius is not None and p.axles is not None
+    # the other gates (a lane change's lateral acceleration) come first; never learning
+    assert "wheel_rl signal lost" in reasons and "estimating" not in reasons, reasons
+    # 10 s dead and the 0.5 s it takes to come back
+    assert p.axles.lost_signals()["wheel_rl"] == pytest.approx(10.5, abs=0.1)
+    assert p.radius.estimate().state == "running"
+    assert p.radius.stats["wheel_speeds:signal_lost_rl"] > 900
+    assert p.radius.stats.get("gnss_fix:outlier", 0) == 0
+    assert 0.8 < p.axles.status("rear").slope < 1.2

@@ -30,12 +30,21 @@ from typing import Any, ClassVar
 
 from tire_estimation.core.validation import POSITIVE, Rule, check_rules, in_range
 from tire_estimation.core.vehicle import VehicleParams
+from tire_estimation.core.wheels import WHEELS
 
 #: axle name -> (left, right) index in the wheel-speed vector (fl, fr, rl, rr)
 AXLES = {"front": (0, 1), "rear": (2, 3)}
 
 #: longest sample interval one wheel-speed sample stands for, s (a gap counts as this)
 _MAX_DT_S = 0.1
+
+#: a wheel's signal is lost while its speed is below this share of the mean of the other three
+#: (a tyre turns within a few tens of percent of the others, even in a tight turn)
+LOST_SPEED_SHARE = 0.2
+
+#: a lost signal is back after reading within ``1 +- LOST_SPEED_SHARE`` of the others this
+#: long, s
+LOST_AFTER_S = 0.5
 
 
 @dataclass(frozen=True)
@@ -139,8 +148,36 @@ class _AxleFit:
         return self.info + info, self.cross + cross
 
 
+class _SignalCheck:
+    """Whether one wheel's speed signal is lost: it reads (near) zero while the other wheels
+    turn (a dead sensor, a broken cable, a value the bus no longer refreshes)."""
+
+    def __init__(self) -> None:
+        self.lost = False
+        self.lost_s = 0.0
+        self._since_ns: int | None = None
+
+    def add(self, t_ns: int, dt_s: float, share: float) -> None:
+        """One sample: the wheel's speed as a share of the mean of the other three. A reading
+        below :data:`LOST_SPEED_SHARE` loses the signal at once (one such sample turns the
+        heading of eq. 6b by radians within a second); it is back after :data:`LOST_AFTER_S`
+        of readings like the others'."""
+        if share < LOST_SPEED_SHARE:
+            self.lost, self._since_ns = True, None
+        elif self.lost:
+            if abs(share - 1.0) > LOST_SPEED_SHARE:
+                self._since_ns = None
+            elif self._since_ns is None:
+                self._since_ns = t_ns
+            elif (t_ns - self._since_ns) * 1e-9 >= LOST_AFTER_S:
+                self.lost, self._since_ns = False, None
+        if self.lost:
+            self.lost_s += dt_s
+
+
 class AxleCheck:
-    """Fits, per axle, the wheel-speed difference to the one the gyro implies."""
+    """Fits, per axle, the wheel-speed difference to the one the gyro implies, and watches each
+    wheel's signal (:meth:`signal_lost`)."""
 
     def __init__(self, vehicle: VehicleParams, config: AxleCheckConfig | None = None) -> None:
         self.config = config or AxleCheckConfig()
@@ -161,6 +198,32 @@ class AxleCheck:
         # the slope of the last verdict, kept while the recent turns carry too little
         # information (a straight stretch does not undo what the turns showed)
         self._decided: dict[str, float] = {}
+        self._signals = tuple(_SignalCheck() for _ in WHEELS)
+        self._t_signal_ns: int | None = None
+
+    def signal_lost(self, index: int) -> bool:
+        """Whether wheel ``index`` (fl, fr, rl, rr) reads (near) zero while the others turn
+        (for :data:`LOST_AFTER_S`; back once it reads like them again for as long)."""
+        return self._signals[index].lost
+
+    def lost_signals(self) -> dict[str, float]:
+        """Seconds each wheel's signal has been lost, for the wheels whose signal ever was."""
+        return {n: c.lost_s for n, c in zip(WHEELS, self._signals, strict=True) if c.lost_s}
+
+    def _watch_signals(self, t_ns: int, speeds: list[float]) -> None:
+        """Each wheel against the mean of the other three, while those turn at speed."""
+        last, self._t_signal_ns = self._t_signal_ns, t_ns
+        if last is None or len(speeds) != len(WHEELS):
+            return
+        dt_s = min(max((t_ns - last) * 1e-9, 0.0), _MAX_DT_S)
+        mags = [abs(v) for v in speeds]
+        if not all(math.isfinite(v) for v in mags):
+            return
+        total = sum(mags)
+        for k, check in enumerate(self._signals):
+            others = (total - mags[k]) / 3.0
+            if others * self._radius_m >= self._min_speed_m_s:
+                check.add(t_ns, dt_s, mags[k] / others)
 
     def on_imu(self, gyro_rad_s: Any) -> None:
         """The latest gyro yaw rate (z), rad/s."""
@@ -168,6 +231,9 @@ class AxleCheck:
 
     def on_wheel_speeds(self, t_ns: int, wheel_speed_rad_s: Any) -> None:
         """One wheel-speed sample (fl, fr, rl, rr), rad/s; NaN for a wheel not reported."""
+        if type(wheel_speed_rad_s) is not list:
+            wheel_speed_rad_s = [float(v) for v in wheel_speed_rad_s]
+        self._watch_signals(t_ns, wheel_speed_rad_s)
         last, self._last_t_ns = self._last_t_ns, t_ns
         r = self._yaw_rate
         if r is None or last is None:
@@ -175,13 +241,13 @@ class AxleCheck:
         dt_s = min(max((t_ns - last) * 1e-9, 0.0), _MAX_DT_S)
         x = r * self._gain_s
         turning = abs(r) >= self._min_yaw_rate_rad_s
-        if type(wheel_speed_rad_s) is not list:
-            wheel_speed_rad_s = [float(v) for v in wheel_speed_rad_s]
         radius_m, min_speed_m_s, isfinite = self._radius_m, self._min_speed_m_s, math.isfinite
         for axle, i, j, fit in self._axles:
             wl, wr = wheel_speed_rad_s[i], wheel_speed_rad_s[j]
             if not (isfinite(wl) and isfinite(wr)):
                 continue
+            if self._signals[i].lost or self._signals[j].lost:
+                continue  # a lost signal says nothing about the axle
             w = 0.5 * (wl + wr)
             if w * radius_m < min_speed_m_s:
                 continue

@@ -45,7 +45,7 @@ from tire_estimation.core.radius.gnss import (
     Init,
 )
 from tire_estimation.core.radius.inputs import finite, finite_or_zero, floats, parse_wheels
-from tire_estimation.core.radius.model import FL, FR, RL, RadiusMotionModel
+from tire_estimation.core.radius.model import FL, FR, RL, RR, RadiusMotionModel
 from tire_estimation.core.radius.mpf import (
     KERNEL_SHRINKAGE,
     PRIOR_DOF,
@@ -193,12 +193,16 @@ class RadiusEstimator(GnssHandling, Reporting, Gates):
         self._steer: tuple[int, float] | None = None
         self._imu: tuple[int, Any, Any] | None = None
         self._ax_lp = 0.0
+        self._gyro_bias_rad_s = 0.0
+        self._t_gyro_bias_ns: int | None = None
         self._prev_v: float | None = None
         self._active = False
         self._reason = "waiting for wheel speeds"
         self._rejections = 0
         self._t_last_fix_ns: int | None = None
         self._t_prev_received_ns: int | None = None
+        #: index of the rear wheel whose signal is lost (None: both live)
+        self._lost_wheel: int | None = None
         self._fix_period_s: float | None = None
         #: altitude of the last fix that reported one, m (used for a fix without altitude)
         self._last_alt_m = 0.0
@@ -381,10 +385,20 @@ class RadiusEstimator(GnssHandling, Reporting, Gates):
             t_ns = int(t_ns)
         checked = ws
         self.axles.on_wheel_speeds(t_ns, ws if vals is None else vals)
-        if self.axles.locked("rear"):
+        self._lost_wheel = None
+        for k in (RL, RR):
+            if self.axles.signal_lost(k):
+                self._lost_wheel = k
+                self._drop("wheel_speeds", f"signal_lost_{WHEELS[k].removeprefix('wheel_')}")
+        if self._lost_wheel is not None:
+            # the pose moves on with the live rear wheel and the gyro; nothing is learned
+            ws = self._rear_from_live_wheel(t_ns, ws, self._lost_wheel)
+        elif self.axles.locked("rear"):
             # the rear wheels cannot be told apart (eq. 6b gives no heading change): the
             # heading change from the gyro, the axle's common radius from the mean speed
             ws = self._rear_heading_from_gyro(t_ns, ws)
+        elif self._imu is not None:
+            self._track_gyro_bias(t_ns, ws)
         for correct, value in self._rolling:
             ws = correct(self, value, t_ns, ws)
         if ws is checked and vals is not None:
@@ -440,6 +454,8 @@ class RadiusEstimator(GnssHandling, Reporting, Gates):
         active, reason, ax, _ay, steer = self._gates(t_ns, dt, w3_new, w4_new)
         if active and self.fix_overdue(t_ns):
             active, reason = False, "no GNSS fix"
+        if active and self._lost_wheel is not None:
+            active, reason = False, f"{WHEELS[self._lost_wheel]} signal lost"
         steer_for_front = steer if steer is not None else (self._steer[1] if self._steer else 0.0)
         if not self._pose_ok:
             # dead-reckon in the body frame of the anchor fix (two-fix heading initialization)

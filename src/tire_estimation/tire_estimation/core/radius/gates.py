@@ -23,6 +23,13 @@ IMU_TIMEOUT_S = 0.5
 #: IMU), s: smooths the quantization of the wheel-speed sensors over a few tens of samples
 ACCEL_FILTER_TIME_CONSTANT_S = 0.3
 
+#: time constant of the gyro bias estimate (the gyro's yaw rate against the rear wheels' with
+#: the learned radii), s: long against the turns, short against the bias's drift
+GYRO_BIAS_TIME_CONSTANT_S = 30.0
+
+#: the gyro bias is tracked from this speed, m/s (below, the wheel yaw rate is coarse)
+GYRO_BIAS_MIN_SPEED_M_S = 2.0
+
 #: below this speed, while the radii are not learned, the heading is propagated from the steer
 #: angle (eq. 31a) instead of the wheel-speed difference, m/s (the value of Lundquist et al.)
 STEERING_HEADING_SPEED_M_S = 11.0
@@ -36,6 +43,8 @@ class Gates:
     axles: AxleCheck
     gyro_heading_samples: int
     _imu: tuple[int, Any, Any] | None
+    _gyro_bias_rad_s: float
+    _t_gyro_bias_ns: int | None
     _steer: tuple[int, float] | None
     _ax_lp: float
     _prev_v: float | None
@@ -100,6 +109,40 @@ class Gates:
         half = 0.5 * float(imu[1][2]) * self._track_width_m / self._nominal_radius_m
         out = ws.copy()
         out[RL], out[RR] = mean - half, mean + half
+        return out
+
+    def _track_gyro_bias(self, t_ns: int, ws: F64) -> None:
+        """While both rear wheels are live and free: the gyro's yaw-rate bias, a first-order
+        low-pass (:data:`GYRO_BIAS_TIME_CONSTANT_S`) of the gyro's yaw rate minus eq. (6b)'s
+        with the learned radii (for :meth:`_rear_from_live_wheel`)."""
+        imu = self._imu
+        last, self._t_gyro_bias_ns = self._t_gyro_bias_ns, t_ns
+        if imu is None or last is None or not self._imu_fresh(t_ns):
+            return
+        v, yaw_rate = self._rear_speed_yaw_rate(float(ws[RL]), float(ws[RR]))
+        if v < GYRO_BIAS_MIN_SPEED_M_S:
+            return
+        dt = min(max((t_ns - last) * 1e-9, 0.0), 0.1)
+        k = dt / (GYRO_BIAS_TIME_CONSTANT_S + dt)
+        self._gyro_bias_rad_s += k * (float(imu[1][2]) - yaw_rate - self._gyro_bias_rad_s)
+
+    def _rear_from_live_wheel(self, t_ns: int, ws: F64, lost: int) -> F64:
+        """One rear wheel's signal is lost (:meth:`AxleCheck.signal_lost`): its speed is
+        replaced by the one that gives, with the learned radii, the gyro's yaw rate less its
+        bias (:meth:`_track_gyro_bias`) in eq. (6b), or, without a fresh gyro, a zero yaw rate,
+        so that the pose keeps moving at the live wheel's speed; learning pauses meanwhile."""
+        yaw_rate = 0.0
+        imu = self._imu
+        if imu is not None and self._imu_fresh(t_ns):
+            yaw_rate = float(imu[1][2]) - self._gyro_bias_rad_s
+        d3, d4 = self._radius_mean
+        r, lt = self._nominal_radius_m, self._track_width_m
+        out = ws.copy()
+        # eq. (6b) yaw_rate l_T = (r + d4) w4 - (r + d3) w3, solved for the lost wheel
+        if lost == RL:
+            out[RL] = ((r + d4) * float(ws[RR]) - yaw_rate * lt) / (r + d3)
+        else:
+            out[RR] = ((r + d3) * float(ws[RL]) + yaw_rate * lt) / (r + d4)
         return out
 
     def _gates(
