@@ -131,8 +131,8 @@ class ReplayReport:
         for w, lost_s in (r.get("signal_lost_s") or {}).items():
             lines.append(
                 f"  WHEEL SIGNAL LOST: {w} read below {100 * LOST_SPEED_SHARE:.0f} % of the other "
-                f"wheels' speed for {lost_s:.1f} s; the radii were not learned then (the pose "
-                "used the other rear wheel and the gyro)"
+                f"wheels' speed, or nothing, for {lost_s:.1f} s; the radii were not learned then "
+                "(the pose used the other rear wheel and the gyro)"
             )
         base = r.get("baseline")
         if base and base.get("final_error_vs_truth_m"):

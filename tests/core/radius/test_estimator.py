@@ -148,7 +148,7 @@ def test_bad_arrays_take_the_checks_of_the_fast_path():
     ws = np.asarray(drive["ws"][999], dtype=float)
     before = est.estimate().pose.copy()
     for k, bad in enumerate(
-        ([1.0, np.nan, 2.0, 3.0], [1.0, 2.0, np.inf, 3.0], [-np.inf, 1.0, 2.0, 3.0],
+        ([1.0, 2.0, np.nan, np.nan], [1.0, 2.0, np.inf, 3.0], [-np.inf, 1.0, 2.0, 3.0],
          [1e308, 1e308, 1.0, 1.0], [2000.0, 1.0, 1.0, 1.0], [1.0, -1500.0, 1.0, 1.0])
     ):  # fmt: skip
         est.on_wheel_speeds(t + 1 + k, np.array(bad))
@@ -177,13 +177,32 @@ def test_bad_arrays_take_the_checks_of_the_fast_path():
     assert np.all(np.isfinite(est.estimate().pose)) and np.all(np.isfinite(before))
 
 
+def test_a_wheel_not_reported_is_bridged():
+    """A NaN wheel (not reported): a front one takes its side's rear speed and is counted; a
+    rear one is a lost signal (the pose on the live wheel, learning paused), not a dropped
+    sample."""
+    drive = make_drive(duration_s=40.0, gnss_rate_hz=1.0, seed=7)
+    est = RadiusEstimator(RadiusEstimatorConfig(), VEH, np.random.default_rng(7))
+    feed(est, drive, 0, 1000)
+    t = int(drive["t_ns"][999])
+    ws = np.asarray(drive["ws"][999], dtype=float)
+    est.on_wheel_speeds(t + 1, np.array([np.nan, ws[1], ws[2], ws[3]]))
+    assert est.stats == {"wheel_speeds:missing_fl": 1}
+    assert est._streams["wheel"].last_t_ns == t + 1
+    est.on_wheel_speeds(t + 2, np.array([ws[0], ws[1], ws[2], np.nan]))
+    e = est.estimate()
+    assert est.stats["wheel_speeds:signal_lost_rr"] == 1
+    assert e.state_reason == "wheel_rr signal lost" and e.active == (False, False)
+    assert np.all(np.isfinite(e.pose)) and np.all(np.isfinite(e.radius_error_m))
+
+
 def test_bad_inputs_are_dropped_counted_and_estimates_stay_finite():
     drive = make_drive(duration_s=80.0, gnss_rate_hz=1.0, seed=6)
     est = RadiusEstimator(RadiusEstimatorConfig(), VEH, np.random.default_rng(6))
     feed(est, drive, 0, 3000)
     t = int(drive["t_ns"][2999])
     ws = drive["ws"][2999]
-    est.on_wheel_speeds(t + 1, [np.nan, 1, 2, 3])
+    est.on_wheel_speeds(t + 1, [1, 2, np.nan, np.nan])  # no rear wheel reported
     est.on_wheel_speeds(t + 2, [np.inf, 1, 2, 3])
     est.on_wheel_speeds(t - 5_000_000, ws)  # out of order
     est.on_wheel_speeds(t, ws)  # duplicate

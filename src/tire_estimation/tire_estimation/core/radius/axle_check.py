@@ -202,8 +202,8 @@ class AxleCheck:
         self._t_signal_ns: int | None = None
 
     def signal_lost(self, index: int) -> bool:
-        """Whether wheel ``index`` (fl, fr, rl, rr) reads (near) zero while the others turn
-        (for :data:`LOST_AFTER_S`; back once it reads like them again for as long)."""
+        """Whether wheel ``index`` (fl, fr, rl, rr) reads (near) zero, or is not reported,
+        while the others turn (back once it reads like them for :data:`LOST_AFTER_S`)."""
         return self._signals[index].lost
 
     def lost_signals(self) -> dict[str, float]:
@@ -217,13 +217,16 @@ class AxleCheck:
             return
         dt_s = min(max((t_ns - last) * 1e-9, 0.0), _MAX_DT_S)
         mags = [abs(v) for v in speeds]
-        if not all(math.isfinite(v) for v in mags):
+        live = [v for v in mags if math.isfinite(v)]
+        if len(live) < 2:
             return
-        total = sum(mags)
+        total = sum(live)
         for k, check in enumerate(self._signals):
-            others = (total - mags[k]) / 3.0
+            mag = mags[k]
+            # a wheel not reported (NaN) reads as no signal
+            others = (total - mag) / (len(live) - 1) if math.isfinite(mag) else total / len(live)
             if others * self._radius_m >= self._min_speed_m_s:
-                check.add(t_ns, dt_s, mags[k] / others)
+                check.add(t_ns, dt_s, mag / others if math.isfinite(mag) else 0.0)
 
     def on_imu(self, gyro_rad_s: Any) -> None:
         """The latest gyro yaw rate (z), rad/s."""

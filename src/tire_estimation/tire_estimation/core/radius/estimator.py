@@ -386,8 +386,11 @@ class RadiusEstimator(GnssHandling, Reporting, Gates):
         checked = ws
         self.axles.on_wheel_speeds(t_ns, ws if vals is None else vals)
         self._lost_wheel = None
+        if vals is None and math.isnan(sum(ws.tolist())):
+            ws = self._fill_front(ws)
         for k in (RL, RR):
-            if self.axles.signal_lost(k):
+            # a rear wheel not reported (NaN) is lost whatever the speed
+            if self.axles.signal_lost(k) or math.isnan(ws[k]):
                 self._lost_wheel = k
                 self._drop("wheel_speeds", f"signal_lost_{WHEELS[k].removeprefix('wheel_')}")
         if self._lost_wheel is not None:
@@ -438,6 +441,18 @@ class RadiusEstimator(GnssHandling, Reporting, Gates):
             self._prev_v = None
             return
         self._step(dt, t_ns, prev, prev_rear, w3, w4)
+
+    def _fill_front(self, ws: F64) -> F64:
+        """A front wheel not reported (NaN) takes its side's rear wheel's speed (the rear model
+        does not read it; the front pseudo measurement and the corrections get a finite value)
+        and is counted (``wheel_speeds:missing_fl``); a NaN rear wheel stays for the signal
+        check."""
+        out = ws.copy()
+        for front, rear, other in ((FL, RL, RR), (FR, RR, RL)):
+            if math.isnan(out[front]):
+                self._drop("wheel_speeds", f"missing_{WHEELS[front].removeprefix('wheel_')}")
+                out[front] = out[rear] if not math.isnan(out[rear]) else out[other]
+        return out
 
     def _step(
         self,

@@ -41,7 +41,9 @@ def floats(values: Any) -> list[float]:
 
 
 def parse_wheels(wheel_speed_rad_s: Any) -> F64:
-    """Wheel speeds (4,) fl, fr, rl, rr from a sequence or a mapping of wheel names."""
+    """Wheel speeds (4,) fl, fr, rl, rr from a sequence or a mapping of wheel names. A wheel
+    may be NaN (not reported, the ROS convention) when a rear wheel is not; infinities and
+    two NaN rear wheels are errors (kind ``nan``)."""
     if isinstance(wheel_speed_rad_s, Mapping):
         vals = [math.nan] * 4
         for name, value in wheel_speed_rad_s.items():
@@ -55,8 +57,11 @@ def parse_wheels(wheel_speed_rad_s: Any) -> F64:
         vals = floats(wheel_speed_rad_s)
         if len(vals) != 4:
             raise InputError("wrong_length", f"need 4 wheel speeds, got {len(vals)}")
-    finite("wheel speeds", *vals)
-    if max(vals) > 1000.0 or min(vals) < -1000.0:
+    known = [v for v in vals if not math.isnan(v)]
+    finite("wheel speeds", *known)
+    if math.isnan(vals[2]) and math.isnan(vals[3]):
+        raise InputError("nan", f"wheel speeds: no rear wheel reported: {vals}")
+    if max(known) > 1000.0 or min(known) < -1000.0:
         raise InputError("out_of_range", f"wheel speed above 1000 rad/s: {vals}")
     return np.array(vals)
 
