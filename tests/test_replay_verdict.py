@@ -51,3 +51,31 @@ def test_an_overstated_noise_alone_says_the_std_may_be_too_large() -> None:
     assert not _only_overstated_noise({"tests": high, "suspected_effects": weak})
     correlated = dict(tests, white_decimated=False)
     assert not _only_overstated_noise({"tests": correlated, "suspected_effects": []})
+
+
+def test_the_summary_names_a_lost_wheel_a_reversing_car_and_a_failed_initialization(
+    tmp_path: Path,
+) -> None:
+    """The summary lines for the report's wheel-signal, reversing and initialization fields
+    (the fields themselves are tested with the estimator)."""
+    from tire_estimation.replay import ReplayReport
+
+    bag = tmp_path / "bag"
+    argv = ["simulate", "robustness", "--minutes", "1", "--seed", "2", "--out", str(bag)]
+    assert main(argv) == 0
+    out = tmp_path / "out"
+    argv = ["replay", str(bag), "--out", str(out), "--no-progress", "--no-plots", "--no-stiffness"]
+    assert main(argv) == 0
+    metrics = json.loads((out / "metrics.json").read_text())
+    radii = metrics["radii"]
+    assert radii["signal_lost_s"] == {} and radii["failed_initializations"]["count"] == 0
+    plain = ReplayReport(out, metrics).summary()
+    assert "WHEEL SIGNAL LOST" not in plain and "POSE NOT INITIALIZED" not in plain
+    radii["signal_lost_s"] = {"wheel_rl": 12.5}
+    radii["failed_initializations"] = {"count": 7, "median_distance_ratio": 0.31}
+    for learn in radii["learning"].values():
+        learn["learned_s"], learn["paused_s"] = 0.0, {"reversing": 50.0}
+    text = ReplayReport(out, metrics).summary()
+    assert "WHEEL SIGNAL LOST: wheel_rl" in text and "12.5 s" in text
+    assert "POSE NOT INITIALIZED 7 times" in text and "covered 0.31 of the distance" in text
+    assert text.count("NEVER LEARNED") == 2 and "REP-103" in text

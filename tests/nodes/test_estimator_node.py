@@ -497,10 +497,24 @@ def test_each_wheel_says_whether_it_learns_and_why_not(ros: Any, tmp_path: Path)
     for st in slow.values():
         assert st.level == DiagnosticStatus.WARN and st.message == "not learned yet: low speed"
         assert {kv.key: kv.value for kv in st.values}["learned_s"] == "0.0"
-    _drive(cb, t + 10_000_000, 20.0, speed_m_s=20.0)
+    t = _drive(cb, t + 10_000_000, 20.0, speed_m_s=20.0)
     for st in wheels().values():
         assert st.level == DiagnosticStatus.OK and st.message == "learning"
         assert float({kv.key: kv.value for kv in st.values}["learned_s"]) > 5.0
+    # the rear-left sensor reads 0 while the others turn: that wheel warns, both hold
+    omega = 20.0 / 0.31
+    for k in range(1, 51):  # 0.5 s, longer than the reorder delay
+        tk = t + k * 10_000_000
+        cb["/vehicle/wheel_speeds"](_wheels(tk, [omega, omega, 0.0, omega]))
+        if k % 10 == 0:
+            cb["/gnss/fix"](_fix(tk, 20.0 * (tk - 1_000_000_000_000) * 1e-9, 0.0))
+    lost = wheels()
+    assert lost["tire_estimation: wheel_rl"].level == DiagnosticStatus.WARN
+    assert lost["tire_estimation: wheel_rl"].message == (
+        "holding: wheel_rl signal lost; wheel-speed signal lost"
+    )
+    assert lost["tire_estimation: wheel_rr"].level == DiagnosticStatus.OK
+    assert lost["tire_estimation: wheel_rr"].message == "holding: wheel_rl signal lost"
     node.destroy_node()
 
 

@@ -9,6 +9,7 @@ import pytest
 
 from tire_estimation.core.geodesy import LocalTangentPlane
 from tire_estimation.core.vehicle import VehicleParams
+from tire_estimation.errors import ConfigError
 from tire_estimation.sim import SensorConfig, SimResult, simulate
 
 from .conftest import NO_RANDOM_BIAS, rear_rolling_speed, rel_s
@@ -291,3 +292,29 @@ def test_tire_forces_on_fl_and_rr_only() -> None:
         "lane_change", seed=1, minutes=0.1, sensors=SensorConfig(tire_force_enabled=False)
     )
     assert off.tire_forces is None
+
+
+def test_a_lost_wheel_signal_and_a_gnss_outage_are_injected_in_their_windows() -> None:
+    """``wheel_speed_lost_*`` zeroes one wheel's readings in its window only;
+    ``gnss_outage_*`` removes the fixes (and velocities) in its window only."""
+    plain = simulate("asphalt_sine", seed=1, minutes=0.2)
+    faults = SensorConfig(
+        wheel_speed_lost_wheel="wheel_rr",
+        wheel_speed_lost_from_s=3.0,
+        wheel_speed_lost_duration_s=2.0,
+        gnss_outage_from_s=4.0,
+        gnss_outage_duration_s=3.0,
+    )
+    res = simulate("asphalt_sine", seed=1, minutes=0.2, sensors=faults)
+    t = rel_s(res.wheel_speeds.t_ns)
+    window = (t >= 3.0) & (t < 5.0)
+    ws, ws0 = res.wheel_speeds.wheel_speed_rad_s, plain.wheel_speeds.wheel_speed_rad_s
+    assert np.all(ws[window, 3] == 0.0) and np.all(ws0[window, 3] > 10.0)
+    np.testing.assert_array_equal(ws[~window], ws0[~window])
+    np.testing.assert_array_equal(ws[:, :3], ws0[:, :3])
+    tg, tg0 = rel_s(res.gnss.t_ns), rel_s(plain.gnss.t_ns)
+    assert not np.any((tg >= 4.0) & (tg < 7.0))
+    assert tg.size == tg0.size - int(np.sum((tg0 >= 4.0) & (tg0 < 7.0)))
+    assert res.gnss.velocity_enu_m_s is not None and res.gnss.velocity_enu_m_s.shape[0] == tg.size
+    with pytest.raises(ConfigError, match="wheel_speed_lost_wheel"):
+        SensorConfig(wheel_speed_lost_wheel="wheel_xx")

@@ -95,6 +95,14 @@ class ReplayReport:
         truth = r.get("rmse_vs_truth_m") or {}
         final_truth = r.get("final_error_vs_truth_m") or {}
         learning = r.get("learning") or {}
+        failed = r.get("failed_initializations") or {}
+        ratio = failed.get("median_distance_ratio")
+        if failed.get("count") and ratio is not None:
+            lines.append(
+                f"  POSE NOT INITIALIZED {failed['count']} times: the wheel odometry covered "
+                f"{ratio:.2f} of the distance between two fixes (0.5-2 accepted): check the wheel "
+                "speeds' unit (rad/s) and sign and vehicle.yaml's nominal_tire_radius_m"
+            )
         for w, est in r["final_radius_error_m"].items():
             if est is None:
                 lines.append(f"  {w}: no estimate (the radius MPF never initialized)")
@@ -104,6 +112,11 @@ class ReplayReport:
                 why = ", ".join(f"{k} {v:.0f} s" for k, v in learn["paused_s"].items())
                 if "low speed" in learn["paused_s"]:
                     why += "; radius.min_speed_m_s sets the speed floor"
+                if "reversing" in learn["paused_s"]:
+                    why += (
+                        "; negative wheel speeds: reversing, or wheel speeds signed other than "
+                        "REP-103's forward-positive"
+                    )
                 lines.append(
                     f"  {w}: NEVER LEARNED: the estimate below is the prior (paused: {why})"
                 )
@@ -826,6 +839,11 @@ def build_metrics(
     radii["learning"] = ev.learning_metrics(
         arr["t_ns"], trace.wheel_names, arr["active"], trace.reason
     )
+    ratios = list(getattr(trace, "init_distance_ratios", []) or [])
+    radii["failed_initializations"] = {
+        "count": len(ratios),
+        "median_distance_ratio": float(np.median(ratios)) if ratios else None,
+    }
     if arr["radius_noise_std_m"].size:
         radii["final_radius_noise_std_m"] = dict(
             zip(trace.wheel_names, arr["radius_noise_std_m"][-1].tolist(), strict=True)
@@ -853,7 +871,10 @@ def build_metrics(
     else:
         residual_report = {
             "consistent": None,
-            "tests": {"note": "no GNSS innovations: the radius MPF did not run on this bag"},
+            "tests": {
+                "note": "no GNSS innovations: the radius MPF did not run or never initialized "
+                "its pose"
+            },
             "suspected_effects": [],
         }
     residual_report["why"] = explain_residuals(residual_report)

@@ -204,3 +204,21 @@ def test_a_dead_rear_wheel_pauses_learning_and_keeps_the_pose() -> None:
     assert p.radius.stats["wheel_speeds:signal_lost_rl"] > 900
     assert p.radius.stats.get("gnss_fix:outlier", 0) == 0
     assert 0.8 < p.axles.status("rear").slope < 1.2
+
+
+def test_both_axles_at_the_same_fraction_is_a_scale_error_not_a_lock() -> None:
+    """Wheel speeds in m/s instead of rad/s (x r0 = 0.31) scale both axles' differences alike:
+    the verdict names the unit or the radius, and the rear is not taken as locked."""
+    sim = _drive()
+    ws = sim.wheel_speeds.wheel_speed_rad_s * sim.vehicle.nominal_tire_radius_m
+    scaled = dataclasses.replace(
+        sim, wheel_speeds=dataclasses.replace(sim.wheel_speeds, wheel_speed_rad_s=ws)
+    )
+    p = _pipeline(scaled)
+    assert p.axles is not None and not p.axles.locked("rear")
+    for axle in ("front", "rear"):
+        st = p.axles.status(axle)
+        assert st.split_observable is None and "unit" in st.reason, st
+        assert st.slope == pytest.approx(sim.vehicle.nominal_tire_radius_m, rel=0.15)
+    # one axle alone that low is still a lock
+    assert _pipeline(_locked(_drive())).axles.locked("rear")  # type: ignore[union-attr]

@@ -196,6 +196,32 @@ def test_a_wheel_not_reported_is_bridged():
     assert np.all(np.isfinite(e.pose)) and np.all(np.isfinite(e.radius_error_m))
 
 
+def test_reversing_and_a_wrong_wheel_speed_scale_are_named():
+    """Negative wheel speeds pause learning as "reversing" (not "low speed"); wheel speeds a
+    third of the truth fail every two-fix initialization with their distance ratio kept."""
+    est = RadiusEstimator(RadiusEstimatorConfig(n_particles=100), VEH, np.random.default_rng(8))
+    m_ws = lambda v: np.full(4, v / R_NOM)  # noqa: E731
+    est.on_gnss_enu(0, np.zeros(2), np.eye(2))
+    t = 0
+    for k in range(300):  # 3 s at 20 m/s
+        t = k * 10_000_000
+        est.on_wheel_speeds(t, m_ws(20.0))
+    est.on_gnss_enu(t, np.array([59.8, 0.0]), np.eye(2))
+    for k in range(1, 20):
+        est.on_wheel_speeds(t + k * 10_000_000, m_ws(-5.0))
+    assert est.estimate().state_reason == "reversing"
+    scaled = RadiusEstimator(RadiusEstimatorConfig(n_particles=100), VEH, np.random.default_rng(8))
+    for k in range(1200):  # 12 s at 20 m/s reported as 6.2 m/s, a fix a second
+        t = k * 10_000_000
+        if k % 100 == 0:
+            scaled.on_gnss_enu(t, np.array([0.2 * k, 0.0]), np.eye(2) * 0.01)
+        scaled.on_wheel_speeds(t, m_ws(20.0 * 0.31))
+    assert scaled.estimate().state == "initializing"
+    assert len(scaled.init_distance_ratios) >= 2
+    assert np.median(scaled.init_distance_ratios) == pytest.approx(0.31, abs=0.02)
+    assert est.init_distance_ratios == []
+
+
 def test_bad_inputs_are_dropped_counted_and_estimates_stay_finite():
     drive = make_drive(duration_s=80.0, gnss_rate_hz=1.0, seed=6)
     est = RadiusEstimator(RadiusEstimatorConfig(), VEH, np.random.default_rng(6))

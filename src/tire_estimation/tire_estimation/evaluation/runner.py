@@ -83,6 +83,8 @@ class RadiusTrace:
     #: an innovation (``innovations``, gated ones included), the mean NIS of the accepted ones
     #: (2 for a consistent model) and the compensated latency, s (None: velocity not used)
     gnss_velocity: dict[str, Any] | None = None
+    #: the estimator's failed two-fix initializations (odometry / fix distance, each)
+    init_distance_ratios: list[float] = field(default_factory=list)
 
     def arrays(self) -> dict[str, NDArray[Any]]:
         """The lists stacked into arrays (empty arrays when nothing was recorded)."""
@@ -219,6 +221,7 @@ class RadiusRecorder:
             return trace
         # the clock guard's outliers and the radius estimator's drops, as <stream>:<kind>
         trace.dropped = merged_counts(pipeline.clock.drop_counts(), estimator.stats)
+        trace.init_distance_ratios = list(estimator.init_distance_ratios)
         if estimator.config.gnss_velocity_enabled and pipeline.received["gnss_velocity"]:
             nis = np.asarray(trace.vel_nis, dtype=float)
             trace.gnss_velocity = {
@@ -264,7 +267,15 @@ def _record(trace: RadiusTrace, estimator: RadiusEstimator, upd: Any, t_ns: int)
     est = estimator.estimate()
     if not trace.wheel_names:
         trace.wheel_names = tuple(est.wheels)
-    if upd is not None and getattr(upd, "innovation_m", None) is not None:
+    reason = str(getattr(upd, "reason", ""))
+    # a fix that anchors or initializes the pose is compared with nothing (innovation 0); while
+    # a rear wheel's signal is lost the heading is the gyro's, not the radius model's
+    compared = not (
+        reason.startswith("initializing")
+        or reason == "pose initialized"
+        or est.state_reason.endswith("signal lost")
+    )
+    if upd is not None and getattr(upd, "innovation_m", None) is not None and compared:
         trace.innov_t_ns.append(t_ns)
         trace.innov_m.append(np.asarray(upd.innovation_m, dtype=float)[:2])
         trace.innov_cov_m2.append(np.asarray(upd.innovation_cov_m2, dtype=float)[:2, :2])

@@ -16,6 +16,7 @@ from tire_estimation.core.input_checks import merged_counts
 from tire_estimation.core.lateral.tyre_force_kf import TyreForceEstimator
 from tire_estimation.core.pipeline import EstimationPipeline
 from tire_estimation.core.stiffness.estimator import StiffnessEstimator
+from tire_estimation.core.wheels import WHEEL_INDEX
 
 #: input streams reported on /diagnostics (rate and count)
 INPUT_STREAMS = ("wheel_speeds", "steering", "imu", "gnss_fix", "gnss_velocity", "tire_forces")
@@ -100,6 +101,10 @@ def statuses(
                 # the published radius is the prior: say so
                 level, message = DiagnosticStatus.WARN, f"not learned yet: {est.state_reason}"
             axle = "front" if wheel in ("wheel_fl", "wheel_fr") else "rear"
+            if pipeline.axles is not None and pipeline.axles.signal_lost(WHEEL_INDEX[wheel]):
+                # the sensor reads (near) zero or nothing while the other wheels turn
+                level = DiagnosticStatus.WARN
+                message += "; wheel-speed signal lost"
             if (
                 pipeline.axles is not None
                 and pipeline.axles.status(axle).split_observable is False

@@ -36,6 +36,7 @@ from tire_estimation.core.validation import (
     check_rules,
     in_range,
     int_in_range,
+    one_of,
     require_range,
     require_vector3,
 )
@@ -66,6 +67,11 @@ class SensorConfig:
     #: Injected: a locked rear axle (spool): both rear wheels turn at the mean of their
     #: free-rolling speeds (the scrubbing tyres' yaw moment is not simulated).
     wheel_speed_rear_locked: bool = False
+    #: Injected: this wheel's sensor reads 0 from ``wheel_speed_lost_from_s`` (time since the
+    #: drive's start) for ``wheel_speed_lost_duration_s`` ("none": no such fault).
+    wheel_speed_lost_wheel: str = "none"
+    wheel_speed_lost_from_s: float = 0.0
+    wheel_speed_lost_duration_s: float = 0.0
 
     # --- steering (mean road-wheel angle) ---
     steering_rate_hz: float = 100.0
@@ -103,6 +109,10 @@ class SensorConfig:
     #: Injected: a Doppler velocity stamped t (the fix's stamp) describes the antenna at
     #: t - this, s (receivers often filter the velocity more than the position).
     gnss_velocity_latency_s: float = 0.0
+    #: Injected: no fix and no velocity from ``gnss_outage_from_s`` (time since the drive's
+    #: start) for ``gnss_outage_duration_s`` (a tunnel, a car park).
+    gnss_outage_from_s: float = 0.0
+    gnss_outage_duration_s: float = 0.0
 
     # --- tyre force sensors (Tuononen 2009: optical tyre sensors on fl and rr) ---
     tire_force_enabled: bool = True
@@ -128,6 +138,9 @@ class SensorConfig:
         "wheel_speed_timeout_s": in_range(0.0, 10.0),
         "wheel_speed_time_offset_s": in_range(-1.0, 1.0),
         "wheel_speed_rear_locked": BOOL,
+        "wheel_speed_lost_wheel": one_of(("none", *WHEELS)),
+        "wheel_speed_lost_from_s": in_range(0.0, 1e6),
+        "wheel_speed_lost_duration_s": in_range(0.0, 1e6),
         "steering_rate_hz": in_range(1.0, 1000.0),
         "steering_noise_std_rad": in_range(0.0, 0.1),
         "steering_resolution_rad": in_range(0.0, 0.1),
@@ -151,6 +164,8 @@ class SensorConfig:
         "gnss_velocity_vertical_noise_std_m_s": in_range(0.0, 10.0),
         "gnss_latency_s": in_range(0.0, 2.0),
         "gnss_velocity_latency_s": in_range(0.0, 2.0),
+        "gnss_outage_from_s": in_range(0.0, 1e6),
+        "gnss_outage_duration_s": in_range(0.0, 1e6),
         "tire_force_enabled": BOOL,
         "tire_force_rate_hz": in_range(1.0, 2000.0),
         "tire_force_noise_fx_n": NON_NEGATIVE,

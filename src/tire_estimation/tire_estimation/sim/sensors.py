@@ -138,6 +138,10 @@ def wheel_speeds(
             held = pitch / gap if gap > 0.0 else 0.0
             speed[k] = min(held, pitch / since) if since > 0.0 else held
         out[:, i] = speed
+    if cfg.wheel_speed_lost_wheel != "none":
+        lost_from = cfg.wheel_speed_lost_from_s
+        dead = (t_stamp >= lost_from) & (t_stamp < lost_from + cfg.wheel_speed_lost_duration_s)
+        out[dead, WHEEL_INDEX[cfg.wheel_speed_lost_wheel]] = 0.0
     return WheelSpeedStream(t_ns=start_ns + rel_ns, wheel_speed_rad_s=out)
 
 
@@ -266,14 +270,16 @@ def gnss(
         )
         vel_meas = vel + vel_noise * v_std[None, :]
         vel_cov = np.broadcast_to(np.diag(v_std**2), (m, 3, 3)).copy()
+    out_from = cfg.gnss_outage_from_s
+    keep = ~((t >= out_from) & (t < out_from + cfg.gnss_outage_duration_s))
     return GnssStream(
-        t_ns=start_ns + rel_ns,
-        lat_deg=lat,
-        lon_deg=lon,
-        alt_m=alt,
-        position_covariance_m2=cov,
-        velocity_enu_m_s=vel_meas,
-        velocity_covariance_m2_s2=vel_cov,
+        t_ns=start_ns + rel_ns[keep],
+        lat_deg=lat[keep],
+        lon_deg=lon[keep],
+        alt_m=alt[keep],
+        position_covariance_m2=cov[keep],
+        velocity_enu_m_s=None if vel_meas is None else vel_meas[keep],
+        velocity_covariance_m2_s2=None if vel_cov is None else vel_cov[keep],
     )
 
 

@@ -268,9 +268,20 @@ class AxleCheck:
         self._decided[axle] = slope
         return slope
 
+    def _scale_off(self, axle: str) -> float | None:
+        """The other axle's slope when it is below ``locked_slope`` too and within 30 % of
+        ``axle``'s: both axles then see the same fraction of the difference the gyro implies,
+        which a wheel-speed unit or nominal radius off by that factor makes, not a lock."""
+        other = "front" if axle == "rear" else "rear"
+        mine, theirs = self.slope(axle), self.slope(other)
+        low = self.config.locked_slope
+        if not (mine < low and theirs < low and mine > 0.0 and theirs > 0.0):
+            return None
+        return theirs if abs(theirs / mine - 1.0) <= 0.3 else None
+
     def locked(self, axle: str) -> bool:
         """True when ``axle``'s split is unobservable (:meth:`status` says False)."""
-        return bool(self.slope(axle) < self.config.locked_slope)
+        return bool(self.slope(axle) < self.config.locked_slope) and self._scale_off(axle) is None
 
     def status(self, axle: str) -> AxleStatus:
         """The verdict on ``axle`` (``front`` or ``rear``)."""
@@ -280,6 +291,16 @@ class AxleCheck:
             return AxleStatus(axle, None, n, slope, "unknown: no gyro yaw rate")
         if math.isnan(slope):
             return AxleStatus(axle, None, n, slope, f"unknown: too few turns ({n} samples)")
+        if self._scale_off(axle) is not None:
+            return AxleStatus(
+                axle,
+                None,
+                n,
+                slope,
+                f"unknown: both axles' wheel-speed differences are {slope:.2f} of what the gyro "
+                "implies: the wheel speeds' unit (rad/s) or vehicle.yaml's nominal_tire_radius_m "
+                "or track_width_m is off by that factor",
+            )
         if self.locked(axle):
             return AxleStatus(
                 axle,

@@ -190,6 +190,7 @@ class RadiusEstimator(GnssHandling, Reporting, Gates):
         self._t_pose_ns: int | None = None
         self._pose_ok = False
         self._init = Init()
+        self.init_distance_ratios = []
         self._steer: tuple[int, float] | None = None
         self._imu: tuple[int, Any, Any] | None = None
         self._ax_lp = 0.0

@@ -173,6 +173,8 @@ class Gates:
         steer = None
         if steer_ok and self._steer is not None and abs(v) < STEERING_HEADING_SPEED_M_S:
             steer = self._steer[1]
+        if v <= -c.min_speed_m_s:
+            return False, "reversing", ax, ay, steer
         if v < c.min_speed_m_s:
             return False, "low speed", ax, ay, steer
         if ax < -c.braking_decel_m_s2:

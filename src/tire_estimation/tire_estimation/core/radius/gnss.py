@@ -124,6 +124,9 @@ class GnssHandling:
     lever_arm_m: F64
     velocity_updates: int
     velocity_skipped_accel: int
+    #: wheel-odometry distance over the fixes' distance of each two-fix initialization that
+    #: failed its consistency check (outside 0.5-2): a wheel-speed unit or nominal radius off
+    init_distance_ratios: list[float]
     _gate: float
     _fix_shift_s: float
     _velocity_shift_s: float
@@ -437,6 +440,8 @@ class GnssHandling:
                 self._init = Init(anchor=np.array(y_m, dtype=float))
             return GnssUpdate(t_ns, zeros2, r_m2, 0.0, True, "initializing (moving)")
         if not 0.5 * dist < d_body < 2.0 * dist:
+            if len(self.init_distance_ratios) < 1000:
+                self.init_distance_ratios.append(d_body / dist)
             self._init = Init(anchor=np.array(y_m, dtype=float))
             return GnssUpdate(t_ns, zeros2, r_m2, 0.0, False, "initializing (inconsistent)")
         yaw0 = math.atan2(d_enu[1], d_enu[0]) - math.atan2(b[1], b[0])
