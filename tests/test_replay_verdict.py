@@ -76,6 +76,8 @@ def test_the_summary_names_a_lost_wheel_a_reversing_car_and_a_failed_initializat
     for learn in radii["learning"].values():
         learn["learned_s"], learn["paused_s"] = 0.0, {"reversing": 50.0}
     text = ReplayReport(out, metrics).summary()
+    radii["failed_initializations"] = {"count": 1, "median_distance_ratio": 0.02}
+    assert "POSE NOT INITIALIZED" not in ReplayReport(out, metrics).summary()  # one glitch
     assert "WHEEL SIGNAL LOST: wheel_rl" in text and "12.5 s" in text
     assert "POSE NOT INITIALIZED 7 times" in text and "covered 0.31 of the distance" in text
     assert text.count("NEVER LEARNED") == 2 and "REP-103" in text
