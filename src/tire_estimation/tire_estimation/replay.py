@@ -102,7 +102,8 @@ class ReplayReport:
             lines.append(
                 f"  POSE NOT INITIALIZED {failed['count']} times: the wheel odometry covered "
                 f"{ratio:.2f} of the distance between two fixes (0.5-2 accepted): check the wheel "
-                "speeds' unit (rad/s) and sign and vehicle.yaml's nominal_tire_radius_m"
+                "speeds' unit (rad/s) and sign, vehicle.yaml's nominal_tire_radius_m, and that "
+                "the fixes and the wheel speeds are stamped by one clock"
             )
         for w, est in r["final_radius_error_m"].items():
             if est is None:
