@@ -69,8 +69,16 @@ def test_the_summary_names_a_lost_wheel_a_reversing_car_and_a_failed_initializat
     metrics = json.loads((out / "metrics.json").read_text())
     radii = metrics["radii"]
     assert radii["signal_lost_s"] == {} and radii["failed_initializations"]["count"] == 0
+    assert metrics["clock_check"]["lag_s"] == 0.0 and metrics["clock_check"]["offset"] is False
     plain = ReplayReport(out, metrics).summary()
     assert "WHEEL SIGNAL LOST" not in plain and "POSE NOT INITIALIZED" not in plain
+    assert "CLOCKS" not in plain
+    metrics["clock_check"] = {
+        "lag_s": 18.0, "correlation": 0.99, "correlation_at_zero": 0.6, "offset": True
+    }  # fmt: skip
+    assert "CLOCKS: the GNSS speed matches the wheel speed +18.0 s later" in (
+        ReplayReport(out, metrics).summary()
+    )
     radii["signal_lost_s"] = {"wheel_rl": 12.5}
     radii["failed_initializations"] = {"count": 7, "median_distance_ratio": 0.31}
     for learn in radii["learning"].values():

@@ -42,6 +42,7 @@ from tire_estimation.core.stiffness.config import StiffnessEstimatorConfig
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.errors import BagError, ConfigError
 from tire_estimation.evaluation import metrics as ev
+from tire_estimation.evaluation.clock_check import ClockCheck
 from tire_estimation.evaluation.residuals import analyze_trace as analyze_residuals
 from tire_estimation.evaluation.residuals import explain as explain_residuals
 from tire_estimation.evaluation.runner import (
@@ -95,6 +96,14 @@ class ReplayReport:
         truth = r.get("rmse_vs_truth_m") or {}
         final_truth = r.get("final_error_vs_truth_m") or {}
         learning = r.get("learning") or {}
+        clock = m.get("clock_check") or {}
+        if clock.get("offset"):
+            lines.append(
+                f"  CLOCKS: the GNSS speed matches the wheel speed {clock['lag_s']:+.1f} s later "
+                f"(correlation {clock['correlation']:.2f}, {clock['correlation_at_zero']:.2f} at "
+                "no lag): the fixes and the wheel speeds are stamped by clocks that far apart, "
+                "and every estimate below assumes one clock"
+            )
         failed = r.get("failed_initializations") or {}
         ratio = failed.get("median_distance_ratio")
         # one failure is a GNSS glitch; repeated ones with one ratio are the wheel speeds
@@ -605,7 +614,8 @@ def _run(
         imu_recs["stiffness_mpf"] = ImuLateralRecorder(pipeline.stiffness)
     for name, est in baselines.items():
         imu_recs[name] = ImuLateralRecorder(est)
-    pipeline.observers.extend([radius_rec, force_rec, detect_rec, *imu_recs.values()])
+    clock_check = ClockCheck(meta.vehicle.nominal_tire_radius_m)
+    pipeline.observers.extend([radius_rec, force_rec, detect_rec, *imu_recs.values(), clock_check])
     pipeline.observers.extend(observers)
 
     # what the report needs over the whole drive goes to disk block by block
@@ -671,6 +681,7 @@ def _run(
     )
     if closed_loop is not None:
         metrics["closed_loop"] = closed_loop
+    metrics["clock_check"] = clock_check.result()
     metrics["wall_s"] = time.perf_counter() - wall0
     metrics["timing_s"] = {"read": t_read, "estimate": t_run - wall0 - t_read}
     metrics["realtime_factor"] = metrics["duration_s"] / max(metrics["wall_s"], 1e-9)
