@@ -41,23 +41,30 @@ class ClockCheck:
         # bin index -> [sum, count]
         self._wheel: dict[int, list[float]] = {}
         self._gnss: dict[int, list[float]] = {}
+        self._last_wheel_bin: int | None = None
 
     def on_sample(self, pipeline: Any, sample: Any, result: Any) -> None:
-        """Bin a wheel-speed sample (mean rear speed) or a GNSS velocity (horizontal speed)."""
+        """Bin the first wheel-speed sample of each bin (mean rear speed; the wheel speeds are
+        smooth against a bin) or every GNSS velocity (horizontal speed)."""
         kind = type(sample)
         if kind is WheelSpeeds:
-            w = sample.wheel_speed_rad_s
-            speed = 0.5 * self._radius_m * (abs(float(w[2])) + abs(float(w[3])))
+            cell_index = sample.t_ns // _BIN_NS
+            if cell_index == self._last_wheel_bin:
+                return
+            self._last_wheel_bin = cell_index
+            w = sample.wheel_speed_rad_s.tolist()
+            speed = 0.5 * self._radius_m * (abs(w[2]) + abs(w[3]))
             bins = self._wheel
         elif kind is GnssVelocity:
-            v = sample.velocity_enu_m_s
-            speed = math.hypot(float(v[0]), float(v[1]))
+            cell_index = sample.t_ns // _BIN_NS
+            v = sample.velocity_enu_m_s.tolist()
+            speed = math.hypot(v[0], v[1])
             bins = self._gnss
         else:
             return
         if not math.isfinite(speed):
             return
-        cell = bins.setdefault(sample.t_ns // _BIN_NS, [0.0, 0.0])
+        cell = bins.setdefault(cell_index, [0.0, 0.0])
         cell[0] += speed
         cell[1] += 1.0
 
