@@ -187,11 +187,11 @@ def test_a_wheel_not_reported_is_bridged():
     t = int(drive["t_ns"][999])
     ws = np.asarray(drive["ws"][999], dtype=float)
     est.on_wheel_speeds(t + 1, np.array([np.nan, ws[1], ws[2], ws[3]]))
-    assert est.stats == {"wheel_speeds:missing_fl": 1}
+    assert est.stats == {"wheel_speeds:missing_fl": 1} and est.signal_lost_wheel is None
     assert est._streams["wheel"].last_t_ns == t + 1
     est.on_wheel_speeds(t + 2, np.array([ws[0], ws[1], ws[2], np.nan]))
     e = est.estimate()
-    assert est.stats["wheel_speeds:signal_lost_rr"] == 1
+    assert est.stats["wheel_speeds:signal_lost_rr"] == 1 and est.signal_lost_wheel == "wheel_rr"
     assert e.state_reason == "wheel_rr signal lost" and e.active == (False, False)
     assert np.all(np.isfinite(e.pose)) and np.all(np.isfinite(e.radius_error_m))
 

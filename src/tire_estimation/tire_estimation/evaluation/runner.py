@@ -273,7 +273,7 @@ def _record(trace: RadiusTrace, estimator: RadiusEstimator, upd: Any, t_ns: int)
     compared = not (
         reason.startswith("initializing")
         or reason == "pose initialized"
-        or est.state_reason.endswith("signal lost")
+        or estimator.signal_lost_wheel is not None
     )
     if upd is not None and getattr(upd, "innovation_m", None) is not None and compared:
         trace.innov_t_ns.append(t_ns)

@@ -221,6 +221,12 @@ class RadiusEstimator(GnssHandling, Reporting, Gates):
         return self._pose_ok
 
     @property
+    def signal_lost_wheel(self) -> str | None:
+        """The rear wheel whose signal was lost at the latest wheel-speed sample (the pose's
+        heading then comes from the gyro), or None."""
+        return None if self._lost_wheel is None else WHEELS[self._lost_wheel]
+
+    @property
     def datum(self) -> LocalTangentPlane | None:
         """The ENU frame of the pose (``map``): its origin is the first GNSS fix (None before
         it, and again after :meth:`reset`)."""

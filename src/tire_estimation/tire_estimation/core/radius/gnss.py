@@ -36,7 +36,7 @@ GNSS_MAX_GAP_S = 30.0
 
 #: learning pauses when no fix has been accepted for this many fix periods (the period taken
 #: from the fixes' own spacing): without fixes nothing weighs the radius errors the particles
-#: draw, so the NiW statistics would count draws as information and the std would shrink
+#: draw, and the NiW statistics would count those draws as data
 GNSS_LEARN_TIMEOUT_PERIODS = 5.0
 
 #: ... and at least this long, s (a fix or two missed at 10 Hz does not pause learning)
