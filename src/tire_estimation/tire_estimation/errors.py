@@ -52,6 +52,11 @@ class ConfigError(TireEstimationError, ValueError):
         self.reason = reason
         super().__init__(f"{field}={short_repr(value)}: {reason}")
 
+    def __reduce__(self) -> tuple[type, tuple[object, ...]]:
+        # rebuilt from the constructor's arguments, so that the error crosses a process
+        # boundary (a Dask or process-pool worker) as itself
+        return type(self), (self.field, self.value, self.reason)
+
 
 class VehicleConfigError(ConfigError):
     """The vehicle description (vehicle.yaml or bag metadata) is missing or absurd."""
@@ -66,6 +71,9 @@ class InputError(TireEstimationError, ValueError):
     def __init__(self, kind: str, message: str) -> None:
         self.kind = kind
         super().__init__(message)
+
+    def __reduce__(self) -> tuple[type, tuple[object, ...]]:
+        return type(self), (self.kind, str(self))
 
 
 class BagError(TireEstimationError):
