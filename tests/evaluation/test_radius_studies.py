@@ -24,6 +24,11 @@ def test_a_slow_rtk_drive_learns_below_7_m_s() -> None:
     assert all(abs(e) < 0.5 for e in row["error_rel_pct"])
     for err_mm, std_mm, z in zip(row["error_mm"], row["std_mm"], row["z"], strict=True):
         assert abs(err_mm / std_mm - z) < 1e-9
+    # the ABS sensor's lag: the wheels measure too little distance while accelerating; while
+    # steady they measure the true distance
+    bias = row["odometry_bias_pct"]
+    assert bias["accelerating"] < -0.1
+    assert abs(bias["steady"]) < 0.03
 
 
 def test_the_consistency_run_reports_its_tests() -> None:

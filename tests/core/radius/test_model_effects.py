@@ -213,7 +213,10 @@ def test_rear_brake_slip_without_imu_uses_the_wheel_deceleration() -> None:
     # the corrected speed falls 1 / (1 + kappa) faster than the wheels: b = 2.78 instead of 2.75
     assert out.rear_brake_decel_m_s2 == pytest.approx(2.78, abs=0.02)
     kappa = -K_BRAKE * out.rear_brake_decel_m_s2
-    assert out.speed_m_s == pytest.approx(15.0 / (1.0 + kappa), rel=1e-9)
+    # the wheel speeds, means over their 10 ms, are first brought to their stamps: 15 m/s less
+    # 3 m/s^2 x 5 ms (core/radius/wheel_timing.py)
+    assert est.timing.lag_s == pytest.approx(0.005)
+    assert out.speed_m_s == pytest.approx((15.0 - 3.0 * 0.005) / (1.0 + kappa), rel=1e-9)
 
 
 def test_every_effect_is_a_config_switch_off_by_default_but_the_road_grade() -> None:

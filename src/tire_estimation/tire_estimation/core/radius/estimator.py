@@ -55,6 +55,7 @@ from tire_estimation.core.radius.mpf import (
 )
 from tire_estimation.core.radius.report import BaselineEstimate, RadiusEstimate, Reporting
 from tire_estimation.core.radius.road_grade import RoadGradeFit
+from tire_estimation.core.radius.wheel_timing import WheelSpeedTiming
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.core.wheels import WHEELS
 from tire_estimation.errors import InputError
@@ -185,6 +186,8 @@ class RadiusEstimator(GnssHandling, Reporting, Gates):
         self.velocity_updates = 0
         #: GNSS velocities not used because the wheels accelerated (``gnss_velocity_max_accel``)
         self.velocity_skipped_accel = 0
+        #: the half-period lag of the wheel speeds, compensated before the prediction
+        self.timing = WheelSpeedTiming()
         self._prev_ws: F64 | None = None
         self._prev_rear: tuple[float, float] = (0.0, 0.0)
         self._t_pose_ns: int | None = None
@@ -409,6 +412,7 @@ class RadiusEstimator(GnssHandling, Reporting, Gates):
             ws = self._rear_heading_from_gyro(t_ns, ws)
         elif self._imu is not None:
             self._track_gyro_bias(t_ns, ws)
+        ws = self.timing.compensate(t_ns, ws, self.config.max_gap_s)
         for correct, value in self._rolling:
             ws = correct(self, value, t_ns, ws)
         if ws is checked and vals is not None:
