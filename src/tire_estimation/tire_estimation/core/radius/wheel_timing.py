@@ -13,8 +13,10 @@ while braking (``evaluation/slow_study.py``'s ``odometry_bias_pct``).
 The compensation is the first-order extrapolation to the stamp, ``omega + alpha T / 2``, with
 ``alpha`` the low-passed derivative of the wheel's own speed and ``T`` the median interval of
 the wheel-speed stamps: nothing to configure, and a sensor with a longer delay is
-under-compensated, never over. At low speed an edge-timed unit holds its last value until the
-next tooth (a lag up to one tooth period); that part is not modelled.
+under-compensated (one stamped at the middle of its period would be over-compensated by
+``T / 2``; ABS units and drive controllers stamp the end). At low speed an edge-timed unit
+holds its last value until the next tooth (a lag up to one tooth period); that part is not
+modelled.
 """
 
 from __future__ import annotations
@@ -76,6 +78,8 @@ class WheelSpeedTiming:
         lag = self.lag_s
         if lag == 0.0:
             return ws
+        # omega(t) = omega(t - T/2) + alpha T/2: the first-order step from the window's centre
+        # to its end
         return np.array([w + a * lag for w, a in zip(vals, self._alpha, strict=True)])
 
     def _note_interval(self, dt: float) -> None:
