@@ -69,6 +69,7 @@ def test_the_summary_names_a_lost_wheel_a_reversing_car_and_a_failed_initializat
     metrics = json.loads((out / "metrics.json").read_text())
     radii = metrics["radii"]
     assert radii["signal_lost_s"] == {} and radii["failed_initializations"]["count"] == 0
+    assert abs(radii["wheel_speed_lag_s"] - 0.005) < 1e-6  # half the 100 Hz period
     assert metrics["clock_check"]["lag_s"] == 0.0 and metrics["clock_check"]["offset"] is False
     plain = ReplayReport(out, metrics).summary()
     assert "WHEEL SIGNAL LOST" not in plain and "POSE NOT INITIALIZED" not in plain

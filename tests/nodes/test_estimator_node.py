@@ -473,6 +473,8 @@ def test_gnss_velocity_is_subscribed_used_and_bad_ones_are_counted(
     # no IMU to check the altitude's grade against: no grade correction, and said so
     assert values["road_grade.source"] == "none" and values["road_grade_deg"] == "0.00"
     assert int(values["road_grade.fixes.none"]) > 200
+    # half the 10 ms wheel-speed period is brought back before the prediction
+    assert values["wheel_speeds.lag_ms"] == "5.0"
     est = node.estimator.estimate()
     # 30 s of straight driving: filter seeds 0-5 end at 0.14-0.56 mm (the common mode of the
     # two radii, which a straight drive observes weakly); 1 mm catches a velocity misuse

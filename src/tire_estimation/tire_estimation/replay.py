@@ -853,6 +853,8 @@ def build_metrics(
         "rms_deg": float(np.degrees(np.sqrt(np.mean(grade**2)))) if grade.size else 0.0,
         "max_abs_deg": float(np.degrees(np.abs(grade).max())) if grade.size else 0.0,
     }
+    # half the wheel speeds' median sample period, brought back before the prediction
+    radii["wheel_speed_lag_s"] = trace.wheel_speed_lag_s
     radii["learning"] = ev.learning_metrics(
         arr["t_ns"], trace.wheel_names, arr["active"], trace.reason
     )

@@ -73,6 +73,8 @@ class RadiusTrace:
     road_grade_rad: list[float] = field(default_factory=list)
     #: fixes per source of the road grade (``road_grade.GRADE_SOURCES``), at the latest sample
     road_grade_counts: dict[str, int] = field(default_factory=dict)
+    #: the wheel speeds' compensated lag at the latest sample, s
+    wheel_speed_lag_s: float = 0.0
     rear_brake_decel_m_s2: list[float] = field(default_factory=list)
     agreement_rows: list[NDArray[np.float64]] = field(default_factory=list)
     agreement_params: dict[str, float] = field(default_factory=dict)
@@ -293,6 +295,7 @@ def _record(trace: RadiusTrace, estimator: RadiusEstimator, upd: Any, t_ns: int)
     trace.speed_m_s.append(float(est.speed_m_s))
     trace.road_grade_rad.append(float(getattr(est, "road_grade_rad", 0.0)))
     trace.road_grade_counts = dict(getattr(est, "road_grade_counts", {}))
+    trace.wheel_speed_lag_s = float(getattr(est, "wheel_speed_lag_s", 0.0))
     trace.rear_brake_decel_m_s2.append(float(getattr(est, "rear_brake_decel_m_s2", 0.0)))
     trace.n_eff.append(float(est.n_eff))
     trace.state.append(str(est.state))

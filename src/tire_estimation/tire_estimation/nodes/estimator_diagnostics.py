@@ -83,6 +83,8 @@ def statuses(
         values["road_grade.source"] = est.road_grade_source
         for source, count in sorted(est.road_grade_counts.items()):
             values[f"road_grade.fixes.{source}"] = str(count)
+        # the wheel speeds' lag brought back before the prediction (half their sample period)
+        values["wheel_speeds.lag_ms"] = f"{1e3 * est.wheel_speed_lag_s:.1f}"
         if pipeline.axles is not None:
             for axle in ("front", "rear"):
                 values[f"axle.{axle}.split"] = pipeline.axles.status(axle).reason

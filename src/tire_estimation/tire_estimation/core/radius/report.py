@@ -23,6 +23,7 @@ if TYPE_CHECKING:
     from tire_estimation.core.radius.config import RadiusEstimatorConfig
     from tire_estimation.core.radius.mpf import MpfEstimate, RadiusMPF
     from tire_estimation.core.radius.road_grade import RoadGradeFit
+    from tire_estimation.core.radius.wheel_timing import WheelSpeedTiming
     from tire_estimation.core.vehicle import VehicleParams
 
 
@@ -70,6 +71,8 @@ class RadiusEstimate:
         rear_brake_decel_m_s2: braking deceleration ``b = max(0, -f_x - a_0)``: the one of the
             latest wheel-speed sample when the rear brake slip is on, else computed at the pose
             time for the residual signature, m/s^2.
+        wheel_speed_lag_s: the wheel speeds' lag brought back before the prediction (half their
+            median sample period, ``core/radius/wheel_timing.py``), s; 0 until it is known.
         rear_radius_error_cov_m2: (2, 2) posterior covariance of the rear radius errors
             (wheel_rl, wheel_rr; the diagonal is ``radius_error_std_m`` squared), m^2; None
             when not given.
@@ -95,6 +98,7 @@ class RadiusEstimate:
     rear_radius_error_cov_m2: F64 | None = None
     road_grade_source: str = "none"
     road_grade_counts: Mapping[str, int] = field(default_factory=dict)
+    wheel_speed_lag_s: float = 0.0
 
 
 #: wheel samples kept to align a GNSS velocity with the wheel speeds (2.56 s at 100 Hz)
@@ -113,6 +117,7 @@ class Reporting:
     mpf: RadiusMPF
     kf: AugKf | None
     grade: RoadGradeFit
+    timing: WheelSpeedTiming
     brake_decel_m_s2: float
     _cache: MpfEstimate
     _front: niw.NiwStats
@@ -206,6 +211,7 @@ class Reporting:
             rear_radius_error_cov_m2=sanitize(est.radius.mean_cov, 1.0),
             road_grade_source=self.grade.source,
             road_grade_counts=dict(self.grade.counts),
+            wheel_speed_lag_s=self.timing.lag_s,
         )
         return out
 
