@@ -475,6 +475,10 @@ def test_gnss_velocity_is_subscribed_used_and_bad_ones_are_counted(
     assert int(values["road_grade.fixes.none"]) > 200
     # half the 10 ms wheel-speed period is brought back before the prediction
     assert values["wheel_speeds.lag_ms"] == "5.0"
+    # a front-driven car (the default vehicle): no traction slip on the rear wheels
+    assert "drive_slip.source" not in values
+    # the GNSS speed agrees with the wheels': no rescaling of the radii
+    assert values["speed_scale.rescales"] == "0"
     est = node.estimator.estimate()
     # 30 s of straight driving: filter seeds 0-5 end at 0.14-0.56 mm (the common mode of the
     # two radii, which a straight drive observes weakly); 1 mm catches a velocity misuse
@@ -517,6 +521,21 @@ def test_each_wheel_says_whether_it_learns_and_why_not(ros: Any, tmp_path: Path)
     )
     assert lost["tire_estimation: wheel_rr"].level == DiagnosticStatus.OK
     assert lost["tire_estimation: wheel_rr"].message == "holding: wheel_rl signal lost"
+    node.destroy_node()
+
+
+def test_a_rear_driven_vehicle_reports_the_slip_of_its_rear_wheels(
+    ros: Any, tmp_path: Path
+) -> None:
+    """``vehicle.drive: rear``: the traction slip is removed from the rear wheel speeds (the
+    prior from the mass and the stiffness until the regression has enough straight driving)
+    and ``/diagnostics`` says where it came from."""
+    node = _node(ros, tmp_path, persistence_file="", **{"vehicle.drive": "rear"})
+    _drive(_callbacks(node), 1_000_000_000_000, 10.0)
+    values = _diag_values(node)
+    assert values["drive_slip.source"] == "prior"
+    # m / C_x (c_rr g + rho C_d A v^2 / (2 m)) at 20 m/s on the default car: 0.23 %
+    assert float(values["drive_slip.mean_pct"]) == pytest.approx(0.23, abs=0.02)
     node.destroy_node()
 
 

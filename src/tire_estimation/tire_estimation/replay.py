@@ -152,6 +152,32 @@ class ReplayReport:
                 f"  REAR AXLE: the left-right split is {rear['reason']}: {common} (mean of the "
                 "two estimates above, which do not tell the two tyres apart)"
             )
+        slip = r.get("drive_slip") or {}
+        if slip:
+            how = (
+                "learned against the free-rolling front wheels"
+                if slip["source"] == "learned"
+                else "from vehicle.yaml's mass_kg and longitudinal stiffness, not learned ("
+                + (
+                    "no free-rolling axle"
+                    if slip["drive"] == "all"
+                    else "too little straight driving above 5 m/s with the front wheels reported"
+                )
+                + ")"
+            )
+            lines.append(
+                f"  DRIVEN REAR WHEELS: their traction slip is removed before the radii are "
+                f"learned, {how}: {1e3 * slip['slip_per_accel_s2_per_m']:.2f} per mille per "
+                f"m/s^2, mean {100 * slip['mean_slip']:.3f} %"
+            )
+        rescales = r.get("rescales") or []
+        if rescales:
+            sizes = ", ".join(f"{100 * (f - 1):+.1f} %" for f in rescales)
+            lines.append(
+                f"  RADII RESCALED {len(rescales)} time(s) ({sizes}): the GNSS speed disagreed "
+                "with the wheels' by more than 2 %; check vehicle.yaml's nominal_tire_radius_m, "
+                "or the tyres were changed since the radii were saved"
+            )
         for w, lost_s in (r.get("signal_lost_s") or {}).items():
             lines.append(
                 f"  WHEEL SIGNAL LOST: {w} read below {100 * LOST_SPEED_SHARE:.0f} % of the other "
@@ -855,6 +881,10 @@ def build_metrics(
     }
     # half the wheel speeds' median sample period, brought back before the prediction
     radii["wheel_speed_lag_s"] = trace.wheel_speed_lag_s
+    # the traction slip removed from driven rear wheels (empty: the rear wheels roll freely)
+    radii["drive_slip"] = dict(trace.drive_slip)
+    # the factors both rear radii were scaled by when the GNSS speed showed a gross error
+    radii["rescales"] = list(trace.radius_rescales)
     radii["learning"] = ev.learning_metrics(
         arr["t_ns"], trace.wheel_names, arr["active"], trace.reason
     )

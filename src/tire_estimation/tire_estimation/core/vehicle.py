@@ -44,7 +44,9 @@ class VehicleParams:
         cg_height_m: height of the centre of gravity above the ground, m.
         mass_kg: vehicle mass, kg.
         yaw_inertia_kg_m2: yaw moment of inertia about the centre of gravity, kg m^2.
-        drive: driven axle, ``front``, ``rear`` or ``all``.
+        drive: driven axle, ``front``, ``rear`` or ``all``; with ``rear`` or ``all`` the radius
+            estimator takes the traction slip out of the rear wheel speeds
+            (``core/radius/drive_slip.py``).
         gnss_antenna_position_m: GNSS antenna position in ``base_link`` (x, y, z), m.
         imu_position_m: IMU position in ``base_link`` (x, y, z), m.
         steering_ratio: steering-wheel angle over road-wheel angle, 1 (for CAN conversion).
@@ -53,7 +55,7 @@ class VehicleParams:
         longitudinal_stiffness_front_n: nominal front-axle longitudinal stiffness, N per unit
             slip.
         longitudinal_stiffness_rear_n: nominal rear-axle longitudinal stiffness, N per unit
-            slip.
+            slip (with ``mass_kg``, the prior of a driven rear axle's slip).
     """
 
     name: str = "vehicle"

@@ -75,6 +75,10 @@ class RadiusTrace:
     road_grade_counts: dict[str, int] = field(default_factory=dict)
     #: the wheel speeds' compensated lag at the latest sample, s
     wheel_speed_lag_s: float = 0.0
+    #: the traction-slip correction of driven rear wheels, at the latest sample (empty: none)
+    drive_slip: dict[str, Any] = field(default_factory=dict)
+    #: the factors the rear radii were scaled by for a gross scale error, at the latest sample
+    radius_rescales: list[float] = field(default_factory=list)
     rear_brake_decel_m_s2: list[float] = field(default_factory=list)
     agreement_rows: list[NDArray[np.float64]] = field(default_factory=list)
     agreement_params: dict[str, float] = field(default_factory=dict)
@@ -296,6 +300,8 @@ def _record(trace: RadiusTrace, estimator: RadiusEstimator, upd: Any, t_ns: int)
     trace.road_grade_rad.append(float(getattr(est, "road_grade_rad", 0.0)))
     trace.road_grade_counts = dict(getattr(est, "road_grade_counts", {}))
     trace.wheel_speed_lag_s = float(getattr(est, "wheel_speed_lag_s", 0.0))
+    trace.drive_slip = dict(getattr(est, "drive_slip", {}))
+    trace.radius_rescales = list(getattr(est, "radius_rescales", ()))
     trace.rear_brake_decel_m_s2.append(float(getattr(est, "rear_brake_decel_m_s2", 0.0)))
     trace.n_eff.append(float(est.n_eff))
     trace.state.append(str(est.state))

@@ -18,22 +18,33 @@ def simulated_radius_run(
     minutes: float,
     radius: Mapping[str, Any],
     sensors: Mapping[str, Any],
+    vehicle: Any = None,
+    stated_vehicle: Any = None,
+    before_push: Callable[[Any], None] | None = None,
 ) -> tuple[Any, Any, Any]:
-    """Simulate ``scenario`` (seed, minutes, ``SensorConfig`` overrides ``sensors``) and push it
-    through a pipeline with the radius MPF (``RadiusEstimatorConfig`` overrides ``radius``, the
-    filter seeded with ``seed``). Returns (the simulation, the pipeline, the radius trace)."""
+    """Simulate ``scenario`` (seed, minutes, ``SensorConfig`` overrides ``sensors``, the
+    simulator's ``vehicle`` or its default) and push it through a pipeline with the radius MPF
+    (``RadiusEstimatorConfig`` overrides ``radius``, the filter seeded with ``seed``) that is
+    told ``stated_vehicle`` (default: the simulated one); ``before_push(pipeline)`` runs before
+    the samples are pushed. Returns (the simulation, the pipeline, the radius trace)."""
     from tire_estimation.core.pipeline import EstimationPipeline, PipelineConfig
     from tire_estimation.core.radius.config import RadiusEstimatorConfig
     from tire_estimation.evaluation.runner import RadiusRecorder
     from tire_estimation.sim import SensorConfig, simulate
     from tire_estimation.sources import sim_samples
 
-    sim = simulate(scenario, seed=seed, minutes=minutes, sensors=SensorConfig(**sensors))
+    sim = simulate(
+        scenario, seed=seed, minutes=minutes, sensors=SensorConfig(**sensors), vehicle=vehicle
+    )
     rec = RadiusRecorder()
     cfg = RadiusEstimatorConfig.from_dict({"seed": seed, **radius})
     pipeline = EstimationPipeline(
-        PipelineConfig(seed=seed, radius=cfg), sim.vehicle, observers=[rec]
+        PipelineConfig(seed=seed, radius=cfg),
+        sim.vehicle if stated_vehicle is None else stated_vehicle,
+        observers=[rec],
     )
+    if before_push is not None:
+        before_push(pipeline)
     pipeline.push_ordered(sim_samples(sim, tire_forces=False))
     return sim, pipeline, rec.finish(pipeline)
 

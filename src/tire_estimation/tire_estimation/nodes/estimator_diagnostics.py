@@ -85,6 +85,11 @@ def statuses(
             values[f"road_grade.fixes.{source}"] = str(count)
         # the wheel speeds' lag brought back before the prediction (half their sample period)
         values["wheel_speeds.lag_ms"] = f"{1e3 * est.wheel_speed_lag_s:.1f}"
+        # gross scale errors of the radii seen in the GNSS speed, corrected by rescaling
+        values["speed_scale.rescales"] = str(len(est.radius_rescales))
+        if est.drive_slip:
+            values["drive_slip.source"] = str(est.drive_slip["source"])
+            values["drive_slip.mean_pct"] = f"{100 * float(est.drive_slip['mean_slip']):.3f}"
         if pipeline.axles is not None:
             for axle in ("front", "rear"):
                 values[f"axle.{axle}.split"] = pipeline.axles.status(axle).reason

@@ -91,6 +91,14 @@ class AugKf(GnssErrorSize):
         self.p[:, 3:5] = 0.0
         self.p[3:5, 3:5] = np.eye(2) * self._prior[1] ** 2
 
+    def scale_radii(self, factor: float) -> None:
+        """As :meth:`RadiusMPF.scale_radii`: the prior again, centred on the common radius
+        (nominal plus the mean error) times ``factor``."""
+        r_n = self.model.nominal_radius_m
+        common = (r_n + float(self.x[3:5].mean())) * factor - r_n
+        self.reset_radii()
+        self.x[3:5] = common
+
     def init_pose(self, mean: F64, cov: F64) -> None:
         """Set the pose ``[east, north, yaw]`` (3,) and its covariance (3, 3); keep the radii."""
         self.x[:3] = mean

@@ -35,6 +35,7 @@ from tire_estimation.core.radius.aug_kf import (
 from tire_estimation.core.radius.aug_kf import AugKf
 from tire_estimation.core.radius.axle_check import AxleCheck
 from tire_estimation.core.radius.config import RadiusEstimatorConfig
+from tire_estimation.core.radius.drive_slip import DriveSlip
 from tire_estimation.core.radius.effects import EFFECTS, delay_s
 from tire_estimation.core.radius.gates import Gates
 from tire_estimation.core.radius.gnss import (
@@ -55,6 +56,7 @@ from tire_estimation.core.radius.mpf import (
 )
 from tire_estimation.core.radius.report import BaselineEstimate, RadiusEstimate, Reporting
 from tire_estimation.core.radius.road_grade import RoadGradeFit
+from tire_estimation.core.radius.speed_scale import SpeedScaleCheck
 from tire_estimation.core.radius.wheel_timing import WheelSpeedTiming
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.core.wheels import WHEELS
@@ -188,6 +190,10 @@ class RadiusEstimator(GnssHandling, Reporting, Gates):
         self.velocity_skipped_accel = 0
         #: the half-period lag of the wheel speeds, compensated before the prediction
         self.timing = WheelSpeedTiming()
+        #: the traction slip of driven rear wheels, removed before the prediction
+        self.drive_slip = DriveSlip(self.vehicle)
+        #: the GNSS speed against the wheels' with the learned radii: gross scale errors
+        self.speed_scale = SpeedScaleCheck()
         self._prev_ws: F64 | None = None
         self._prev_rear: tuple[float, float] = (0.0, 0.0)
         self._t_pose_ns: int | None = None
@@ -396,7 +402,9 @@ class RadiusEstimator(GnssHandling, Reporting, Gates):
         checked = ws
         self.axles.on_wheel_speeds(t_ns, ws if vals is None else vals)
         self._lost_wheel = None
+        front_measured = True
         if vals is None and math.isnan(sum(ws.tolist())):
+            front_measured = not (math.isnan(ws[FL]) or math.isnan(ws[FR]))
             ws = self._fill_front(ws)
         for k in (RL, RR):
             # a rear wheel not reported (NaN) is lost whatever the speed
@@ -413,6 +421,10 @@ class RadiusEstimator(GnssHandling, Reporting, Gates):
         elif self._imu is not None:
             self._track_gyro_bias(t_ns, ws)
         ws = self.timing.compensate(t_ns, ws, self.config.max_gap_s)
+        if self.drive_slip.enabled:
+            ws = self.drive_slip.correct(
+                t_ns, ws, self.grade.grade_rad, self.config.max_gap_s, front_measured
+            )
         for correct, value in self._rolling:
             ws = correct(self, value, t_ns, ws)
         if ws is checked and vals is not None:
@@ -530,6 +542,22 @@ class RadiusEstimator(GnssHandling, Reporting, Gates):
         delta = v_roll * (1.0 + slip) / omega - self.model.nominal_radius_m
         niw.time_update(self._front, self.config.forgetting_factor)
         niw.measurement_update(self._front, delta[None, :])
+
+    def _scale_radii(self, factor: float) -> None:
+        """A gross scale error seen in the GNSS speed (:mod:`.speed_scale`): the radii learn
+        again from the prior, centred on the common radius times ``factor`` (the front ones
+        likewise), and the pose is initialized again from the next two fixes."""
+        self.mpf.scale_radii(factor)
+        if self.kf is not None:
+            self.kf.scale_radii(factor)
+        r_n = self.model.nominal_radius_m
+        front = (r_n + float(self._front.mean.mean())) * factor - r_n
+        self._front = self._front_prior()
+        self._front.mean[...] = front
+        self._set_cache(self.mpf.estimate())
+        # the pose ran on the wrong scale, its fixes rejected: a heading error left in it
+        # would be taken up by the restarted split (16 mm within a second on the simulator)
+        self._reinit_pose("radii rescaled")
 
     def _reinit_pose(self, why: str) -> None:
         self._pose_ok = False

@@ -23,6 +23,7 @@ if TYPE_CHECKING:
     from tire_estimation.core.radius.model import RadiusMotionModel
     from tire_estimation.core.radius.mpf import RadiusMPF
     from tire_estimation.core.radius.road_grade import RoadGradeFit
+    from tire_estimation.core.radius.speed_scale import SpeedScaleCheck
 
 
 #: after this many consecutive rejected fixes the pose is re-initialized from GNSS (a genuine
@@ -147,6 +148,7 @@ class GnssHandling:
     _fix_period_s: float | None
     _last_alt_m: float
     _cache_version: int
+    speed_scale: SpeedScaleCheck
 
     def _refresh_cache(self) -> None:
         """After a measurement: the learned radii the gates and the speed use are brought up to
@@ -398,7 +400,15 @@ class GnssHandling:
             self.velocity_skipped_accel += 1
             return GnssVelocityUpdate(t_ns, zeros2, r, 0.0, False, "accelerating")
         along_var = (accel * GNSS_VELOCITY_LATENCY_STD_S) ** 2
-        _, yaw_rate = self._rear_speed_yaw_rate(w3, w4)
+        wheel_speed, yaw_rate = self._rear_speed_yaw_rate(w3, w4)
+        # eq. (4b), the yaw rate with the nominal radii: a gross error of the learned split
+        # would read as turning
+        m = self.model
+        yaw_nominal = (w4 - w3) * m.nominal_radius_m / m.track_width_m
+        speed = float(np.hypot(v[0], v[1]))
+        factor = self.speed_scale.add(t_ns, speed, wheel_speed, yaw_nominal)
+        if factor != 1.0:
+            self._scale_radii(factor)
         # the heading at the velocity's time: the pose is at t_pose, the velocity describes
         # the target time (rotation by the yaw rate over the difference)
         dpsi = -yaw_rate * (self._t_pose_ns - target) * 1e-9

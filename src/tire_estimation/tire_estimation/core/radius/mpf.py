@@ -201,6 +201,22 @@ class RadiusMPF(MarginalGnssBias):
         self._stats = self._wrap(niw.init_stats(self.n, *self._prior))
 
     @_mutates
+    def scale_radii(self, factor: float) -> float:
+        """A gross scale error seen in the GNSS speed (:mod:`.speed_scale`): what was learned
+        under it, the left-right split included, is suspect, so the statistics restart from
+        the prior centred on the common radius (nominal plus the weighted mean error of both
+        wheels) times ``factor``. Returns that radius error, m."""
+        self._flush()
+        r_n = self.model.nominal_radius_m
+        mean = float(np.average(self._mu.mean(axis=0), weights=self.weights))
+        common = (r_n + mean) * factor - r_n
+        _, gamma, dof, scale = self._prior
+        self._stats = self._wrap(
+            niw.init_stats(self.n, np.full(self.D, common), gamma, dof, scale)
+        )
+        return common
+
+    @_mutates
     def set_stats(self, stats: niw.NiwStats) -> None:
         """Replace the NiW statistics (e.g. restored from a persisted state).
 

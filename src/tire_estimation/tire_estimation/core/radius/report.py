@@ -21,8 +21,10 @@ from tire_estimation.errors import InputError
 if TYPE_CHECKING:
     from tire_estimation.core.radius.aug_kf import AugKf
     from tire_estimation.core.radius.config import RadiusEstimatorConfig
+    from tire_estimation.core.radius.drive_slip import DriveSlip
     from tire_estimation.core.radius.mpf import MpfEstimate, RadiusMPF
     from tire_estimation.core.radius.road_grade import RoadGradeFit
+    from tire_estimation.core.radius.speed_scale import SpeedScaleCheck
     from tire_estimation.core.radius.wheel_timing import WheelSpeedTiming
     from tire_estimation.core.vehicle import VehicleParams
 
@@ -73,6 +75,11 @@ class RadiusEstimate:
             time for the residual signature, m/s^2.
         wheel_speed_lag_s: the wheel speeds' lag brought back before the prediction (half their
             median sample period, ``core/radius/wheel_timing.py``), s; 0 until it is known.
+        drive_slip: what the traction-slip correction of driven rear wheels did
+            (``core/radius/drive_slip.py``, :meth:`DriveSlip.summary`); empty when the rear
+            wheels are not driven.
+        radius_rescales: the factors the rear radii were scaled by when the GNSS speed showed
+            a gross scale error (``core/radius/speed_scale.py``), in order.
         rear_radius_error_cov_m2: (2, 2) posterior covariance of the rear radius errors
             (wheel_rl, wheel_rr; the diagonal is ``radius_error_std_m`` squared), m^2; None
             when not given.
@@ -99,6 +106,8 @@ class RadiusEstimate:
     road_grade_source: str = "none"
     road_grade_counts: Mapping[str, int] = field(default_factory=dict)
     wheel_speed_lag_s: float = 0.0
+    drive_slip: Mapping[str, Any] = field(default_factory=dict)
+    radius_rescales: tuple[float, ...] = ()
 
 
 #: wheel samples kept to align a GNSS velocity with the wheel speeds (2.56 s at 100 Hz)
@@ -118,6 +127,8 @@ class Reporting:
     kf: AugKf | None
     grade: RoadGradeFit
     timing: WheelSpeedTiming
+    drive_slip: DriveSlip
+    speed_scale: SpeedScaleCheck
     brake_decel_m_s2: float
     _cache: MpfEstimate
     _front: niw.NiwStats
@@ -143,6 +154,9 @@ class Reporting:
         noise = np.array(
             [math.sqrt(max(float(nc[0, 0]), 0.0)), math.sqrt(max(float(nc[1, 1]), 0.0))]
         )
+        if self.drive_slip.enabled:
+            # the slip model of driven rear wheels: its uncertainty, common to both
+            std = np.sqrt(std**2 + self.drive_slip.radius_variance_m2())
         active = (self._active, self._active)
         if self.config.wheels == "all":
             fe = niw.mmse(self._front, np.ones(1))
@@ -208,10 +222,14 @@ class Reporting:
                 if self.config.rear_brake_slip_s2_per_m
                 else self.braking_decel_at(int(self._t_pose_ns or 0))
             ),
-            rear_radius_error_cov_m2=sanitize(est.radius.mean_cov, 1.0),
+            rear_radius_error_cov_m2=sanitize(
+                est.radius.mean_cov + self.drive_slip.radius_variance_m2(), 1.0
+            ),
             road_grade_source=self.grade.source,
             road_grade_counts=dict(self.grade.counts),
             wheel_speed_lag_s=self.timing.lag_s,
+            drive_slip=self.drive_slip.summary() if self.drive_slip.enabled else {},
+            radius_rescales=tuple(self.speed_scale.rescales),
         )
         return out
 
@@ -289,6 +307,7 @@ class Reporting:
         z -= z.mean(axis=0)
         stats.mean += z @ chol.T
         self.mpf.set_stats(stats)
+        self.speed_scale.restart()
         if front is not None:
             self._front = niw.stats_from_moments(1, *front)
         if self.kf is not None and aug is not None:
