@@ -408,7 +408,9 @@ class GnssHandling:
         speed = float(np.hypot(v[0], v[1]))
         factor = self.speed_scale.add(t_ns, speed, wheel_speed, yaw_nominal)
         if factor != 1.0:
+            # the radii restart and the pose waits for two fixes: this velocity is not used
             self._scale_radii(factor)
+            return GnssVelocityUpdate(t_ns, zeros2, r, 0.0, False, "radii rescaled")
         # the heading at the velocity's time: the pose is at t_pose, the velocity describes
         # the target time (rotation by the yaw rate over the difference)
         dpsi = -yaw_rate * (self._t_pose_ns - target) * 1e-9
