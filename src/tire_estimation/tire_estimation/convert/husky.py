@@ -177,8 +177,9 @@ gnss_antenna_position_m: UNKNOWN (no transform for the /gps frame in the data or
   written as (0, 0, 0).
 imu_position_m: (0.256, -0.3, 0.665): the test's static transform (0, -0.3, 0.52) from the
   Husky base_link, moved to the contract base_link.
-steering_ratio, cornering / longitudinal stiffness: project defaults, not used for a skid
-  steer without steering and not measured.
+steering_ratio, cornering / longitudinal stiffness: project defaults, not measured; with
+  drive: all the longitudinal ones and mass_kg set the slip prior of the rear wheels
+  (0.002 % at this mass), otherwise unused by a skid steer without steering.
 """
 
 
