@@ -165,9 +165,15 @@ class ReplayReport:
                 )
                 + ")"
             )
+            said = (
+                " (vehicle.yaml says drive: front, but the rear wheels slip with the "
+                "acceleration: set drive: rear)"
+                if slip.get("detected")
+                else ""
+            )
             lines.append(
-                f"  DRIVEN REAR WHEELS: their traction slip is removed before the radii are "
-                f"learned, {how}: {1e3 * slip['slip_per_accel_s2_per_m']:.2f} per mille per "
+                f"  DRIVEN REAR WHEELS{said}: their traction slip is removed before the radii "
+                f"are learned, {how}: {1e3 * slip['slip_per_accel_s2_per_m']:.2f} per mille per "
                 f"m/s^2, mean {100 * slip['mean_slip']:.3f} %"
             )
         rescales = r.get("rescales") or []

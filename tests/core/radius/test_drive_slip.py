@@ -27,11 +27,12 @@ def _drive(
     front_measured: bool = True,
     amplitude_m_s: float = 6.0,
     noise: float = 1e-3,
+    driven: str = "rear",
 ) -> tuple[np.ndarray, np.ndarray]:
     """A straight drive at 20 +- ``amplitude_m_s`` m/s (a sine of 40 s) whose rear wheels slip by
     ``c1 (a + c_rr g) + c2 v^2`` while they drive, ``noise`` relative wheel-speed noise per
-    sample at 100 Hz. Returns the corrected rear speeds times the rear radius and the true
-    speeds, over the last 100 s."""
+    sample at 100 Hz (``driven="front"``: the front wheels slip instead). Returns the corrected
+    rear speeds times the rear radius and the true speeds, over the last 100 s."""
     out, truth = [], []
     n = int(seconds * 100)
     omega = 2 * math.pi / 40.0
@@ -42,8 +43,8 @@ def _drive(
         # the rear wheels slip while they drive; braking (a negative force) is not modelled
         kappa = C1_TRUE * (a + ROLLING_RESISTANCE_COEFFICIENT * GRAVITY_M_S2) + C2_TRUE * v * v
         kappa = max(kappa, 0.0)
-        wf = v / FRONT_RADIUS_M
-        wr = v * (1.0 + kappa) / RADIUS_M
+        wf = v * (1.0 + (kappa if driven == "front" else 0.0)) / FRONT_RADIUS_M
+        wr = v * (1.0 + (kappa if driven == "rear" else 0.0)) / RADIUS_M
         ws = np.array([wf, wf, wr, wr]) * (1.0 + noise * rng.standard_normal(4))
         corrected = slip.correct(round(t * 1e9), ws, 0.0, 0.5, front_measured)
         if k >= n - 10_000:
@@ -80,19 +81,31 @@ def test_the_slip_is_learned_from_a_prior_twice_off_and_removed(stiffness_n: flo
     assert 0.08e-3 < np.sqrt(slip.radius_variance_m2()) < 0.15e-3
 
 
-def test_without_the_correction_the_rear_wheels_read_the_slip() -> None:
-    """What the correction removes: the same drive read by a front-driven car's estimator."""
+def test_a_front_driven_car_is_watched_and_left_alone() -> None:
+    """Its front wheels slip (the slope comes out negative): nothing is corrected, and the rear
+    wheel speeds, which roll freely, come through as they are."""
     slip = DriveSlip(_vehicle("front"))
-    rolled, truth = _drive(slip, 150.0, np.random.default_rng(1))
-    assert not slip.enabled
-    assert np.mean(rolled / truth - 1.0) > 1e-3  # ten times what is left after correction
+    rolled, truth = _drive(slip, 600.0, np.random.default_rng(1), driven="front")
+    assert slip.learnable and not slip.enabled and not slip.detected
+    assert abs(np.mean(rolled / truth - 1.0)) < 1e-4
+    assert slip.summary()["source"] == "off" and slip.radius_variance_m2() == 0.0
 
 
-def test_a_front_driven_car_is_left_alone() -> None:
+def test_rear_wheels_that_slip_under_a_front_drive_are_found_and_corrected() -> None:
+    """vehicle.yaml says front, the rear wheels slip (the mean slip is 0.1-0.3 %): within a few
+    minutes the slope says rear-driven, the correction comes on and the summary says so."""
+    slip = DriveSlip(_vehicle("front"))
+    rolled, truth = _drive(slip, 600.0, np.random.default_rng(1))
+    assert slip.detected and slip.enabled and slip.learned
+    assert slip.coefficients[0] == pytest.approx(C1_TRUE, rel=0.1)
+    assert abs(np.mean(rolled / truth - 1.0)) < 1e-4
+    assert slip.summary()["detected"] is True
+
+
+def test_a_front_driven_car_passes_a_sample_through() -> None:
     slip = DriveSlip(_vehicle("front"))
     ws = np.array([60.0, 60.0, 61.0, 61.0])
     assert slip.correct(0, ws, 0.0, 0.5, True) is ws
-    assert slip.summary()["source"] == "off"
 
 
 def test_all_wheel_drive_uses_the_prior_and_says_so() -> None:

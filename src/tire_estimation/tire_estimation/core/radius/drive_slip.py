@@ -29,9 +29,12 @@ to tell it (a steady cruise keeps the prior). The rolling-resistance part ``c1 c
 in the intercept with the radius ratio and is taken with
 :data:`ROLLING_RESISTANCE_COEFFICIENT`; its uncertainty and the coefficients' are added to the
 reported std of the radii (:meth:`DriveSlip.radius_variance_m2`). A car driven on all wheels
-has no free axle: its slip is corrected with the prior and reported as not learned. A
-front-driven car's rear wheels roll freely: nothing is done. Braking (a negative traction
-force) is not corrected: the brake balance is unknown, as for a front-driven car's rear wheels.
+has no free axle: its slip is corrected with the prior and reported as not learned. A car said
+to be front-driven is only watched: its driven front wheels make the slope negative; a slope
+positive by :data:`DETECT_SIGMAS` standard errors is rear wheels that slip (vehicle.yaml's
+``drive`` is wrong), which switches the correction on and is reported. Braking (a negative
+traction force) is not corrected: the brake balance is unknown, as for a front-driven car's
+rear wheels.
 """
 
 from __future__ import annotations
@@ -72,6 +75,10 @@ EDGE_SAMPLES = 20
 #: the slope is learned once the data alone give it to this share of its size (or the prior's)
 MAX_SLOPE_STD_SHARE = 0.25
 
+#: a car said to be front-driven is taken for rear-driven when the slope is positive by this many
+#: of its standard errors
+DETECT_SIGMAS = 5.0
+
 #: the acceleration's spread must be at least this share signal, not wheel-speed noise, for the
 #: slope to be learned (the reliability ratio of the regressor; Fuller, Measurement Error
 #: Models, 1987)
@@ -103,8 +110,11 @@ class DriveSlip:
         self.drive = vehicle.drive
         #: whether the rear wheels are driven (the correction is applied)
         self.enabled = vehicle.drive in ("rear", "all")
-        #: whether a free-rolling front axle lets the slip be learned
-        self.learnable = vehicle.drive == "rear"
+        #: whether the regression runs: a rear-driven car learns its slip against the free front
+        #: wheels; a car said to be front-driven is watched for rear wheels that slip
+        self.learnable = vehicle.drive in ("rear", "front")
+        #: whether a car said to be front-driven showed driven rear wheels (then corrected)
+        self.detected = False
         c_x = vehicle.longitudinal_stiffness_rear_n
         if vehicle.drive == "all":
             # equal slip on both axles: the force splits like the stiffnesses
@@ -153,7 +163,7 @@ class DriveSlip:
         """The wheel speeds ``ws`` (fl, fr, rl, rr) rad/s with the rear wheels' slip removed
         (``omega / (1 + kappa)``); learns from the sample first when the front axle is free and
         ``front_measured`` (not filled in from the rear wheels)."""
-        if not self.enabled:
+        if not (self.enabled or self.learnable):
             return ws
         w = ws.tolist()
         if not (math.isfinite(w[RL]) and math.isfinite(w[RR])):
@@ -184,6 +194,8 @@ class DriveSlip:
         g_sin = GRAVITY_M_S2 * math.sin(grade_rad)
         if self.learnable and front:
             self._learn(t_ns, w, v)
+        if not self.enabled:
+            return ws
         c1, c2 = self.coefficients
         # kappa = c1 (a + c_rr g) + c2 v^2 (module docstring: the slip slope, Gustafsson 1997)
         kappa = c1 * (accel + g_sin + ROLLING_RESISTANCE_COEFFICIENT * GRAVITY_M_S2)
@@ -307,6 +319,12 @@ class DriveSlip:
             self.prior[0], abs(float(beta[1]))
         ):
             return
+        if not self.enabled:
+            # said to be front-driven: the front wheels' slip makes the slope negative; a
+            # positive one is the rear wheels slipping (vehicle.yaml's drive is wrong)
+            if float(beta[1]) < DETECT_SIGMAS * math.sqrt(data_cov[1, 1]):
+                return
+            self.enabled = self.detected = True
         # posterior with the prior on the slopes (std = the prior value itself) and a flat
         # intercept: (A / s^2 + P) beta = b / s^2 + P beta_0
         p1, p2 = self.prior
@@ -340,6 +358,7 @@ class DriveSlip:
         source = "learned" if self.learned else "prior" if self.enabled else "off"
         return {
             "drive": self.drive,
+            "detected": self.detected,
             "source": source,
             "slip_per_accel_s2_per_m": self.coefficients[0],
             "slip_per_speed2_s2_per_m2": self.coefficients[1],

@@ -421,7 +421,7 @@ class RadiusEstimator(GnssHandling, Reporting, Gates):
         elif self._imu is not None:
             self._track_gyro_bias(t_ns, ws)
         ws = self.timing.compensate(t_ns, ws, self.config.max_gap_s)
-        if self.drive_slip.enabled:
+        if self.drive_slip.enabled or self.drive_slip.learnable:
             ws = self.drive_slip.correct(
                 t_ns, ws, self.grade.grade_rad, self.config.max_gap_s, front_measured
             )
