@@ -479,6 +479,8 @@ def test_gnss_velocity_is_subscribed_used_and_bad_ones_are_counted(
     assert "drive_slip.source" not in values
     # the GNSS speed agrees with the wheels': no rescaling of the radii
     assert values["speed_scale.rescales"] == "0"
+    # straight driving tells neither the axles nor the gyro's sign: nothing is rewired
+    assert values["gyro.yaw_reversed"] == "false" and values["axle.rear.swapped"] == "false"
     est = node.estimator.estimate()
     # 30 s of straight driving: filter seeds 0-5 end at 0.14-0.56 mm (the common mode of the
     # two radii, which a straight drive observes weakly); 1 mm catches a velocity misuse
@@ -668,4 +670,23 @@ def test_the_datum_of_the_pose_is_published_once_with_the_map_frame(
     assert d.latitude == pytest.approx(LAT0, abs=1e-7)
     assert d.longitude == pytest.approx(LON0, abs=1e-7)
     assert d.header.stamp.sec == 1000
+    node.destroy_node()
+
+
+def test_a_gnss_clock_offset_is_reported_on_diagnostics(ros: Any, tmp_path: Path) -> None:
+    """The node's clock check (core/clock_check.py, decided over the first minutes) is on the
+    radius estimator's status: "checking" until decided, then the lag; an offset is a WARN
+    that says what to fix."""
+    from diagnostic_msgs.msg import DiagnosticStatus
+
+    node = _node(ros, tmp_path)
+    assert node.clock_check in node.pipeline.observers
+    assert _diag_values(node)["clock.gnss_lag_s"] == "checking"
+    node.clock_check.result = {"lag_s": 0.0, "correlation": 0.99, "offset": False}
+    assert _diag_values(node)["clock.gnss_lag_s"] == "0.00"
+    node.clock_check.result = {"lag_s": 18.02, "correlation": 0.99, "offset": True}
+    main = node.diagnostic_statuses()[0]
+    assert main.level == DiagnosticStatus.WARN
+    assert "GNSS stamps +18.0 s off the wheel speeds' clock" in main.message
+    assert {kv.key: kv.value for kv in main.values}["clock.gnss_lag_s"] == "18.02"
     node.destroy_node()

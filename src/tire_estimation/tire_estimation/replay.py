@@ -30,6 +30,7 @@ from tire_estimation.bag import topics
 from tire_estimation.bag.reader import TopicInfo
 from tire_estimation.bag.stream import WINDOW_S, BagStream, stream_bag
 from tire_estimation.core import yamlio
+from tire_estimation.core.clock_check import ClockCheck, leading_check
 from tire_estimation.core.deflation.config import DeflationDetectorConfig
 from tire_estimation.core.geodesy import LocalTangentPlane
 from tire_estimation.core.input_checks import merged_counts
@@ -42,7 +43,6 @@ from tire_estimation.core.stiffness.config import StiffnessEstimatorConfig
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.errors import BagError, ConfigError
 from tire_estimation.evaluation import metrics as ev
-from tire_estimation.evaluation.clock_check import ClockCheck
 from tire_estimation.evaluation.residuals import analyze_trace as analyze_residuals
 from tire_estimation.evaluation.residuals import explain as explain_residuals
 from tire_estimation.evaluation.runner import (
@@ -97,6 +97,15 @@ class ReplayReport:
         final_truth = r.get("final_error_vs_truth_m") or {}
         learning = r.get("learning") or {}
         clock = m.get("clock_check") or {}
+        if clock.get("corrected_s"):
+            lead = clock.get("leading") or {}
+            lines.append(
+                f"  CLOCKS CORRECTED: over the first minutes the GNSS speed matched the wheel "
+                f"speed {clock['corrected_s']:+.2f} s later (correlation "
+                f"{lead.get('correlation', float('nan')):.2f}): the GNSS stamps were moved back "
+                "by that much before the estimation (a receiver stamping in GPS time, or two "
+                "unsynchronized computers); fix the stamps at the source"
+            )
         if clock.get("offset"):
             lines.append(
                 f"  CLOCKS: the GNSS speed matches the wheel speed {clock['lag_s']:+.1f} s later "
@@ -152,6 +161,15 @@ class ReplayReport:
                 f"  REAR AXLE: the left-right split is {rear['reason']}: {common} (mean of the "
                 "two estimates above, which do not tell the two tyres apart)"
             )
+        swapped = [a for a, st in (r.get("axles") or {}).items() if st.get("swapped")]
+        if swapped or r.get("gyro_reversed"):
+            what = [f"the {a} wheels' left and right speeds arrived exchanged" for a in swapped]
+            if r.get("gyro_reversed"):
+                what.append("the gyro's yaw rate turns against the GNSS course (REP-103: z up)")
+            lines.append(
+                f"  WIRING: {'; '.join(what)}; corrected from then on (the GNSS course told "
+                "which input was reversed): fix the driver's wheel order or the IMU frame"
+            )
         slip = r.get("drive_slip") or {}
         if slip:
             how = (
@@ -178,10 +196,15 @@ class ReplayReport:
             )
         rescales = r.get("rescales") or []
         if rescales:
-            sizes = ", ".join(f"{100 * (f - 1):+.1f} %" for f in rescales)
+            sources = list(r.get("rescale_sources") or []) + [""] * len(rescales)
+            sizes = ", ".join(
+                f"{100 * (f - 1):+.1f} %" + (f" from the {src}" if src else "")
+                for f, src in zip(rescales, sources, strict=False)
+            )
             lines.append(
-                f"  RADII RESCALED {len(rescales)} time(s) ({sizes}): the GNSS speed disagreed "
-                "with the wheels' by more than 2 %; check vehicle.yaml's nominal_tire_radius_m, "
+                f"  RADII RESCALED {len(rescales)} time(s) ({sizes}): the GNSS speed or the "
+                "distance between its fixes on straight runs disagreed with the wheels' by more "
+                "than 2 %; check vehicle.yaml's nominal_tire_radius_m, "
                 "or the tyres were changed since the radii were saved"
             )
         for w, lost_s in (r.get("signal_lost_s") or {}).items():
@@ -551,6 +574,22 @@ _RADIUS_TOPICS = (
 )
 
 
+def _leading_clock_check(
+    bag_path: Path | str, window_s: float, options: Any, vehicle: Any
+) -> dict[str, Any]:
+    """The clock check over the first minutes of the wheel speeds and GNSS velocities
+    (:func:`~tire_estimation.core.clock_check.leading_check`)."""
+    lead = stream_bag(
+        bag_path,
+        topics=[topics.WHEEL_SPEEDS, topics.GNSS_VELOCITY],
+        window_s=window_s,
+        joints=options.names,
+    )
+    return leading_check(
+        (s for block in lead.blocks() for s in bag_samples(block)), vehicle.nominal_tire_radius_m
+    )
+
+
 def _run(
     bag_path: Path | str,
     out: Path,
@@ -625,6 +664,21 @@ def _run(
 
     run_radius_mpf = has_wheels and has_gnss
     run_stiffness_mpf = run_stiffness and has_lateral_inputs
+    # the GNSS stamped by another clock (GPS time, an unsynchronized computer): the lag the
+    # first minutes show is taken out of its stamps before the estimation
+    leading = None
+    stamp_shift: dict[str, float] = {}
+    if has_wheels and has(topics.GNSS_VELOCITY):
+        leading = _leading_clock_check(bag_path, window_s, options, meta.vehicle)
+        if leading["offset"]:
+            stamp_shift = {t: -leading["lag_s"] for t in (topics.GNSS_FIX, topics.GNSS_VELOCITY)}
+            stream = stream_bag(
+                bag_path,
+                topics=lambda infos: replay_topics(infos, run_stiffness),
+                window_s=window_s,
+                joints=options.names,
+                stamp_shift_s=stamp_shift,
+            )
     pipe_cfg = PipelineConfig(
         seed=cfg.seed,
         radius=cfg if run_radius_mpf else None,
@@ -693,7 +747,10 @@ def _run(
 
     def rerun(config: RadiusEstimatorConfig) -> RadiusTrace:
         radius_stream = stream_bag(
-            bag_path, topics=[t for t in _RADIUS_TOPICS if t in stream.topics], window_s=window_s
+            bag_path,
+            topics=[t for t in _RADIUS_TOPICS if t in stream.topics],
+            window_s=window_s,
+            stamp_shift_s=stamp_shift,
         )
         return _radius_run(config, meta.vehicle, radius_stream, spill)
 
@@ -714,6 +771,9 @@ def _run(
     if closed_loop is not None:
         metrics["closed_loop"] = closed_loop
     metrics["clock_check"] = clock_check.result()
+    # the lag found over the first minutes and taken out of the GNSS stamps (0: none)
+    metrics["clock_check"]["corrected_s"] = -stamp_shift.get(topics.GNSS_FIX, 0.0)
+    metrics["clock_check"]["leading"] = leading
     metrics["wall_s"] = time.perf_counter() - wall0
     metrics["timing_s"] = {"read": t_read, "estimate": t_run - wall0 - t_read}
     metrics["realtime_factor"] = metrics["duration_s"] / max(metrics["wall_s"], 1e-9)
@@ -877,6 +937,8 @@ def build_metrics(
     if axles is not None:
         radii["axles"] = {a: dataclasses.asdict(axles.status(a)) for a in ("front", "rear")}
         radii["signal_lost_s"] = axles.lost_signals()
+        # inputs whose sign convention was found reversed and corrected (axle_check.py)
+        radii["gyro_reversed"] = axles.gyro_reversed
     grade = arr["road_grade_rad"]
     # the grade the correction used: fixes per source (the GNSS altitude confirmed by the IMU,
     # the IMU's where they disagreed, none) and its size over the drive
@@ -889,8 +951,10 @@ def build_metrics(
     radii["wheel_speed_lag_s"] = trace.wheel_speed_lag_s
     # the traction slip removed from driven rear wheels (empty: the rear wheels roll freely)
     radii["drive_slip"] = dict(trace.drive_slip)
-    # the factors both rear radii were scaled by when the GNSS speed showed a gross error
+    # the factors both rear radii were scaled by when the GNSS showed a gross error, and
+    # what showed it ("velocity": the Doppler speed, "fixes": straight runs between fixes)
     radii["rescales"] = list(trace.radius_rescales)
+    radii["rescale_sources"] = list(trace.radius_rescale_sources)
     radii["learning"] = ev.learning_metrics(
         arr["t_ns"], trace.wheel_names, arr["active"], trace.reason
     )

@@ -222,3 +222,83 @@ def test_both_axles_at_the_same_fraction_is_a_scale_error_not_a_lock() -> None:
         assert st.slope == pytest.approx(sim.vehicle.nominal_tire_radius_m, rel=0.15)
     # one axle alone that low is still a lock
     assert _pipeline(_locked(_drive())).axles.locked("rear")  # type: ignore[union-attr]
+
+
+def _rewired(sim: SimResult, swap_rear: bool = False, flip_gyro: bool = False) -> SimResult:
+    """The rear wheels' sides exchanged in the input and/or the gyro's yaw rate negated (an IMU
+    frame with z down)."""
+    ws = sim.wheel_speeds.wheel_speed_rad_s.copy()
+    if swap_rear:
+        ws[:, [2, 3]] = ws[:, [3, 2]]
+    gyro = sim.imu.angular_velocity_rad_s.copy()
+    if flip_gyro:
+        gyro[:, 2] = -gyro[:, 2]
+    return dataclasses.replace(
+        sim,
+        wheel_speeds=dataclasses.replace(sim.wheel_speeds, wheel_speed_rad_s=ws),
+        imu=dataclasses.replace(sim.imu, angular_velocity_rad_s=gyro),
+    )
+
+
+def _no_velocity(sim: SimResult) -> SimResult:
+    gnss = dataclasses.replace(sim.gnss, velocity_enu_m_s=None, velocity_covariance_m2_s2=None)
+    return dataclasses.replace(sim, gnss=gnss)
+
+
+def test_a_reversed_gyro_is_found_from_the_gnss_course_and_negated() -> None:
+    """Both axles' differences turn against a gyro with z down; the receiver's course sides
+    with the wheels: the gyro is negated and both splits are observable again."""
+    p = _pipeline(_rewired(_drive(), flip_gyro=True))
+    axles = p.axles
+    assert axles is not None and axles.gyro_reversed
+    assert axles.swapped == {"front": False, "rear": False}
+    assert axles.gyro_course_slope is not None and axles.gyro_course_slope < -0.8
+    for axle in ("front", "rear"):
+        st = axles.status(axle)
+        assert st.split_observable is True and 0.8 < st.slope < 1.2, st
+        assert "negated" in st.reason
+    # without the receiver's velocity nothing says which is right: the two axles outvote the
+    # gyro (neither is taken as locked) and the verdict says so
+    p = _pipeline(_no_velocity(_rewired(_drive(), flip_gyro=True)))
+    assert p.axles is not None and not p.axles.gyro_reversed
+    for axle in ("front", "rear"):
+        st = p.axles.status(axle)
+        assert st.split_observable is None and "reversed" in st.reason, st
+        assert st.slope < -0.8 and not p.axles.locked(axle)
+
+
+def test_exchanged_rear_wheels_are_swapped_back() -> None:
+    """The rear speeds arrive as (rr, rl): the gyro agrees with the course, so the rear axle's
+    sides are exchanged back; the front is left alone."""
+    p = _pipeline(_rewired(_drive(), swap_rear=True))
+    axles = p.axles
+    assert axles is not None and not axles.gyro_reversed
+    assert axles.gyro_course_slope is not None and axles.gyro_course_slope > 0.8
+    assert axles.swapped == {"front": False, "rear": True}
+    rear = axles.status("rear")
+    assert rear.split_observable is True and rear.swapped and 0.8 < rear.slope < 1.2, rear
+    assert "exchanged" in rear.reason
+    # positions only: the rear is not trusted (common radius only) and the verdict names both
+    # possible causes
+    p = _pipeline(_no_velocity(_rewired(_drive(), swap_rear=True)))
+    assert p.axles is not None and not p.axles.swapped["rear"]
+    rear = p.axles.status("rear")
+    assert rear.split_observable is False and "exchanged" in rear.reason, rear
+    assert "reversed" in rear.reason
+
+
+def test_a_course_against_the_gyro_and_both_axles_changes_nothing() -> None:
+    """A receiver velocity in (north, east) instead of (east, north) mirrors the course: the
+    gyro and both axles agree with each other, so nothing is rewired and the verdict says so."""
+    sim = _drive()
+    vel = sim.gnss.velocity_enu_m_s.copy()
+    vel[:, [0, 1]] = vel[:, [1, 0]]
+    p = _pipeline(
+        dataclasses.replace(sim, gnss=dataclasses.replace(sim.gnss, velocity_enu_m_s=vel))
+    )
+    axles = p.axles
+    assert axles is not None and not axles.rewired and axles.course_suspect
+    assert axles.gyro_course_slope is not None and axles.gyro_course_slope < -0.8
+    for axle in ("front", "rear"):
+        st = axles.status(axle)
+        assert st.split_observable is True and "not in ENU" in st.reason, st

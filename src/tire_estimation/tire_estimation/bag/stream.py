@@ -63,6 +63,8 @@ class BagStream:
     horizon_s: float = HORIZON_S
     max_pending_rows: int = MAX_PENDING_ROWS
     joints: Names = CONTRACT_NAMES
+    #: added to the header stamps of a stream (by its BagData field name) before the merge, ns
+    stamp_shift_ns: Mapping[str, int] = field(default_factory=dict)
     dropped: dict[str, int] = field(default_factory=dict)
     notes: tuple[str, ...] = ()
     read_s: float = 0.0
@@ -93,6 +95,10 @@ class BagStream:
             streams = decode_topics(
                 raw, fast=self.fast, log=log, match_velocity=False, joints=self.joints
             )
+            for name, shift_ns in self.stamp_shift_ns.items():
+                decoded = streams.get(name)
+                if decoded is not None and shift_ns:
+                    streams[name] = dataclasses.replace(decoded, t_ns=decoded.t_ns + shift_ns)
             merge.add({name: streams.get(name) for name in STREAM_FIELDS.values()})
             open_fields = {
                 STREAM_FIELDS[t]
@@ -120,9 +126,18 @@ def stream_bag(
     fast: bool = True,
     window_s: float = WINDOW_S,
     joints: Names = CONTRACT_NAMES,
+    stamp_shift_s: Mapping[str, float] | None = None,
 ) -> BagStream:
     """Open a contract bag for reading in blocks (arguments and errors as
     :func:`~tire_estimation.bag.reader.read_bag`; the messages are read by
-    :meth:`BagStream.blocks`, which raises the errors of a corrupt bag)."""
+    :meth:`BagStream.blocks`, which raises the errors of a corrupt bag). ``stamp_shift_s``:
+    seconds added to the header stamps of topics (a stream stamped by another clock), the
+    merge holding the other streams back for them."""
     meta, selected, files = open_bag(path, topics=topics, require=require, fast=fast)
-    return BagStream(meta, selected, files, fast=fast, window_s=window_s, joints=joints)
+    shift_ns = {
+        STREAM_FIELDS[topic]: round(seconds * 1e9)
+        for topic, seconds in (stamp_shift_s or {}).items()
+    }
+    return BagStream(
+        meta, selected, files, fast=fast, window_s=window_s, joints=joints, stamp_shift_ns=shift_ns
+    )

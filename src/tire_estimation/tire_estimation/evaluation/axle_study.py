@@ -8,12 +8,19 @@ each rear radius and of their mean (the common radius) against the truth, relati
 nominal radius, the rear axle's verdict and slope, and how many wheel-speed samples took
 their heading change from the gyro.
 
+``--rewire swap_rear`` (the rear wheels' speeds exchanged in the input) or ``--rewire
+flip_gyro`` (the gyro's yaw rate negated: an IMU frame with z down) runs each drive as it is and
+with that wiring instead of the spool: the rear errors of both, the largest difference between
+them, and what the axle check decided (``core/radius/axle_check.py``).
+
     python -m tire_estimation.evaluation.axle_study --scenario robustness --minutes 10 --seeds 20
+    python -m tire_estimation.evaluation.axle_study --rewire flip_gyro --minutes 5 --seeds 20
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -28,14 +35,32 @@ from tire_estimation.evaluation.sim_runs import (
 )
 
 
-def run_one(scenario: str, seed: int, minutes: float, locked: bool) -> dict[str, Any]:
-    """One drive: final errors, the rear axle's verdict, the gyro-heading samples."""
+def rewired(sim: Any, how: str) -> Any:
+    """The simulation with the rear wheels' speeds exchanged (``swap_rear``) or the gyro's yaw
+    rate negated (``flip_gyro``)."""
+    if how == "swap_rear":
+        ws = sim.wheel_speeds.wheel_speed_rad_s.copy()
+        ws[:, [2, 3]] = ws[:, [3, 2]]
+        return dataclasses.replace(
+            sim, wheel_speeds=dataclasses.replace(sim.wheel_speeds, wheel_speed_rad_s=ws)
+        )
+    gyro = sim.imu.angular_velocity_rad_s.copy()
+    gyro[:, 2] = -gyro[:, 2]
+    return dataclasses.replace(sim, imu=dataclasses.replace(sim.imu, angular_velocity_rad_s=gyro))
+
+
+def run_one(
+    scenario: str, seed: int, minutes: float, locked: bool, rewire: str | None = None
+) -> dict[str, Any]:
+    """One drive: final errors, the rear axle's verdict, the gyro-heading samples; with
+    ``rewire``, the drive rewired (:func:`rewired`) instead of a spool when ``locked``."""
     sim, pipeline, run = simulated_radius_run(
         scenario,
         seed,
         minutes,
         {},
-        {"wheel_speed_rear_locked": locked},
+        {"wheel_speed_rear_locked": locked and rewire is None},
+        rewrite=(lambda s: rewired(s, rewire)) if locked and rewire else None,
     )
     nominal = sim.vehicle.nominal_tire_radius_m
     trace = run.arrays()
@@ -51,6 +76,9 @@ def run_one(scenario: str, seed: int, minutes: float, locked: bool) -> dict[str,
         "split_observable": rear.split_observable,
         "slope": rear.slope,
         "gyro_heading_samples": pipeline.radius.gyro_heading_samples,
+        "swapped": pipeline.axles.swapped["rear"],
+        "gyro_reversed": pipeline.axles.gyro_reversed,
+        "final_radius_m": est.tolist(),
     }
 
 
@@ -59,10 +87,32 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     add_seed_args(parser, "robustness", 10.0)
     parser.add_argument("--out", type=Path, default=None, help="JSON file for every run")
+    parser.add_argument("--rewire", choices=("swap_rear", "flip_gyro"), default=None)
     args = parser.parse_args(argv)
     rows = run_seeds(
-        args, lambda seed: [run_one(args.scenario, seed, args.minutes, lk) for lk in (False, True)]
+        args,
+        lambda seed: [
+            run_one(args.scenario, seed, args.minutes, lk, args.rewire) for lk in (False, True)
+        ],
     )
+    if args.rewire:
+        plain = [r for r in rows if not r["locked"]]
+        wired = [r for r in rows if r["locked"]]
+        rms = [
+            float(np.sqrt(np.mean((np.array([r["error_m"] for r in sel]) * 1e3) ** 2)))
+            for sel in (plain, wired)
+        ]
+        radii = [np.array([r["final_radius_m"] for r in sel]) for sel in (plain, wired)]
+        diff = float(np.abs(radii[1] - radii[0]).max() * 1e3)
+        print(
+            f"{args.rewire}: rear swapped back on {sum(r['swapped'] for r in wired)}, gyro "
+            f"negated on {sum(r['gyro_reversed'] for r in wired)} of {len(wired)}; rear split "
+            f"observable on {sum(r['split_observable'] is True for r in wired)}; rear errors "
+            f"RMS {rms[1]:.3f} mm (the same drives wired right: {rms[0]:.3f} mm), largest "
+            f"difference of a final radius from the drive wired right {diff:.3f} mm"
+        )
+        write_rows(args.out, rows)
+        return 0
     for locked in (False, True):
         sel = [r for r in rows if r["locked"] is locked]
         rel = np.abs([r["common_error_rel"] for r in sel]) * 100.0

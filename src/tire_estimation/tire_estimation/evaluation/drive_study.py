@@ -10,7 +10,8 @@ Printed per run: the error of each rear radius against the truth at the end, its
 std, the learned slip coefficients and the mean slip removed, and the rescalings of the radii
 (``core/radius/speed_scale.py``).
 ``--no-correction`` runs the same drives with the slip correction off, ``--no-rescale`` with the
-rescaling off (what the estimator did before them).
+rescaling off (what the estimator did before them); ``--sensor KEY=VALUE`` sets the simulator's
+sensors (``--sensor gnss_velocity_enabled=false``: a receiver that reports positions only).
 
     python -m tire_estimation.evaluation.drive_study --drive rear --seeds 20 --minutes 10
     python -m tire_estimation.evaluation.drive_study --stated-radius-m 0.29 --minutes 5
@@ -26,7 +27,13 @@ from typing import Any
 import numpy as np
 
 from tire_estimation.core.vehicle import VehicleParams
-from tire_estimation.evaluation.sim_runs import add_seed_args, run_seeds, simulated_radius_run
+from tire_estimation.evaluation.sim_runs import (
+    add_key_value_arg,
+    add_seed_args,
+    key_values,
+    run_seeds,
+    simulated_radius_run,
+)
 
 
 def run_one(
@@ -39,6 +46,7 @@ def run_one(
     stated_radius_m: float | None = None,
     rescale: bool = True,
     stated_drive: str | None = None,
+    sensors: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """One drive: final rear errors (mm), reported std (mm), the slip correction's summary."""
     vehicle = VehicleParams(drive=drive)
@@ -59,7 +67,7 @@ def run_one(
         pipeline.radius.speed_scale.enabled = rescale
 
     sim, pipeline, run = simulated_radius_run(
-        scenario, seed, minutes, {}, {}, vehicle=vehicle, stated_vehicle=stated,
+        scenario, seed, minutes, {}, sensors or {}, vehicle=vehicle, stated_vehicle=stated,
         before_push=switch,
     )  # fmt: skip
     trace = run.arrays()
@@ -74,6 +82,7 @@ def run_one(
         "z": (err / np.maximum(std, 1e-12)).tolist(),
         "slip": slip if correction else {"source": "off"},
         "rescales": list(pipeline.radius.speed_scale.rescales),
+        "rescale_sources": list(pipeline.radius.speed_scale.rescale_sources),
         # when, in s from the drive's start
         "rescale_s": [
             (t - int(trace["t_ns"][0])) * 1e-9 for t in pipeline.radius.speed_scale.rescale_t_ns
@@ -91,14 +100,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--stated-drive", choices=("front", "rear", "all"), default=None)
     parser.add_argument("--no-correction", action="store_true")
     parser.add_argument("--no-rescale", action="store_true")
+    add_key_value_arg(parser, "--sensor", "simulator SensorConfig setting (JSON value)")
     args = parser.parse_args(argv)
+    sensors = key_values(args.sensor)
     rows = run_seeds(
         args,
         lambda seed: [
             run_one(
                 seed, args.minutes, args.scenario, args.drive, args.stated_stiffness_factor,
                 not args.no_correction, args.stated_radius_m, not args.no_rescale,
-                args.stated_drive,
+                args.stated_drive, sensors,
             )
         ],
     )  # fmt: skip

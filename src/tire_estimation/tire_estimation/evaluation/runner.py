@@ -79,6 +79,8 @@ class RadiusTrace:
     drive_slip: dict[str, Any] = field(default_factory=dict)
     #: the factors the rear radii were scaled by for a gross scale error, at the latest sample
     radius_rescales: list[float] = field(default_factory=list)
+    #: what showed each: "velocity" or "fixes"
+    radius_rescale_sources: list[str] = field(default_factory=list)
     rear_brake_decel_m_s2: list[float] = field(default_factory=list)
     agreement_rows: list[NDArray[np.float64]] = field(default_factory=list)
     agreement_params: dict[str, float] = field(default_factory=dict)
@@ -302,6 +304,7 @@ def _record(trace: RadiusTrace, estimator: RadiusEstimator, upd: Any, t_ns: int)
     trace.wheel_speed_lag_s = float(getattr(est, "wheel_speed_lag_s", 0.0))
     trace.drive_slip = dict(getattr(est, "drive_slip", {}))
     trace.radius_rescales = list(getattr(est, "radius_rescales", ()))
+    trace.radius_rescale_sources = list(getattr(est, "radius_rescale_sources", ()))
     trace.rear_brake_decel_m_s2.append(float(getattr(est, "rear_brake_decel_m_s2", 0.0)))
     trace.n_eff.append(float(est.n_eff))
     trace.state.append(str(est.state))

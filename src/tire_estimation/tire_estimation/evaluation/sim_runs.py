@@ -21,12 +21,15 @@ def simulated_radius_run(
     vehicle: Any = None,
     stated_vehicle: Any = None,
     before_push: Callable[[Any], None] | None = None,
+    rewrite: Callable[[Any], Any] | None = None,
 ) -> tuple[Any, Any, Any]:
     """Simulate ``scenario`` (seed, minutes, ``SensorConfig`` overrides ``sensors``, the
     simulator's ``vehicle`` or its default) and push it through a pipeline with the radius MPF
     (``RadiusEstimatorConfig`` overrides ``radius``, the filter seeded with ``seed``) that is
     told ``stated_vehicle`` (default: the simulated one); ``before_push(pipeline)`` runs before
-    the samples are pushed. Returns (the simulation, the pipeline, the radius trace)."""
+    the samples are pushed; ``rewrite(sim)`` returns the simulation whose samples are pushed (a
+    sensor's wiring changed; the truth stays). Returns (the simulation, the pipeline, the radius
+    trace)."""
     from tire_estimation.core.pipeline import EstimationPipeline, PipelineConfig
     from tire_estimation.core.radius.config import RadiusEstimatorConfig
     from tire_estimation.evaluation.runner import RadiusRecorder
@@ -45,7 +48,8 @@ def simulated_radius_run(
     )
     if before_push is not None:
         before_push(pipeline)
-    pipeline.push_ordered(sim_samples(sim, tire_forces=False))
+    pushed = sim if rewrite is None else rewrite(sim)
+    pipeline.push_ordered(sim_samples(pushed, tire_forces=False))
     return sim, pipeline, rec.finish(pipeline)
 
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 
@@ -39,6 +40,7 @@ def statuses(
     dropped: Mapping[str, int],
     rates_hz: Mapping[str, float],
     persistence_note: str,
+    clock: Mapping[str, Any] | None = None,
 ) -> list[DiagnosticStatus]:
     """The radius estimator's status (with the input counters), one per wheel it covers, and
     one for the stiffness MPF and the tyre-force KF when they run."""
@@ -93,6 +95,21 @@ def statuses(
         if pipeline.axles is not None:
             for axle in ("front", "rear"):
                 values[f"axle.{axle}.split"] = pipeline.axles.status(axle).reason
+                values[f"axle.{axle}.swapped"] = str(pipeline.axles.swapped[axle]).lower()
+            # the gyro's yaw rate found turning against the GNSS course, negated since
+            values["gyro.yaw_reversed"] = str(pipeline.axles.gyro_reversed).lower()
+        # the GNSS stamps against the wheel speeds' clock (core/clock_check.py), decided over
+        # the first minutes: an offset is reported, not taken out
+        lag = None if clock is None else clock.get("lag_s")
+        values["clock.gnss_lag_s"] = (
+            "checking" if clock is None else "unknown" if lag is None else f"{lag:.2f}"
+        )
+        if clock is not None and clock.get("offset"):
+            main.level = DiagnosticStatus.WARN
+            main.message = (
+                f"GNSS stamps {lag:+.1f} s off the wheel speeds' clock (their speeds match "
+                "that much later): the estimates assume one clock; fix the stamps at the source"
+            )
         if any(dropped.values()) and main.level == DiagnosticStatus.OK:
             main.message = f"running; {sum(dropped.values())} input samples dropped"
         main.values = _values(values)

@@ -42,6 +42,7 @@ from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
 from tire_estimation.core.clock import ClockGuardConfig
+from tire_estimation.core.clock_check import LeadingClockCheck
 from tire_estimation.core.lateral.tyre_force_kf import TyreForceKFConfig
 from tire_estimation.core.pipeline import (
     EstimationPipeline,
@@ -114,6 +115,9 @@ class EstimatorNode(ManagedNode):
             ),
             self.vehicle,
         )
+        # the GNSS stamps against the wheel speeds' clock over the first minutes
+        self.clock_check = LeadingClockCheck(self.vehicle.nominal_tire_radius_m)
+        self.pipeline.observers.append(self.clock_check)
         self.estimator = self.pipeline.radius
         self.stiffness = self.pipeline.stiffness
         self.lateral = self.pipeline.tyre_force
@@ -303,6 +307,7 @@ class EstimatorNode(ManagedNode):
             self.dropped,
             self._input_rates_hz,
             self.state_file.note,
+            self.clock_check.result,
         )
 
 

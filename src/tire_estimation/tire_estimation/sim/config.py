@@ -109,6 +109,9 @@ class SensorConfig:
     #: Injected: a Doppler velocity stamped t (the fix's stamp) describes the antenna at
     #: t - this, s (receivers often filter the velocity more than the position).
     gnss_velocity_latency_s: float = 0.0
+    #: Injected: the receiver stamps its fixes and velocities this far ahead of the other
+    #: sensors' clock, s (a receiver stamping in GPS time, 18 s ahead of UTC).
+    gnss_clock_offset_s: float = 0.0
     #: Injected: no fix and no velocity from ``gnss_outage_from_s`` (time since the drive's
     #: start) for ``gnss_outage_duration_s`` (a tunnel, a car park).
     gnss_outage_from_s: float = 0.0
@@ -163,6 +166,7 @@ class SensorConfig:
         "gnss_velocity_noise_std_m_s": in_range(0.0, 10.0),
         "gnss_velocity_vertical_noise_std_m_s": in_range(0.0, 10.0),
         "gnss_latency_s": in_range(0.0, 2.0),
+        "gnss_clock_offset_s": in_range(-60.0, 60.0),
         "gnss_velocity_latency_s": in_range(0.0, 2.0),
         "gnss_outage_from_s": in_range(0.0, 1e6),
         "gnss_outage_duration_s": in_range(0.0, 1e6),

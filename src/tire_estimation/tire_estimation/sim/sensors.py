@@ -238,7 +238,8 @@ def gnss(
     optionally the Doppler velocity (truth + white noise) with the same stamps.
 
     A fix stamped t describes the antenna at t - ``gnss_latency_s``, its velocity at
-    t - ``gnss_velocity_latency_s`` (injected latencies).
+    t - ``gnss_velocity_latency_s`` (injected latencies); the stamps run
+    ``gnss_clock_offset_s`` ahead of the other sensors' clock.
     """
     period_s = 1.0 / cfg.gnss_rate_hz
     latency = cfg.gnss_latency_s
@@ -273,7 +274,7 @@ def gnss(
     out_from = cfg.gnss_outage_from_s
     keep = ~((t >= out_from) & (t < out_from + cfg.gnss_outage_duration_s))
     return GnssStream(
-        t_ns=start_ns + rel_ns[keep],
+        t_ns=start_ns + rel_ns[keep] + round(cfg.gnss_clock_offset_s * 1e9),
         lat_deg=lat[keep],
         lon_deg=lon[keep],
         alt_m=alt[keep],

@@ -20,6 +20,16 @@ free axle and about 0 on a locked one (wheel-speed noise does not bias it). A ve
 turns to carry information: the sum over the blocks of ``x_perp^2 dt`` (``x`` without its part
 along ``w`` within its block) at least that of ``min_turning_s`` seconds at
 ``min_yaw_rate_rad_s``.
+
+A slope of about -1 is a sign convention, not a lock: the axle's left and right speeds arrive
+exchanged, or the gyro's yaw rate is reversed (an IMU frame other than REP-103's z up, e.g.
+NED). The receiver's course tells which: its rate of change is regressed on the gyro's yaw rate
+(:meth:`AxleCheck.on_course`), and two of the three yaw sources outvote the third. A gyro that
+turns against the course and an axle is reversed (its yaw rate is negated from then on,
+:attr:`AxleCheck.gyro_reversed`); an axle that turns against the (corrected) gyro and the course
+has its two speeds exchanged (:attr:`AxleCheck.swapped`); a course against the gyro and both
+axles is a velocity not in ENU, reported and not acted on. Each is decided once and reported;
+the estimator applies them to its inputs.
 """
 
 from __future__ import annotations
@@ -45,6 +55,16 @@ LOST_SPEED_SHARE = 0.2
 #: a lost signal is back after reading within ``1 +- LOST_SPEED_SHARE`` of the others this
 #: long, s
 LOST_AFTER_S = 0.5
+
+#: the GNSS course's rate is taken between two velocities at this speed or more, m/s (0.05 m/s
+#: of Doppler noise is 0.017 rad of course at 3 m/s), at most this far apart, s
+COURSE_MIN_SPEED_M_S = 3.0
+COURSE_MAX_DT_S = 0.5
+
+#: the gyro's sign is decided on this many times the turning an axle's verdict needs (30 s at
+#: 0.05 rad/s): the course also turns with the sideslip and lags by half a velocity period
+#: (the slope settles near 0.9 on a lane change; after 3 s of it, 0.5)
+COURSE_INFO_FACTOR = 10.0
 
 
 @dataclass(frozen=True)
@@ -102,6 +122,8 @@ class AxleStatus:
     turning_samples: int
     slope: float
     reason: str
+    #: the axle's left and right speeds arrived exchanged and are swapped back
+    swapped: bool = False
 
 
 class _AxleFit:
@@ -200,6 +222,15 @@ class AxleCheck:
         self._decided: dict[str, float] = {}
         self._signals = tuple(_SignalCheck() for _ in WHEELS)
         self._t_signal_ns: int | None = None
+        #: the gyro's yaw rate turns against the GNSS course: the estimator negates it
+        self.gyro_reversed = False
+        #: per axle: its left and right speeds arrive exchanged; the estimator swaps them
+        self.swapped = dict.fromkeys(AXLES, False)
+        #: the gyro's sign against the GNSS course: None until the turns tell, then the slope
+        self.gyro_course_slope: float | None = None
+        # the course fit: last (t_ns, course rad), forgotten sums of gyro^2 dt and gyro rate dt
+        self._course: tuple[int, float] | None = None
+        self._course_sums = [0.0, 0.0]
 
     def signal_lost(self, index: int) -> bool:
         """Whether wheel ``index`` (fl, fr, rl, rr) reads (near) zero, or is not reported,
@@ -229,8 +260,84 @@ class AxleCheck:
                 check.add(t_ns, dt_s, mag / others if math.isfinite(mag) else 0.0)
 
     def on_imu(self, gyro_rad_s: Any) -> None:
-        """The latest gyro yaw rate (z), rad/s."""
+        """The latest gyro yaw rate (z), rad/s (as the estimator uses it: negated once the gyro
+        is found reversed)."""
         self._yaw_rate = float(gyro_rad_s[2])
+
+    @property
+    def rewired(self) -> bool:
+        """Whether any input is corrected (gyro negated or an axle swapped)."""
+        return self.gyro_reversed or self.swapped["front"] or self.swapped["rear"]
+
+    def on_course(self, t_ns: int, east_m_s: float, north_m_s: float) -> None:
+        """A GNSS Doppler velocity (ENU, m/s). The course's rate between two velocities at
+        speed, against the gyro's yaw rate, until the sign is decided; then, with the gyro
+        confirmed, an axle whose wheel-speed difference turns against it is swapped."""
+        last = self._course
+        course = None
+        if math.hypot(east_m_s, north_m_s) >= COURSE_MIN_SPEED_M_S:
+            course = self._course = (t_ns, math.atan2(north_m_s, east_m_s))
+        else:
+            self._course = None
+        r = self._yaw_rate
+        if self.gyro_course_slope is None and last and course and r is not None:
+            dt_s = (t_ns - last[0]) * 1e-9
+            if 0.0 < dt_s <= COURSE_MAX_DT_S:
+                # the course's rate of change (the antenna turns with the body), rad/s
+                rate = math.remainder(course[1] - last[1], math.tau) / dt_s
+                sums = self._course_sums
+                sums[0] += r * r * dt_s
+                sums[1] += r * rate * dt_s
+                if sums[0] >= COURSE_INFO_FACTOR * self._min_info / self._gain_s**2:
+                    self._decide_gyro(sums[1] / sums[0])
+        self._rewire()
+
+    def _decide_gyro(self, slope: float) -> None:
+        """The gyro's yaw rate against the course's rate: about +1, or -1 when one of the two
+        is reversed."""
+        if abs(slope) >= 0.5:  # else more turns are needed (a lever arm or a lag blurs a few)
+            self.gyro_course_slope = slope
+
+    def _rewire(self) -> None:
+        """Two of the three yaw sources (GNSS course, gyro, an axle's wheels) outvote the one
+        that turns against them: a gyro against the course and an axle is negated; an axle
+        against the (corrected) gyro and the course is swapped. A course against the gyro and
+        both axles is the GNSS velocity's frame: nothing is changed (:meth:`course_suspect`)."""
+        course = self.gyro_course_slope
+        if course is None:
+            return
+        low = -self.config.locked_slope
+        if course < 0.0 and not self.gyro_reversed:
+            if any(self.slope(axle) < low for axle in AXLES):
+                self.gyro_reversed = True
+                for axle in AXLES:
+                    self._restart(axle)
+            return
+        for axle in AXLES:
+            if not self.swapped[axle] and self.slope(axle) < low:
+                self.swapped[axle] = True
+                self._restart(axle)
+
+    @property
+    def course_suspect(self) -> bool:
+        """The GNSS course turns against the gyro while both axles turn with it: the receiver's
+        velocity is not in ENU (e.g. north and east exchanged); nothing was rewired."""
+        course = self.gyro_course_slope
+        high = self.config.locked_slope
+        return bool(
+            course is not None
+            and course < 0.0
+            and not self.gyro_reversed
+            and all(self.slope(axle) > high for axle in AXLES)
+        )
+
+    def _restart(self, axle: str) -> None:
+        """The axle's fit starts again (its input was corrected)."""
+        c = self.config
+        self._fits[axle] = _AxleFit(c.block_s, c.memory_s)
+        self._axles = tuple((a, i, j, self._fits[a]) for a, (i, j) in AXLES.items())
+        self._turning[axle] = 0
+        self._decided.pop(axle, None)
 
     def on_wheel_speeds(self, t_ns: int, wheel_speed_rad_s: Any) -> None:
         """One wheel-speed sample (fl, fr, rl, rr), rad/s; NaN for a wheel not reported."""
@@ -279,18 +386,45 @@ class AxleCheck:
             return None
         return theirs if abs(theirs / mine - 1.0) <= 0.3 else None
 
+    def _gyro_against_both(self, axle: str) -> bool:
+        """Both axles' differences turn against the gyro: the gyro is the odd one out (its yaw
+        rate most likely reversed), not two locked axles."""
+        other = "front" if axle == "rear" else "rear"
+        low = -self.config.locked_slope
+        return bool(self.slope(axle) < low and self.slope(other) < low)
+
     def locked(self, axle: str) -> bool:
         """True when ``axle``'s split is unobservable (:meth:`status` says False)."""
-        return bool(self.slope(axle) < self.config.locked_slope) and self._scale_off(axle) is None
+        return (
+            bool(self.slope(axle) < self.config.locked_slope)
+            and self._scale_off(axle) is None
+            and not self._gyro_against_both(axle)
+        )
 
     def status(self, axle: str) -> AxleStatus:
         """The verdict on ``axle`` (``front`` or ``rear``)."""
         slope = self.slope(axle)
         n = self._turning[axle]
+        swapped = self.swapped[axle]
+        note = ""
+        if swapped:
+            note += "; its left and right speeds arrived exchanged and are swapped back"
+        if self.gyro_reversed:
+            note += (
+                "; the gyro's yaw rate turns against the GNSS course and is negated (REP-103: "
+                "z up, yaw positive to the left)"
+            )
+        elif self.course_suspect:
+            note += (
+                "; the GNSS course turns against the gyro and both axles: the receiver's "
+                "velocity is likely not in ENU (east, north, up); nothing was changed"
+            )
         if self._yaw_rate is None:
-            return AxleStatus(axle, None, n, slope, "unknown: no gyro yaw rate")
+            return AxleStatus(axle, None, n, slope, "unknown: no gyro yaw rate" + note, swapped)
         if math.isnan(slope):
-            return AxleStatus(axle, None, n, slope, f"unknown: too few turns ({n} samples)")
+            return AxleStatus(
+                axle, None, n, slope, f"unknown: too few turns ({n} samples)" + note, swapped
+            )
         if self._scale_off(axle) is not None:
             return AxleStatus(
                 axle,
@@ -299,16 +433,35 @@ class AxleCheck:
                 slope,
                 f"unknown: both axles' wheel-speed differences are {slope:.2f} of what the gyro "
                 "implies: the wheel speeds' unit (rad/s) or vehicle.yaml's nominal_tire_radius_m "
-                "or track_width_m is off by that factor",
+                "or track_width_m is off by that factor" + note,
+                swapped,
+            )
+        if self._gyro_against_both(axle):
+            return AxleStatus(
+                axle,
+                None,
+                n,
+                slope,
+                f"unknown: both axles' wheel-speed differences turn against the gyro (slope "
+                f"{slope:.2f}): the gyro's yaw rate is most likely reversed (REP-103: z up); "
+                "no GNSS velocity has confirmed it yet" + note,
+                swapped,
             )
         if self.locked(axle):
+            why = (
+                f"the difference turns against the gyro (slope {slope:.2f}): the axle's left "
+                "and right speeds are exchanged, or the gyro's yaw rate is reversed; no GNSS "
+                "velocity has told which yet"
+                if slope < -self.config.locked_slope
+                else f"both wheels turn alike in the turns (slope {slope:.2f} of the difference "
+                "the gyro implies: a locked axle or spool, or one signal copied to both sides)"
+            )
             return AxleStatus(
                 axle,
                 False,
                 n,
                 slope,
-                f"unobservable: both wheels turn alike in the turns (slope {slope:.2f} of the "
-                "difference the gyro implies: a locked axle or spool, or one signal copied to "
-                "both sides); only the axle's common radius is observable",
+                f"unobservable: {why}; only the axle's common radius is observable" + note,
+                swapped,
             )
-        return AxleStatus(axle, True, n, slope, f"observable (slope {slope:.2f})")
+        return AxleStatus(axle, True, n, slope, f"observable (slope {slope:.2f})" + note, swapped)

@@ -19,6 +19,7 @@ from tire_estimation.errors import InputError
 
 if TYPE_CHECKING:
     from tire_estimation.core.radius.aug_kf import AugKf
+    from tire_estimation.core.radius.axle_check import AxleCheck
     from tire_estimation.core.radius.config import RadiusEstimatorConfig
     from tire_estimation.core.radius.model import RadiusMotionModel
     from tire_estimation.core.radius.mpf import RadiusMPF
@@ -149,6 +150,7 @@ class GnssHandling:
     _last_alt_m: float
     _cache_version: int
     speed_scale: SpeedScaleCheck
+    axles: AxleCheck
 
     def _refresh_cache(self) -> None:
         """After a measurement: the learned radii the gates and the speed use are brought up to
@@ -258,6 +260,15 @@ class GnssHandling:
         covariance. Called by :meth:`on_gnss_fix`; usable directly by tests and simulations."""
         zeros2 = np.zeros(2)
         self._track_fix_period(t_ns)
+        # a gross scale error in the distance between the fixes of straight runs
+        factor = self.speed_scale.add_fix(
+            t_ns, float(y_m[0]), float(y_m[1]), math.sqrt(0.5 * float(np.trace(r_m2))),
+            self._nominal_radius_m + 0.5 * sum(self._radius_mean),
+        )  # fmt: skip
+        if factor != 1.0:
+            # the radii restart and the pose waits for two fixes, this one the first
+            self._scale_radii(factor)
+            return self._initialize(t_ns, y_m, r_m2)
         self.mpf.observe_fix_cov(r_m2)
         if self.kf is not None:
             self.kf.observe_fix_cov(r_m2)
@@ -348,6 +359,8 @@ class GnssHandling:
             return GnssVelocityUpdate(stamp, zeros2, eye2, 0.0, False, kind)
         t_ns = int(t_ns)
         self._streams["gnss_velocity"].last_t_ns = t_ns
+        # the course's turning against the gyro's (a reversed gyro, exchanged wheel sides)
+        self.axles.on_course(t_ns, float(v[0]), float(v[1]))
         if not c.gnss_velocity_enabled:
             return GnssVelocityUpdate(t_ns, zeros2, r, 0.0, False, "disabled")
         if not self._pose_ok or self._prev_ws is None or len(self._speed_hist) < 2:

@@ -78,8 +78,10 @@ class RadiusEstimate:
         drive_slip: what the traction-slip correction of driven rear wheels did
             (``core/radius/drive_slip.py``, :meth:`DriveSlip.summary`); empty when the rear
             wheels are not driven.
-        radius_rescales: the factors the rear radii were scaled by when the GNSS speed showed
-            a gross scale error (``core/radius/speed_scale.py``), in order.
+        radius_rescales: the factors the rear radii were scaled by when the GNSS showed a gross
+            scale error (``core/radius/speed_scale.py``), in order.
+        radius_rescale_sources: what showed each: ``velocity`` (the Doppler speed) or
+            ``fixes`` (the distance between the fixes of straight runs).
         rear_radius_error_cov_m2: (2, 2) posterior covariance of the rear radius errors
             (wheel_rl, wheel_rr; the diagonal is ``radius_error_std_m`` squared), m^2; None
             when not given.
@@ -108,6 +110,7 @@ class RadiusEstimate:
     wheel_speed_lag_s: float = 0.0
     drive_slip: Mapping[str, Any] = field(default_factory=dict)
     radius_rescales: tuple[float, ...] = ()
+    radius_rescale_sources: tuple[str, ...] = ()
 
 
 #: wheel samples kept to align a GNSS velocity with the wheel speeds (2.56 s at 100 Hz)
@@ -230,6 +233,7 @@ class Reporting:
             wheel_speed_lag_s=self.timing.lag_s,
             drive_slip=self.drive_slip.summary() if self.drive_slip.enabled else {},
             radius_rescales=tuple(self.speed_scale.rescales),
+            radius_rescale_sources=tuple(self.speed_scale.rescale_sources),
         )
         return out
 

@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from tire_estimation.core.clock_check import LEADING_S, ClockCheck, leading_check
 from tire_estimation.core.samples import GnssVelocity, WheelSpeeds
-from tire_estimation.evaluation.clock_check import ClockCheck
 
 RADIUS_M = 0.31
 
@@ -30,10 +30,13 @@ def _check(gnss_late_s: float | None, seconds: float = 300.0) -> dict:
     return check.result()
 
 
-@pytest.mark.parametrize("late_s", [18.0, -5.0, 1.5])
+@pytest.mark.parametrize("late_s", [18.0, -5.0, 1.5, 7.33])
 def test_a_clock_offset_is_found_and_sized(late_s: float) -> None:
+    """Sized to a few hundredths of a second: the GNSS profile is read at the wheel
+    profile's own stamps, so the bins' sampling (a wheel sample at a bin's start, the mean of
+    the velocities over it) cancels."""
     res = _check(late_s)
-    assert res["lag_s"] == pytest.approx(late_s, abs=0.5)
+    assert res["lag_s"] == pytest.approx(late_s, abs=0.03)
     assert res["offset"] is True and res["correlation"] > 0.99
     assert res["correlation_at_zero"] < res["correlation"]
 
@@ -45,3 +48,19 @@ def test_one_clock_is_no_offset_and_no_velocity_is_not_judged() -> None:
     assert abs(late["lag_s"]) <= 0.5 and late["offset"] is False
     none = _check(None)
     assert none["lag_s"] is None and none["offset"] is False
+
+
+def test_the_leading_check_reads_the_first_minutes_only() -> None:
+    """Over the first LEADING_S of stamps: the samples after the first one beyond them are
+    not read."""
+    samples = []
+    for t in np.arange(0.0, 2 * LEADING_S, 0.1):
+        v = 20.0 + 4.0 * np.sin(2 * np.pi * t / 60.0)
+        samples.append(WheelSpeeds(round(t * 1e9), np.full(4, v / RADIUS_M)))
+        samples.append(GnssVelocity(round((t + 4.0) * 1e9), np.array([v, 0.0, 0.0]), None))
+    samples.sort(key=lambda s: s.t_ns)
+    it = iter(samples)
+    res = leading_check(it, RADIUS_M)
+    assert res["offset"] is True and res["lag_s"] == pytest.approx(4.0, abs=0.03)
+    rest = list(it)
+    assert len(rest) == sum(s.t_ns > LEADING_S * 1e9 for s in samples) - 1
