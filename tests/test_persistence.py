@@ -381,8 +381,8 @@ def _corpus() -> list[Case]:
         Case("dof 3", _set("radius", "rear", "dof", 3), RADIUS, "dof"),
         Case("dof a string", _set("radius", "rear", "dof", "many"), RADIUS, "not a number"),
         Case("dof a bool", _set("radius", "rear", "dof", True), RADIUS, "not a number"),
-        Case("radius +20 mm", _set("radius", "rear", "mean_m", [0.02, 0.0]), RADIUS, "outside"),
-        Case("radius -20 mm", _set("radius", "rear", "mean_m", [0.0, -0.02]), RADIUS, "outside"),
+        Case("radius +100 mm", _set("radius", "rear", "mean_m", [0.1, 0.0]), RADIUS, "outside"),
+        Case("radius -100 mm", _set("radius", "rear", "mean_m", [0.0, -0.1]), RADIUS, "outside"),
         Case("radius 1e29 m", _set("radius", "rear", "mean_m", [1e29, 0.0]), RADIUS, "outside"),
         Case(
             "mean of wrong length", _set("radius", "rear", "mean_m", [0.001]), RADIUS, "list of 2"
@@ -434,8 +434,8 @@ def _corpus() -> list[Case]:
             "aug_kf.mean_m",
         ),
         Case(
-            "old radius-only format, -20 mm",
-            _text(_set_in(GOOD["radius"], "rear", "mean_m", [-0.02, 0.0])),
+            "old radius-only format, -100 mm",
+            _text(_set_in(GOOD["radius"], "rear", "mean_m", [-0.1, 0.0])),
             BOTH,
             "outside",
         ),
@@ -557,9 +557,10 @@ def test_the_good_state_restores(tmp_path: Path) -> None:
 
 
 def test_the_radius_band_follows_the_nominal_radius(tmp_path: Path) -> None:
-    """+20 mm is implausible on a 0.31 m tyre (band 15.5 mm), plausible on a 0.5 m one (25 mm)."""
+    """+100 mm is implausible on a 0.31 m tyre (band 77.5 mm), plausible on a 0.5 m one (125
+    mm)."""
     path = tmp_path / "learned.json"
-    state = _set_in(GOOD["radius"], "rear", "mean_m", [0.02, 0.0])
+    state = _set_in(GOOD["radius"], "rear", "mean_m", [0.1, 0.0])
     path.write_text(_text({"radius": {**state, "vehicle": "big"}}, vehicle_name="big"))
     big = VehicleParams(name="big", nominal_tire_radius_m=0.5)
     p = EstimationPipeline(
@@ -567,7 +568,7 @@ def test_the_radius_band_follows_the_nominal_radius(tmp_path: Path) -> None:
     )
     outcome = restore(path, Identity("big", ID.tire_set_id), _learned(p), "estimates")
     assert not outcome.rejected, outcome.note
-    assert p.radius.estimate().radius_error_m[0] == pytest.approx(0.02, abs=1e-4)
+    assert p.radius.estimate().radius_error_m[0] == pytest.approx(0.1, abs=1e-4)
 
 
 def test_stale_temporary_files_are_removed_at_start(tmp_path: Path) -> None:
@@ -617,10 +618,10 @@ DETECTOR_CASES = [
         ),
         "digits",
     ),
-    ("calibrated +20 mm", _text(_detector_state(calibrated_m=0.02)), "calibrated_m"),
+    ("calibrated +100 mm", _text(_detector_state(calibrated_m=0.1)), "calibrated_m"),
     ("calibrated 1e29 m", _text(_detector_state(calibrated_m=1e29)), "calibrated_m"),
     ("negative CUSUM", _text(_detector_state(g_m=-1.0)), "g_m"),
-    ("CUSUM beyond the driving time", _text(_detector_state(g_m=50.0)), "g_m"),
+    ("CUSUM beyond the driving time", _text(_detector_state(g_m=5000.0)), "g_m"),
     ("negative calibration time", _text(_detector_state(calib_time_s=-5.0)), "calib_time_s"),
     (
         "weights beyond the calibration time",

@@ -88,6 +88,7 @@ def test_the_summary_names_a_lost_wheel_a_reversing_car_and_a_failed_initializat
     radii["gyro_reversed"] = True
     radii["axles"]["rear"]["swapped"] = True
     radii["rescale_sources"] = ["fixes"]
+    radii["rescales_refused"] = [3.226]
     radii["failed_initializations"] = {"count": 7, "median_distance_ratio": 0.31}
     for learn in radii["learning"].values():
         learn["learned_s"], learn["paused_s"] = 0.0, {"reversing": 50.0}
@@ -96,6 +97,8 @@ def test_the_summary_names_a_lost_wheel_a_reversing_car_and_a_failed_initializat
     assert "POSE NOT INITIALIZED" not in ReplayReport(out, metrics).summary()  # one glitch
     assert "WHEEL SIGNAL LOST: wheel_rl" in text and "12.5 s" in text
     assert "RADII RESCALED 1 time(s) (+5.7 % from the fixes)" in text
+    assert "RADII NOT RESCALED: the GNSS distance was 3.23 times the wheels'" in text
+    assert "RADII NOT RESCALED" not in plain and radii["rescales_refused"] == [3.226]
     assert "WIRING: the rear wheels' left and right speeds arrived exchanged; the gyro's" in text
     assert "WIRING" not in plain
     assert "POSE NOT INITIALIZED 7 times" in text and "covered 0.31 of the distance" in text

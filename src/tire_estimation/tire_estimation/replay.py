@@ -207,6 +207,14 @@ class ReplayReport:
                 "than 2 %; check vehicle.yaml's nominal_tire_radius_m, "
                 "or the tyres were changed since the radii were saved"
             )
+        refused = r.get("rescales_refused") or []
+        if refused:
+            lines.append(
+                f"  RADII NOT RESCALED: the GNSS distance was {refused[-1]:.2f} times the "
+                f"wheels' ({len(refused)} time(s)), beyond what a tyre radius can be off: the "
+                "wheel speeds' unit (rad/s) or vehicle.yaml's nominal_tire_radius_m (a radius, "
+                "not a diameter) is wrong"
+            )
         for w, lost_s in (r.get("signal_lost_s") or {}).items():
             lines.append(
                 f"  WHEEL SIGNAL LOST: {w} read below {100 * LOST_SPEED_SHARE:.0f} % of the other "
@@ -955,6 +963,7 @@ def build_metrics(
     # what showed it ("velocity": the Doppler speed, "fixes": straight runs between fixes)
     radii["rescales"] = list(trace.radius_rescales)
     radii["rescale_sources"] = list(trace.radius_rescale_sources)
+    radii["rescales_refused"] = list(trace.radius_rescales_refused)
     radii["learning"] = ev.learning_metrics(
         arr["t_ns"], trace.wheel_names, arr["active"], trace.reason
     )

@@ -40,8 +40,8 @@ def _wheel(**values: Any) -> dict[str, Any]:
 @pytest.mark.parametrize(
     ("state", "reason"),
     [
-        (_wheel(calibrated_m=0.02), "calibrated_m=0.02 is outside"),
-        (_wheel(calibrated_m=-0.02), "calibrated_m"),
+        (_wheel(calibrated_m=0.1), "calibrated_m=0.1 is outside"),
+        (_wheel(calibrated_m=-0.1), "calibrated_m"),
         (_wheel(last_estimate_m=1e29), "last_estimate_m"),
         (_wheel(common_calibrated_m=float("inf")), "not finite"),
         (_wheel(calib_time_s=int("9" * 500)), "too large"),
@@ -79,16 +79,16 @@ def test_a_valid_state_restores_and_the_band_follows_the_nominal_radius() -> Non
     det = DeflationDetector(plain_config(), NOMINAL_M)
     det.load_state_dict(GOOD)
     assert det.state_dict() == GOOD
-    # 20 mm: implausible on a 0.31 m tyre, plausible when the vehicle is unknown (the largest
-    # nominal radius a vehicle description allows, 1.5 m: 75 mm)
-    shifted = _wheel(calibrated_m=0.02, calib_sum_wx=0.02 * GOOD["wheels"]["wheel_rl"]
-                     ["calib_sum_w"], common_calibrated_m=0.02)  # fmt: skip
+    # 100 mm: implausible on a 0.31 m tyre (25 %: 77.5 mm), plausible when the vehicle is
+    # unknown (the largest nominal radius a vehicle description allows, 1.5 m: 375 mm)
+    shifted = _wheel(calibrated_m=0.1, calib_sum_wx=0.1 * GOOD["wheels"]["wheel_rl"]
+                     ["calib_sum_w"], common_calibrated_m=0.1)  # fmt: skip
     with pytest.raises(InputError, match="calibrated_m"):
         DeflationDetector(plain_config(), NOMINAL_M).load_state_dict(shifted)
     unknown = DeflationDetector(plain_config())
-    assert unknown.radius_error_limit_m == pytest.approx(0.075)
+    assert unknown.radius_error_limit_m == pytest.approx(0.375)
     unknown.load_state_dict(shifted)
-    assert unknown.status().wheel("wheel_rl").calibrated_radius_error_m == pytest.approx(0.02)
+    assert unknown.status().wheel("wheel_rl").calibrated_radius_error_m == pytest.approx(0.1)
 
 
 def test_limits_of_each_saved_value() -> None:

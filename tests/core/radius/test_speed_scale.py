@@ -21,46 +21,46 @@ from tire_estimation.evaluation.sim_runs import simulated_radius_run
 
 
 def test_two_windows_beyond_two_percent_ask_for_a_rescale_once() -> None:
-    check = SpeedScaleCheck()
+    check = SpeedScaleCheck(RADIUS_M)
     rng = np.random.default_rng(0)
     factors = [
-        check.add(k, 20.0 * 1.05 + 0.05 * rng.standard_normal(), 20.0, 0.0)
+        check.add(k, 20.0 * 1.05 + 0.05 * rng.standard_normal(), 20.0, 0.0, RADIUS_M)
         for k in range(2 * WINDOW)
     ]
     assert factors[:-1] == [1.0] * (2 * WINDOW - 1)
     assert factors[-1] == pytest.approx(1.05, abs=0.002)
     # the windows start again: nothing more until two are full
-    assert all(check.add(k, 21.0, 20.0, 0.0) == 1.0 for k in range(2 * WINDOW - 1))
+    assert all(check.add(k, 21.0, 20.0, 0.0, RADIUS_M) == 1.0 for k in range(2 * WINDOW - 1))
     assert check.summary()["rescales"] == [factors[-1]]
     assert check.summary()["rescale_t_ns"] == [2 * WINDOW - 1]
 
 
 def test_one_window_off_or_two_on_opposite_sides_rescale_nothing() -> None:
-    check = SpeedScaleCheck()
+    check = SpeedScaleCheck(RADIUS_M)
     for ratio in (1.05, 1.0, 1.05, 0.95):
-        assert all(check.add(0, 20.0 * ratio, 20.0, 0.0) == 1.0 for _ in range(WINDOW))
+        assert all(check.add(0, 20.0 * ratio, 20.0, 0.0, RADIUS_M) == 1.0 for _ in range(WINDOW))
     assert check.rescales == []
 
 
 def test_a_noisy_window_needs_more_than_two_percent() -> None:
     """3 m/s with 0.1 m/s of velocity noise (3.3 % per velocity): the median's standard error
     is 0.6 %, so 3 % is within six of them and nothing is rescaled."""
-    check = SpeedScaleCheck()
+    check = SpeedScaleCheck(RADIUS_M)
     rng = np.random.default_rng(1)
     for _ in range(4 * WINDOW):
-        assert check.add(0, 3.0 * 1.03 + 0.1 * rng.standard_normal(), 3.0, 0.0) == 1.0
+        assert check.add(0, 3.0 * 1.03 + 0.1 * rng.standard_normal(), 3.0, 0.0, RADIUS_M) == 1.0
     assert check.rescales == [] and abs(check.median_ratio["velocity"] - 1.03) < 0.01
 
 
 def test_within_two_percent_turns_and_low_speed_nothing_is_rescaled() -> None:
-    check = SpeedScaleCheck()
+    check = SpeedScaleCheck(RADIUS_M)
     for _ in range(3 * WINDOW):
-        assert check.add(0, 20.0 * (1.0 + 0.9 * GROSS_RATIO), 20.0, 0.0) == 1.0
-        assert check.add(0, 25.0, 20.0, 0.2) == 1.0  # turning: the lever arm's speed
-        assert check.add(0, 2.5, 2.0, 0.0) == 1.0  # below 3 m/s
+        assert check.add(0, 20.0 * (1.0 + 0.9 * GROSS_RATIO), 20.0, 0.0, RADIUS_M) == 1.0
+        assert check.add(0, 25.0, 20.0, 0.2, RADIUS_M) == 1.0  # turning: the lever arm's speed
+        assert check.add(0, 2.5, 2.0, 0.0, RADIUS_M) == 1.0  # below 3 m/s
     assert check.rescales == [] and check.median_ratio["velocity"] == pytest.approx(1.018)
     check.enabled = False  # a study's switch: nothing is acted on
-    assert all(check.add(0, 22.0, 20.0, 0.0) == 1.0 for _ in range(2 * WINDOW))
+    assert all(check.add(0, 22.0, 20.0, 0.0, RADIUS_M) == 1.0 for _ in range(2 * WINDOW))
 
 
 @pytest.mark.parametrize("stated_radius_m", [0.29, 0.33])
@@ -181,7 +181,7 @@ def test_bends_speed_changes_slow_driving_and_gaps_give_no_run() -> None:
 
 def test_runs_that_disagree_with_the_wheels_rescale_the_radii() -> None:
     """Two windows of RUN_WINDOW straight runs 5 % longer than the wheels' distance."""
-    check = SpeedScaleCheck()
+    check = SpeedScaleCheck(RADIUS_M)
     rng = np.random.default_rng(2)
     factors = []
     x, t_ns = 0.0, 0
@@ -214,3 +214,16 @@ def test_a_wrong_nominal_radius_is_found_from_positions_alone() -> None:
     error = 0.29 + np.asarray(est.radius_error_m) - true
     assert np.all(np.abs(error) < 4.0 * np.asarray(est.radius_error_std_m))
     assert np.all(np.abs(error) < 1.0e-3)
+
+
+def test_a_scale_beyond_a_plausible_radius_error_is_refused_and_said() -> None:
+    """Wheel speeds in m/s (the GNSS distance 3.2 times the wheels') or a radius given as a
+    diameter: no rescale to a "radius" of 1 m; the factor is kept as refused."""
+    check = SpeedScaleCheck(RADIUS_M)
+    factors = [check.add(k, 20.0, 20.0 * RADIUS_M, 0.0, RADIUS_M) for k in range(2 * WINDOW)]
+    assert factors == [1.0] * (2 * WINDOW) and check.rescales == []
+    assert check.refused == [pytest.approx(1.0 / RADIUS_M)]
+    assert check.summary()["refused"] == check.refused
+    # 20 % is a tyre size, not a unit: rescaled
+    factors = [check.add(k, 24.0, 20.0, 0.0, RADIUS_M) for k in range(2 * WINDOW)]
+    assert factors[-1] == pytest.approx(1.2) and check.rescales == [pytest.approx(1.2)]

@@ -20,10 +20,12 @@ from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.errors import InputError
 
 #: Largest plausible radius error (effective minus nominal rolling radius) as a fraction of the
-#: nominal radius: a worn tread (about -6 mm), a deflated tyre (a few mm) and a nominal radius
-#: taken from the tyre size (the Husky robot: -6.2 mm of 165 mm, 3.8 %) stay within it; a
-#: learned value beyond it is not a radius error but a corrupt state.
-MAX_RADIUS_ERROR_FRACTION = 0.05
+#: nominal radius: a worn tread (about -6 mm), a deflated tyre (a few mm), a nominal radius taken
+#: from the tyre size (the Husky robot: -6.2 mm of 165 mm, 3.8 %) and one for another tyre size
+#: than fitted (the radii rescaled by ``core/radius/speed_scale.py``) stay within it; beyond it
+#: the wheel speeds' unit or a radius given as a diameter, not a radius error: a learned value is
+#: a corrupt state, and the radii are not rescaled that far.
+MAX_RADIUS_ERROR_FRACTION = 0.25
 #: Smallest standard deviation a restored covariance may hold, as a fraction of the nominal
 #: value of its quantity: below it the squares are at the rounding of a double, no learned
 #: statistic.

@@ -193,7 +193,7 @@ class RadiusEstimator(GnssHandling, Reporting, Gates):
         #: the traction slip of driven rear wheels, removed before the prediction
         self.drive_slip = DriveSlip(self.vehicle)
         #: the GNSS speed against the wheels' with the learned radii: gross scale errors
-        self.speed_scale = SpeedScaleCheck()
+        self.speed_scale = SpeedScaleCheck(self.vehicle.nominal_tire_radius_m)
         self._prev_ws: F64 | None = None
         self._prev_rear: tuple[float, float] = (0.0, 0.0)
         self._t_pose_ns: int | None = None

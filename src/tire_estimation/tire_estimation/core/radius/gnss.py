@@ -419,7 +419,8 @@ class GnssHandling:
         m = self.model
         yaw_nominal = (w4 - w3) * m.nominal_radius_m / m.track_width_m
         speed = float(np.hypot(v[0], v[1]))
-        factor = self.speed_scale.add(t_ns, speed, wheel_speed, yaw_nominal)
+        learned_m = m.nominal_radius_m + 0.5 * sum(self._radius_mean)
+        factor = self.speed_scale.add(t_ns, speed, wheel_speed, yaw_nominal, learned_m)
         if factor != 1.0:
             # the radii restart and the pose waits for two fixes: this velocity is not used
             self._scale_radii(factor)

@@ -82,6 +82,8 @@ class RadiusEstimate:
             scale error (``core/radius/speed_scale.py``), in order.
         radius_rescale_sources: what showed each: ``velocity`` (the Doppler speed) or
             ``fixes`` (the distance between the fixes of straight runs).
+        radius_rescales_refused: scale factors the GNSS showed but beyond what a radius can be
+            off (``MAX_RADIUS_ERROR_FRACTION`` of nominal): not applied.
         rear_radius_error_cov_m2: (2, 2) posterior covariance of the rear radius errors
             (wheel_rl, wheel_rr; the diagonal is ``radius_error_std_m`` squared), m^2; None
             when not given.
@@ -111,6 +113,7 @@ class RadiusEstimate:
     drive_slip: Mapping[str, Any] = field(default_factory=dict)
     radius_rescales: tuple[float, ...] = ()
     radius_rescale_sources: tuple[str, ...] = ()
+    radius_rescales_refused: tuple[float, ...] = ()
 
 
 #: wheel samples kept to align a GNSS velocity with the wheel speeds (2.56 s at 100 Hz)
@@ -234,6 +237,7 @@ class Reporting:
             drive_slip=self.drive_slip.summary() if self.drive_slip.enabled else {},
             radius_rescales=tuple(self.speed_scale.rescales),
             radius_rescale_sources=tuple(self.speed_scale.rescale_sources),
+            radius_rescales_refused=tuple(self.speed_scale.refused),
         )
         return out
 

@@ -30,6 +30,8 @@ from statistics import median
 
 import numpy as np
 
+from tire_estimation.core.state_checks import MAX_RADIUS_ERROR_FRACTION
+
 #: velocities whose median ratio is tested (one window after the other, not sliding)
 WINDOW = 50
 
@@ -194,9 +196,16 @@ class SpeedScaleCheck:
     """The median GNSS-over-wheel distance ratio and the rescalings it asked for: from the
     Doppler speed (:meth:`add`) and from straight runs between fixes (:meth:`add_fix`)."""
 
-    def __init__(self) -> None:
+    def __init__(self, nominal_radius_m: float) -> None:
         #: whether a gross error is acted on (studies switch it off to show what it does)
         self.enabled = True
+        #: a rescale may take the radii at most MAX_RADIUS_ERROR_FRACTION from this, m
+        self._limits_m = (
+            nominal_radius_m * (1.0 - MAX_RADIUS_ERROR_FRACTION),
+            nominal_radius_m * (1.0 + MAX_RADIUS_ERROR_FRACTION),
+        )
+        #: scale factors shown but beyond that bound (not applied): a unit or a diameter
+        self.refused: list[float] = []
         self._windows = {"velocity": _Window(WINDOW), "fixes": _Window(RUN_WINDOW)}
         #: the straight runs between fixes (the estimator rolls them on each wheel sample)
         self.runs = StraightRuns()
@@ -209,12 +218,18 @@ class SpeedScaleCheck:
         self.median_ratio = {"velocity": 1.0, "fixes": 1.0}
 
     def add(
-        self, t_ns: int, gnss_speed_m_s: float, wheel_speed_m_s: float, yaw_rate_rad_s: float
+        self,
+        t_ns: int,
+        gnss_speed_m_s: float,
+        wheel_speed_m_s: float,
+        yaw_rate_rad_s: float,
+        radius_m: float,
     ) -> float:
         """One steady velocity stamped ``t_ns`` (the caller has gated acceleration): the
         antenna's horizontal speed, the rear wheels' with the learned radii and the yaw rate of
         the wheel-speed difference with the nominal radii (a wrong learned split must not hide
-        the straight driving). Returns the factor to scale the rear radii by now, or 1."""
+        the straight driving); ``radius_m`` the learned mean rear radius. Returns the factor to
+        scale the rear radii by now, or 1."""
         if (
             not self.enabled
             or wheel_speed_m_s < MIN_SPEED_M_S
@@ -222,7 +237,7 @@ class SpeedScaleCheck:
             or not math.isfinite(gnss_speed_m_s)
         ):
             return 1.0
-        return self._test("velocity", t_ns, gnss_speed_m_s / wheel_speed_m_s)
+        return self._test("velocity", t_ns, gnss_speed_m_s / wheel_speed_m_s, 1.0, radius_m)
 
     def add_fix(
         self, t_ns: int, east_m: float, north_m: float, std_m: float, radius_m: float
@@ -234,11 +249,14 @@ class SpeedScaleCheck:
             return 1.0
         # the runs' radii, not their ratios to the learned one, are kept: the learning moves
         # the radius while a window fills (minutes, where straight runs are rare)
-        return self._test("fixes", t_ns, run_radius_m, radius_m)
+        return self._test("fixes", t_ns, run_radius_m, radius_m, radius_m)
 
-    def _test(self, source: str, t_ns: int, value: float, reference: float = 1.0) -> float:
+    def _test(
+        self, source: str, t_ns: int, value: float, reference: float, radius_m: float
+    ) -> float:
         """``value`` (a ratio, or a run's radius) into ``source``'s window; a full window's
-        median over ``reference`` is the ratio tested."""
+        median over ``reference`` is the ratio tested; a rescale that would take the learned
+        radius ``radius_m`` beyond :data:`MAX_RADIUS_ERROR_FRACTION` of nominal is refused."""
         window = self._windows[source]
         window.ratios.append(value)
         if len(window.ratios) < (window.ratios.maxlen or 0):
@@ -256,6 +274,10 @@ class SpeedScaleCheck:
         if not gross or previous is None or (previous - 1.0) * (med - 1.0) <= 0.0:
             return 1.0
         # two windows in a row beyond the bound, on the same side: the latest is the scale
+        if not self._limits_m[0] <= radius_m * med <= self._limits_m[1]:
+            self.refused.append(med)
+            self.restart()
+            return 1.0
         self.rescales.append(med)
         self.rescale_t_ns.append(t_ns)
         self.rescale_sources.append(source)
@@ -274,5 +296,6 @@ class SpeedScaleCheck:
             "rescales": list(self.rescales),
             "rescale_t_ns": list(self.rescale_t_ns),
             "rescale_sources": list(self.rescale_sources),
+            "refused": list(self.refused),
             "median_ratio": dict(self.median_ratio),
         }
