@@ -122,7 +122,7 @@ def _bad_sources(files: dict[str, Path]) -> dict[str, tuple[list[str], str]]:
     other = root / "other.yaml"
     dump_vehicle_yaml(VehicleParams(name="truck"), other)
     implausible = _radius_state()
-    implausible["rear"]["mean_m"] = [0.05, 0.0]  # 5 cm off a 25 cm tyre
+    implausible["rear"]["mean_m"] = [0.1, 0.0]  # 10 cm off a 25 cm tyre (band 25 %)
     save_state(root / "implausible.json", Identity(VEH.name, "default"), {"radius": implausible})
     save_state(root / "stiffness_only.json", Identity(VEH.name, "default"), {"stiffness": {}})
     no_radius = {"bag": "", "radii": {"final_radius_error_m": {"wheel_rl": None, "wheel_rr": 0.0},

@@ -209,19 +209,19 @@ def _corrupt_files(good: dict[str, Any]) -> dict[str, str]:
     zero_noise = copy.deepcopy(good)
     zero_noise["radius"]["rear"]["noise_cov_m2"] = [[0.0, 0.0], [0.0, 0.0]]
     far = copy.deepcopy(good)
-    far["radius"]["rear"]["mean_m"] = [0.02, -0.02]
+    far["radius"]["rear"]["mean_m"] = [0.1, -0.1]
     text = payload(good)
     return {
         "deep nesting": '{"state": ' + "[" * 100_000 + "]" * 100_000 + "}",
         "500-digit integer": text.replace('"dof": 10.0', '"dof": ' + "9" * 500, 1),
         "zero noise covariance": payload(zero_noise),
-        "radius errors of +-20 mm": payload(far),
+        "radius errors of +-100 mm": payload(far),
     }
 
 
 @pytest.mark.parametrize(
     "corruption",
-    ["deep nesting", "500-digit integer", "zero noise covariance", "radius errors of +-20 mm"],
+    ["deep nesting", "500-digit integer", "zero noise covariance", "radius errors of +-100 mm"],
 )
 def test_a_corrupt_persistence_file_is_rejected_and_the_node_publishes_finite_radii(
     ros: Any, tmp_path: Path, corruption: str
