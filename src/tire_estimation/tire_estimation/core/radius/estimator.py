@@ -403,7 +403,7 @@ class RadiusEstimator(GnssHandling, Reporting, Gates):
                 self._drop("wheel_speeds", kind)
                 return
             t_ns = int(t_ns)
-        if self.axles.rewired and (self.axles.swapped["front"] or self.axles.swapped["rear"]):
+        if self.axles.swapped["front"] or self.axles.swapped["rear"]:
             # an axle whose sides arrive exchanged (axle_check.py): swapped back
             ws = ws.copy()
             for axle, (i, j) in AXLES.items():

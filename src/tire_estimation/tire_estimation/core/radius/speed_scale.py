@@ -180,15 +180,16 @@ def _slopes(x: np.ndarray, y: np.ndarray) -> np.ndarray:
 
 
 class _Window:
-    """Ratios whose median is tested, one full window after the other."""
+    """Values whose median is tested, one full window after the other."""
 
     def __init__(self, size: int) -> None:
-        self.ratios: deque[float] = deque(maxlen=size)
+        #: ratios (the Doppler speed's, 1) or radii (the straight runs', m)
+        self.values: deque[float] = deque(maxlen=size)
         #: the previous window's median when it was beyond the bound, else None
         self.previous: float | None = None
 
     def clear(self) -> None:
-        self.ratios.clear()
+        self.values.clear()
         self.previous = None
 
 
@@ -258,11 +259,11 @@ class SpeedScaleCheck:
         median over ``reference`` is the ratio tested; a rescale that would take the learned
         radius ``radius_m`` beyond :data:`MAX_RADIUS_ERROR_FRACTION` of nominal is refused."""
         window = self._windows[source]
-        window.ratios.append(value)
-        if len(window.ratios) < (window.ratios.maxlen or 0):
+        window.values.append(value)
+        if len(window.values) < (window.values.maxlen or 0):
             return 1.0
-        values = list(window.ratios)
-        window.ratios.clear()
+        values = list(window.values)
+        window.values.clear()
         med_value = median(values)
         self.median_ratio[source] = med = med_value / reference
         # the median's standard error from the window's own spread (1.4826 MAD estimates the
