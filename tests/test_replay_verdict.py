@@ -77,6 +77,7 @@ def test_the_summary_names_a_lost_wheel_a_reversing_car_and_a_failed_initializat
     assert radii["rescales"] == []  # a clean drive's GNSS speed agrees with the wheels'
     assert radii["rescale_sources"] == []
     assert radii["gyro_reversed"] is False and radii["axles"]["rear"]["swapped"] is False
+    assert radii["wheels_reversed"] == []
     metrics["clock_check"] = {
         "lag_s": 18.0, "correlation": 0.99, "correlation_at_zero": 0.6, "offset": True
     }  # fmt: skip
@@ -87,6 +88,7 @@ def test_the_summary_names_a_lost_wheel_a_reversing_car_and_a_failed_initializat
     radii["rescales"] = [1.057]
     radii["gyro_reversed"] = True
     radii["axles"]["rear"]["swapped"] = True
+    radii["wheels_reversed"] = ["wheel_fr", "wheel_rr"]
     radii["rescale_sources"] = ["fixes"]
     radii["rescales_refused"] = [3.226]
     radii["failed_initializations"] = {"count": 7, "median_distance_ratio": 0.31}
@@ -100,6 +102,7 @@ def test_the_summary_names_a_lost_wheel_a_reversing_car_and_a_failed_initializat
     assert "RADII NOT RESCALED: the GNSS distance was 3.23 times the wheels'" in text
     assert "RADII NOT RESCALED" not in plain and radii["rescales_refused"] == [3.226]
     assert "WIRING: the rear wheels' left and right speeds arrived exchanged; the gyro's" in text
+    assert "wheel_fr, wheel_rr turned backward while the GNSS moved forward" in text
     assert "WIRING" not in plain
     assert "POSE NOT INITIALIZED 7 times" in text and "covered 0.31 of the distance" in text
     assert text.count("NEVER LEARNED") == 2 and "REP-103" in text

@@ -481,6 +481,7 @@ def test_gnss_velocity_is_subscribed_used_and_bad_ones_are_counted(
     assert values["speed_scale.rescales"] == "0"
     # straight driving tells neither the axles nor the gyro's sign: nothing is rewired
     assert values["gyro.yaw_reversed"] == "false" and values["axle.rear.swapped"] == "false"
+    assert values["wheels.sign_reversed"] == "none"
     est = node.estimator.estimate()
     # 30 s of straight driving: filter seeds 0-5 end at 0.14-0.56 mm (the common mode of the
     # two radii, which a straight drive observes weakly); 1 mm catches a velocity misuse

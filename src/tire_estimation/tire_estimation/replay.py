@@ -41,6 +41,7 @@ from tire_estimation.core.radius.axle_check import LOST_SPEED_SHARE, AxleCheck
 from tire_estimation.core.radius.config import RadiusEstimatorConfig
 from tire_estimation.core.stiffness.config import StiffnessEstimatorConfig
 from tire_estimation.core.vehicle import VehicleParams
+from tire_estimation.core.wheels import WHEELS
 from tire_estimation.errors import BagError, ConfigError
 from tire_estimation.evaluation import metrics as ev
 from tire_estimation.evaluation.residuals import analyze_trace as analyze_residuals
@@ -162,13 +163,19 @@ class ReplayReport:
                 "two estimates above, which do not tell the two tyres apart)"
             )
         swapped = [a for a, st in (r.get("axles") or {}).items() if st.get("swapped")]
-        if swapped or r.get("gyro_reversed"):
+        reversed_wheels = r.get("wheels_reversed") or []
+        if swapped or r.get("gyro_reversed") or reversed_wheels:
             what = [f"the {a} wheels' left and right speeds arrived exchanged" for a in swapped]
             if r.get("gyro_reversed"):
                 what.append("the gyro's yaw rate turns against the GNSS course (REP-103: z up)")
+            if reversed_wheels:
+                what.append(
+                    f"{', '.join(reversed_wheels)} turned backward while the GNSS moved forward "
+                    "(a speed sign reversed)"
+                )
             lines.append(
-                f"  WIRING: {'; '.join(what)}; corrected from then on (the GNSS course told "
-                "which input was reversed): fix the driver's wheel order or the IMU frame"
+                f"  WIRING: {'; '.join(what)}; corrected from then on (the GNSS told which "
+                "input was reversed): fix the driver's wheel order or signs, or the IMU frame"
             )
         slip = r.get("drive_slip") or {}
         if slip:
@@ -947,6 +954,9 @@ def build_metrics(
         radii["signal_lost_s"] = axles.lost_signals()
         # inputs whose sign convention was found reversed and corrected (axle_check.py)
         radii["gyro_reversed"] = axles.gyro_reversed
+        radii["wheels_reversed"] = [
+            w for w, rev in zip(WHEELS, axles.signs.reversed, strict=True) if rev
+        ]
     grade = arr["road_grade_rad"]
     # the grade the correction used: fixes per source (the GNSS altitude confirmed by the IMU,
     # the IMU's where they disagreed, none) and its size over the drive

@@ -8,8 +8,9 @@ each rear radius and of their mean (the common radius) against the truth, relati
 nominal radius, the rear axle's verdict and slope, and how many wheel-speed samples took
 their heading change from the gyro.
 
-``--rewire swap_rear`` (the rear wheels' speeds exchanged in the input) or ``--rewire
-flip_gyro`` (the gyro's yaw rate negated: an IMU frame with z down) runs each drive as it is and
+``--rewire swap_rear`` (the rear wheels' speeds exchanged in the input), ``negate_right`` /
+``negate_all`` (the right / every wheel's speed negated) or ``flip_gyro`` (the gyro's yaw rate
+negated: an IMU frame with z down) runs each drive as it is and
 with that wiring instead of the spool: the rear errors of both, the largest difference between
 them, and what the axle check decided (``core/radius/axle_check.py``).
 
@@ -28,7 +29,9 @@ from typing import Any
 import numpy as np
 
 from tire_estimation.evaluation.sim_runs import (
+    add_key_value_arg,
     add_seed_args,
+    key_values,
     run_seeds,
     simulated_radius_run,
     write_rows,
@@ -36,11 +39,15 @@ from tire_estimation.evaluation.sim_runs import (
 
 
 def rewired(sim: Any, how: str) -> Any:
-    """The simulation with the rear wheels' speeds exchanged (``swap_rear``) or the gyro's yaw
-    rate negated (``flip_gyro``)."""
-    if how == "swap_rear":
+    """The simulation with the rear wheels' speeds exchanged (``swap_rear``), the right
+    wheels' speeds negated (``negate_right``), every wheel's negated (``negate_all``) or the
+    gyro's yaw rate negated (``flip_gyro``)."""
+    if how != "flip_gyro":
         ws = sim.wheel_speeds.wheel_speed_rad_s.copy()
-        ws[:, [2, 3]] = ws[:, [3, 2]]
+        if how == "swap_rear":
+            ws[:, [2, 3]] = ws[:, [3, 2]]
+        else:
+            ws[:, [1, 3] if how == "negate_right" else slice(None)] *= -1.0
         return dataclasses.replace(
             sim, wheel_speeds=dataclasses.replace(sim.wheel_speeds, wheel_speed_rad_s=ws)
         )
@@ -50,16 +57,22 @@ def rewired(sim: Any, how: str) -> Any:
 
 
 def run_one(
-    scenario: str, seed: int, minutes: float, locked: bool, rewire: str | None = None
+    scenario: str,
+    seed: int,
+    minutes: float,
+    locked: bool,
+    rewire: str | None = None,
+    sensors: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """One drive: final errors, the rear axle's verdict, the gyro-heading samples; with
-    ``rewire``, the drive rewired (:func:`rewired`) instead of a spool when ``locked``."""
+    ``rewire``, the drive rewired (:func:`rewired`) instead of a spool when ``locked``;
+    ``sensors``: simulator settings."""
     sim, pipeline, run = simulated_radius_run(
         scenario,
         seed,
         minutes,
         {},
-        {"wheel_speed_rear_locked": locked and rewire is None},
+        {**(sensors or {}), "wheel_speed_rear_locked": locked and rewire is None},
         rewrite=(lambda s: rewired(s, rewire)) if locked and rewire else None,
     )
     nominal = sim.vehicle.nominal_tire_radius_m
@@ -78,6 +91,7 @@ def run_one(
         "gyro_heading_samples": pipeline.radius.gyro_heading_samples,
         "swapped": pipeline.axles.swapped["rear"],
         "gyro_reversed": pipeline.axles.gyro_reversed,
+        "wheels_reversed": int(sum(pipeline.axles.signs.reversed)),
         "final_radius_m": est.tolist(),
     }
 
@@ -87,12 +101,19 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     add_seed_args(parser, "robustness", 10.0)
     parser.add_argument("--out", type=Path, default=None, help="JSON file for every run")
-    parser.add_argument("--rewire", choices=("swap_rear", "flip_gyro"), default=None)
+    parser.add_argument(
+        "--rewire",
+        choices=("swap_rear", "flip_gyro", "negate_right", "negate_all"),
+        default=None,
+    )
+    add_key_value_arg(parser, "--sensor", "simulator SensorConfig setting (JSON value)")
     args = parser.parse_args(argv)
+    sensors = key_values(args.sensor)
     rows = run_seeds(
         args,
         lambda seed: [
-            run_one(args.scenario, seed, args.minutes, lk, args.rewire) for lk in (False, True)
+            run_one(args.scenario, seed, args.minutes, lk, args.rewire, sensors)
+            for lk in (False, True)
         ],
     )
     if args.rewire:
@@ -106,7 +127,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         diff = float(np.abs(radii[1] - radii[0]).max() * 1e3)
         print(
             f"{args.rewire}: rear swapped back on {sum(r['swapped'] for r in wired)}, gyro "
-            f"negated on {sum(r['gyro_reversed'] for r in wired)} of {len(wired)}; rear split "
+            f"negated on {sum(r['gyro_reversed'] for r in wired)}, wheels negated "
+            f"{[r['wheels_reversed'] for r in wired]} of {len(wired)}; rear split "
             f"observable on {sum(r['split_observable'] is True for r in wired)}; rear errors "
             f"RMS {rms[1]:.3f} mm (the same drives wired right: {rms[0]:.3f} mm), largest "
             f"difference of a final radius from the drive wired right {diff:.3f} mm"

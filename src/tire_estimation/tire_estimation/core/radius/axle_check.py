@@ -29,7 +29,8 @@ turns against the course and an axle is reversed (its yaw rate is negated from t
 :attr:`AxleCheck.gyro_reversed`); an axle that turns against the (corrected) gyro and the course
 has its two speeds exchanged (:attr:`AxleCheck.swapped`); a course against the gyro and both
 axles is a velocity not in ENU, reported and not acted on. Each is decided once and reported;
-the estimator applies them to its inputs.
+the estimator applies them to its inputs, with the wheels whose speed arrives with its sign
+reversed (:attr:`AxleCheck.signs`, ``wheel_signs.py``).
 """
 
 from __future__ import annotations
@@ -38,6 +39,8 @@ import math
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
+from tire_estimation.core.arrays import F64
+from tire_estimation.core.radius.wheel_signs import WheelSigns
 from tire_estimation.core.validation import POSITIVE, Rule, check_rules, in_range
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.core.wheels import WHEELS
@@ -226,6 +229,8 @@ class AxleCheck:
         self.gyro_reversed = False
         #: per axle: its left and right speeds arrive exchanged; the estimator swaps them
         self.swapped = dict.fromkeys(AXLES, False)
+        #: the wheels whose speed arrives with its sign reversed; the estimator negates them
+        self.signs = WheelSigns(vehicle.nominal_tire_radius_m)
         #: the gyro's sign against the GNSS course: None until the turns tell, then the slope
         self.gyro_course_slope: float | None = None
         # the course fit: last (t_ns, course rad), forgotten sums of gyro^2 dt and gyro rate dt
@@ -266,8 +271,22 @@ class AxleCheck:
 
     @property
     def rewired(self) -> bool:
-        """Whether any input is corrected (gyro negated or an axle swapped)."""
-        return self.gyro_reversed or self.swapped["front"] or self.swapped["rear"]
+        """Whether any input is corrected (gyro negated, an axle swapped, a wheel negated)."""
+        return self.gyro_reversed or self.rewires_wheels
+
+    @property
+    def rewires_wheels(self) -> bool:
+        """Whether the wheel speeds are corrected (:meth:`rewire_wheels`)."""
+        return self.signs.any_reversed or self.swapped["front"] or self.swapped["rear"]
+
+    def rewire_wheels(self, wheel_speed_rad_s: F64) -> F64:
+        """The wheel speeds (4,) with the reversed wheels negated and the exchanged axles'
+        sides swapped back (a new array)."""
+        ws = self.signs.correct(wheel_speed_rad_s)
+        for axle, (i, j) in AXLES.items():
+            if self.swapped[axle]:
+                ws[i], ws[j] = ws[j], ws[i]
+        return ws
 
     def on_course(self, t_ns: int, east_m_s: float, north_m_s: float) -> None:
         """A GNSS Doppler velocity (ENU, m/s). The course's rate between two velocities at

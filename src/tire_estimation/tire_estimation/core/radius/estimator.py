@@ -33,7 +33,7 @@ from tire_estimation.core.radius.aug_kf import (
     RADIUS_RANDOM_WALK_M_SQRT_S as AUG_KF_RADIUS_RANDOM_WALK_M_SQRT_S,
 )
 from tire_estimation.core.radius.aug_kf import AugKf
-from tire_estimation.core.radius.axle_check import AXLES, AxleCheck
+from tire_estimation.core.radius.axle_check import AxleCheck
 from tire_estimation.core.radius.config import RadiusEstimatorConfig
 from tire_estimation.core.radius.drive_slip import DriveSlip
 from tire_estimation.core.radius.effects import EFFECTS, delay_s
@@ -178,6 +178,11 @@ class RadiusEstimator(GnssHandling, Reporting, Gates):
         if self.kf is not None:
             self.kf.reset_radii()
         self._front = self._front_prior()
+        self._restart_inputs()
+
+    def _restart_inputs(self) -> None:
+        """Forget the pose, the origin and what the input checks took from the samples so far
+        (not the radii): all of it after :meth:`reset`, and after a wheel's sign is corrected."""
         self._ltp: Any = None
         self._streams = {
             k: _Stream() for k in ("wheel", "steering", "imu", "gnss", "gnss_velocity")
@@ -403,12 +408,15 @@ class RadiusEstimator(GnssHandling, Reporting, Gates):
                 self._drop("wheel_speeds", kind)
                 return
             t_ns = int(t_ns)
-        if self.axles.swapped["front"] or self.axles.swapped["rear"]:
-            # an axle whose sides arrive exchanged (axle_check.py): swapped back
-            ws = ws.copy()
-            for axle, (i, j) in AXLES.items():
-                if self.axles.swapped[axle]:
-                    ws[i], ws[j] = ws[j], ws[i]
+        axles = self.axles
+        signs = axles.signs
+        if not signs.settled and signs.add(t_ns, ws.tolist() if vals is None else vals):
+            # a wheel found reversed (wheel_signs.py): the pose starts again with this sample
+            self._restart_inputs()
+            stream, last = self._streams["wheel"], None
+        if axles.rewires_wheels:
+            # wheels reversed, an axle's sides exchanged (wheel_signs.py, axle_check.py)
+            ws = axles.rewire_wheels(ws)
             vals = None if vals is None else ws.tolist()
         checked = ws
         self.axles.on_wheel_speeds(t_ns, ws if vals is None else vals)

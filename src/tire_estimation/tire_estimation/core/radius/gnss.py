@@ -260,11 +260,13 @@ class GnssHandling:
         covariance. Called by :meth:`on_gnss_fix`; usable directly by tests and simulations."""
         zeros2 = np.zeros(2)
         self._track_fix_period(t_ns)
+        east_m, north_m, std_m = float(y_m[0]), float(y_m[1]), math.sqrt(0.5 * np.trace(r_m2))
+        # the receiver's motion, against which the wheels' signs are told (wheel_signs.py)
+        self.axles.signs.on_fix(t_ns, east_m, north_m, std_m)
         # a gross scale error in the distance between the fixes of straight runs
         factor = self.speed_scale.add_fix(
-            t_ns, float(y_m[0]), float(y_m[1]), math.sqrt(0.5 * float(np.trace(r_m2))),
-            self._nominal_radius_m + 0.5 * sum(self._radius_mean),
-        )  # fmt: skip
+            t_ns, east_m, north_m, std_m, self._nominal_radius_m + 0.5 * sum(self._radius_mean)
+        )
         if factor != 1.0:
             # the radii restart and the pose waits for two fixes, this one the first
             self._scale_radii(factor)
@@ -361,6 +363,7 @@ class GnssHandling:
         self._streams["gnss_velocity"].last_t_ns = t_ns
         # the course's turning against the gyro's (a reversed gyro, exchanged wheel sides)
         self.axles.on_course(t_ns, float(v[0]), float(v[1]))
+        self.axles.signs.on_velocity(t_ns, float(v[0]), float(v[1]))
         if not c.gnss_velocity_enabled:
             return GnssVelocityUpdate(t_ns, zeros2, r, 0.0, False, "disabled")
         if not self._pose_ok or self._prev_ws is None or len(self._speed_hist) < 2:
