@@ -716,8 +716,8 @@ def _run(
     for name, est in baselines.items():
         imu_recs[name] = ImuLateralRecorder(est)
     clock_check = ClockCheck(meta.vehicle.nominal_tire_radius_m)
-    pipeline.observers.extend([radius_rec, force_rec, detect_rec, *imu_recs.values(), clock_check])
-    pipeline.observers.extend(observers)
+    pipeline.add_observers(radius_rec, force_rec, detect_rec, *imu_recs.values(), clock_check)
+    pipeline.add_observers(*observers)
 
     # what the report needs over the whole drive goes to disk block by block
     bag = ReportBag(meta, spill)

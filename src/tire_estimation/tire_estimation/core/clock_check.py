@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -49,6 +49,8 @@ _BIN_NS = round(BIN_S * 1e9)
 
 class ClockCheck:
     """Pipeline observer: the speed profiles, and :meth:`result` after the run."""
+
+    SAMPLE_KINDS: ClassVar[tuple[type, ...]] = (WheelSpeeds, GnssVelocity)
 
     def __init__(self, nominal_radius_m: float) -> None:
         self._radius_m = nominal_radius_m

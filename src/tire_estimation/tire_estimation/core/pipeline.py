@@ -210,8 +210,22 @@ Output = (
 )
 
 
+#: the sample types the pipeline routes
+SAMPLE_TYPES = (
+    WheelSpeeds,
+    Steering,
+    ImuSample,
+    GnssFix,
+    GnssVelocity,
+    MeasuredVelocity,
+    TireForces,
+)
+
+
 class Observer(Protocol):
-    """Sees what the pipeline does (trace recorders, reports)."""
+    """Sees what the pipeline does (trace recorders, reports). An observer may name the sample
+    types its :meth:`on_sample` needs in a class attribute ``SAMPLE_KINDS`` (a tuple of
+    types); without one it sees every sample."""
 
     def on_sample(self, pipeline: EstimationPipeline, sample: Sample, result: Any) -> None:
         """After ``sample`` was routed; ``result`` is the radius MPF's update for a GNSS fix or
@@ -295,7 +309,9 @@ class EstimationPipeline:
         if config.detector is not None:
             self.monitor = DeflationMonitor(config.detector, config.monitor)
         self.baselines: dict[str, LateralBaseline] = dict(baselines or {})
-        self.observers: list[Observer] = list(observers)
+        self._observers: tuple[Observer, ...] = ()
+        self._sample_observers: dict[type, tuple[Observer, ...]] = {}
+        self.add_observers(*observers)
         #: per-stream clock offsets in front of the ordering
         self.clock: ClockGuard[Sample] = ClockGuard(config.clock)
         self.buffer = ReorderBuffer(
@@ -443,13 +459,28 @@ class EstimationPipeline:
             if result is not None:
                 self._last_tyre_force_ns = t
                 self._lateral_output(t, result, out)
-        for obs in self.observers:
+        for obs in self._sample_observers[kind]:
             obs.on_sample(self, sample, result)
+
+    # ------------------------------------------------------------------ observers
+    @property
+    def observers(self) -> tuple[Observer, ...]:
+        """What sees the samples and outputs, in the order added."""
+        return self._observers
+
+    def add_observers(self, *observers: Observer) -> None:
+        """Let ``observers`` see the samples (those of their ``SAMPLE_KINDS``, else all) and
+        the outputs from now on."""
+        self._observers = (*self._observers, *observers)
+        self._sample_observers = {
+            kind: tuple(o for o in self._observers if kind in getattr(o, "SAMPLE_KINDS", (kind,)))
+            for kind in SAMPLE_TYPES
+        }
 
     # ------------------------------------------------------------------ outputs
     def _emit(self, output: Output, out: list[Output]) -> None:
         out.append(output)
-        for obs in self.observers:
+        for obs in self._observers:
             obs.on_output(self, output)
 
     def _due(self, kind: str, t_ns: int) -> bool:

@@ -38,7 +38,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -119,6 +119,8 @@ def run(
     rows: list[tuple[float, ...]] = []
 
     class _Rows:
+        SAMPLE_KINDS: ClassVar[tuple[type, ...]] = (TireForces,)
+
         def on_sample(self, pipeline: EstimationPipeline, sample: Sample, e: Any) -> None:
             if type(sample) is not TireForces or e is None or pipeline.tyre_force is None:
                 return

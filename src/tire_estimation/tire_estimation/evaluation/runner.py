@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -352,6 +352,8 @@ class TyreForceRecorder:
     """Pipeline observer: the tyre-force KF's lateral estimate after every tyre-force sample
     (once its relay knows the regime)."""
 
+    SAMPLE_KINDS: ClassVar[tuple[type, ...]] = (TireForces,)
+
     def __init__(self) -> None:
         self.trace = LateralTrace()
 
@@ -431,6 +433,8 @@ class ImuLateralRecorder:
         record_period_s: least time between recorded estimates, s.
     """
 
+    SAMPLE_KINDS: ClassVar[tuple[type, ...]] = (ImuSample,)
+
     def __init__(self, estimator: Any, record_period_s: float = 0.01) -> None:
         self.estimator = estimator
         self.trace = ImuLateralTrace()
@@ -473,6 +477,8 @@ class DeflationRecorder:
     (NaN while a wheel is not seen), ``calibration_state`` (K,), and ``alarms`` as
     ``(wheel, t_ns)``, the common channel's with the wheel ``all``.
     """
+
+    SAMPLE_KINDS: ClassVar[tuple[type, ...]] = ()
 
     def __init__(self) -> None:
         self.wheel_names: tuple[str, ...] = ()

@@ -20,7 +20,7 @@ import math
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -107,6 +107,8 @@ class _Timed:
 
 class _AfterImu:
     """Pipeline observer: calls ``after_imu(t_ns)`` after each IMU sample."""
+
+    SAMPLE_KINDS: ClassVar[tuple[type, ...]] = (ImuSample,)
 
     def __init__(self, after_imu: Callable[[int], None]) -> None:
         self.after_imu = after_imu

@@ -117,7 +117,7 @@ class EstimatorNode(ManagedNode):
         )
         # the GNSS stamps against the wheel speeds' clock over the first minutes
         self.clock_check = LeadingClockCheck(self.vehicle.nominal_tire_radius_m)
-        self.pipeline.observers.append(self.clock_check)
+        self.pipeline.add_observers(self.clock_check)
         self.estimator = self.pipeline.radius
         self.stiffness = self.pipeline.stiffness
         self.lateral = self.pipeline.tyre_force
