@@ -37,11 +37,3 @@ def _worker_domain_id() -> None:
 
 
 _worker_domain_id()
-
-
-def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """The ``slow`` tests first (otherwise in collection order): pytest-xdist hands out the
-    first quarter of the tests round robin and the rest as workers free up, so the long tests
-    spread over the workers and the short ones fill the gaps, instead of one long test starting
-    last and running alone."""
-    items.sort(key=lambda item: item.get_closest_marker("slow") is None)
