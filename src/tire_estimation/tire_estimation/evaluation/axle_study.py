@@ -10,12 +10,14 @@ their heading change from the gyro.
 
 ``--rewire swap_rear`` (the rear wheels' speeds exchanged in the input), ``negate_right`` /
 ``negate_all`` (the right / every wheel's speed negated) or ``flip_gyro`` (the gyro's yaw rate
-negated: an IMU frame with z down) runs each drive as it is and
-with that wiring instead of the spool: the rear errors of both, the largest difference between
-them, and what the axle check decided (``core/radius/axle_check.py``).
+negated: an IMU frame with z down) runs each drive as it is and with that wiring instead of the
+spool: the rear errors of both, the largest difference between them, and what the axle check
+decided (``core/radius/axle_check.py``, ``core/radius/wheel_signs.py``). ``--sensor KEY=VALUE``
+sets the simulator's sensors (``gnss_velocity_enabled=false``: positions only).
 
     python -m tire_estimation.evaluation.axle_study --scenario robustness --minutes 10 --seeds 20
     python -m tire_estimation.evaluation.axle_study --rewire flip_gyro --minutes 5 --seeds 20
+    python -m tire_estimation.evaluation.axle_study --rewire negate_right --minutes 5 --seeds 20
 """
 
 from __future__ import annotations
