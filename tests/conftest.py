@@ -37,3 +37,25 @@ def _worker_domain_id() -> None:
 
 
 _worker_domain_id()
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Spread the ``slow`` tests over the pytest-xdist workers' first chunks.
+
+    xdist's ``load`` scheduler first sends each of its ``n`` workers a block of ``c``
+    consecutive tests (``c`` a quarter of the tests per worker) and then hands out the rest as
+    workers free up. The k-th slow test is put at ``(k mod n) c + k div n``: every worker starts
+    on its share of the long tests and the short ones fill the gaps, instead of one worker
+    getting all of them, or one long test starting last and running alone. Every worker
+    collects the same order (``PYTEST_XDIST_WORKER_COUNT``); without xdist nothing moves."""
+    n = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "0"))
+    slow = [item for item in items if item.get_closest_marker("slow") is not None]
+    if n < 2 or not slow:
+        return
+    rest = [item for item in items if item.get_closest_marker("slow") is None]
+    chunk = max((len(items) // n) // 4, 2)
+    order: list[pytest.Item | None] = [None] * len(items)
+    for k, item in enumerate(slow):
+        order[min((k % n) * chunk + k // n, len(items) - 1)] = item
+    fill = iter(rest)
+    items[:] = [item if item is not None else next(fill) for item in order]
