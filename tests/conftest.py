@@ -50,12 +50,12 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     collects the same order (``PYTEST_XDIST_WORKER_COUNT``); without xdist nothing moves."""
     n = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "0"))
     slow = [item for item in items if item.get_closest_marker("slow") is not None]
-    if n < 2 or not slow:
-        return
+    chunk = max((len(items) // n) // 4, 2) if n else 0
+    if n < 2 or not slow or len(slow) > n * chunk:
+        return  # (more slow tests than the first chunks hold: left in collection order)
     rest = [item for item in items if item.get_closest_marker("slow") is None]
-    chunk = max((len(items) // n) // 4, 2)
     order: list[pytest.Item | None] = [None] * len(items)
     for k, item in enumerate(slow):
-        order[min((k % n) * chunk + k // n, len(items) - 1)] = item
+        order[(k % n) * chunk + k // n] = item
     fill = iter(rest)
     items[:] = [item if item is not None else next(fill) for item in order]

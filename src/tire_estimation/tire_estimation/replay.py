@@ -41,7 +41,6 @@ from tire_estimation.core.radius.axle_check import LOST_SPEED_SHARE, AxleCheck
 from tire_estimation.core.radius.config import RadiusEstimatorConfig
 from tire_estimation.core.stiffness.config import StiffnessEstimatorConfig
 from tire_estimation.core.vehicle import VehicleParams
-from tire_estimation.core.wheels import WHEELS
 from tire_estimation.errors import BagError, ConfigError
 from tire_estimation.evaluation import metrics as ev
 from tire_estimation.evaluation.residuals import analyze_trace as analyze_residuals
@@ -954,9 +953,7 @@ def build_metrics(
         radii["signal_lost_s"] = axles.lost_signals()
         # inputs whose sign convention was found reversed and corrected (axle_check.py)
         radii["gyro_reversed"] = axles.gyro_reversed
-        radii["wheels_reversed"] = [
-            w for w, rev in zip(WHEELS, axles.signs.reversed, strict=True) if rev
-        ]
+        radii["wheels_reversed"] = axles.signs.reversed_wheels
     grade = arr["road_grade_rad"]
     # the grade the correction used: fixes per source (the GNSS altitude confirmed by the IMU,
     # the IMU's where they disagreed, none) and its size over the drive

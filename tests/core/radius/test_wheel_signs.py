@@ -39,6 +39,7 @@ def test_a_mirrored_right_side_is_found_after_the_decision_time() -> None:
     assert signs.reversed == [False] * 4 and not signs.any_reversed  # not yet decided
     _feed(signs, t, 2.0, [w, -w, w, -w], 10.0)
     assert signs.reversed == [False, True, False, True] and signs.settled
+    assert signs.reversed_wheels == ["wheel_fr", "wheel_rr"]
     out = signs.correct(np.array([1.0, -2.0, 3.0, -4.0]))
     np.testing.assert_array_equal(out, [1.0, 2.0, 3.0, 4.0])
 

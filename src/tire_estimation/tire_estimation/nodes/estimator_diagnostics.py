@@ -17,7 +17,7 @@ from tire_estimation.core.input_checks import merged_counts
 from tire_estimation.core.lateral.tyre_force_kf import TyreForceEstimator
 from tire_estimation.core.pipeline import EstimationPipeline
 from tire_estimation.core.stiffness.estimator import StiffnessEstimator
-from tire_estimation.core.wheels import WHEEL_INDEX, WHEELS
+from tire_estimation.core.wheels import WHEEL_INDEX
 
 #: input streams reported on /diagnostics (rate and count)
 INPUT_STREAMS = ("wheel_speeds", "steering", "imu", "gnss_fix", "gnss_velocity", "tire_forces")
@@ -99,9 +99,7 @@ def statuses(
             # the gyro's yaw rate found turning against the GNSS course, negated since
             values["gyro.yaw_reversed"] = str(pipeline.axles.gyro_reversed).lower()
             # wheels whose speed turned backward while the GNSS moved forward, negated since
-            reversed_wheels = [
-                w for w, rev in zip(WHEELS, pipeline.axles.signs.reversed, strict=True) if rev
-            ]
+            reversed_wheels = pipeline.axles.signs.reversed_wheels
             values["wheels.sign_reversed"] = ",".join(reversed_wheels) or "none"
         # the GNSS stamps against the wheel speeds' clock (core/clock_check.py), decided over
         # the first minutes: an offset is reported, not taken out

@@ -26,6 +26,7 @@ from collections import deque
 import numpy as np
 
 from tire_estimation.core.arrays import F64
+from tire_estimation.core.wheels import WHEELS
 
 #: the receiver's speed at which the wheels' signs are counted, m/s
 MIN_SPEED_M_S = 1.0
@@ -134,6 +135,11 @@ class WheelSigns:
         if found:
             self._fixes.clear()  # the estimator's origin starts again
         return found
+
+    @property
+    def reversed_wheels(self) -> list[str]:
+        """The names of the reversed wheels (fl, fr, rl, rr order)."""
+        return [name for name, rev in zip(WHEELS, self.reversed, strict=True) if rev]
 
     def correct(self, wheel_speed_rad_s: F64) -> F64:
         """The wheel speeds (4,) with the reversed wheels negated (a new array)."""
