@@ -233,6 +233,10 @@ class GnssHandling:
             return np.eye(2) * sd**2  # "covariance unknown"
         return np.ascontiguousarray(c[:2, :2])
 
+    def _learned_rear_radius_m(self) -> float:
+        """The learned mean rear rolling radius, m (nominal plus the mean of the two errors)."""
+        return self._nominal_radius_m + 0.5 * sum(self._radius_mean)
+
     def _track_fix_period(self, t_ns: int) -> None:
         """The receiver's fix period: exponential mean (weight 0.1) of the spacing of the fixes
         received, outages (above :data:`GNSS_PERIOD_MAX_S`) left out."""
@@ -265,7 +269,7 @@ class GnssHandling:
         self.axles.signs.on_fix(t_ns, east_m, north_m, std_m)
         # a gross scale error in the distance between the fixes of straight runs
         factor = self.speed_scale.add_fix(
-            t_ns, east_m, north_m, std_m, self._nominal_radius_m + 0.5 * sum(self._radius_mean)
+            t_ns, east_m, north_m, std_m, self._learned_rear_radius_m()
         )
         if factor != 1.0:
             # the radii restart and the pose waits for two fixes, this one the first
@@ -422,7 +426,7 @@ class GnssHandling:
         m = self.model
         yaw_nominal = (w4 - w3) * m.nominal_radius_m / m.track_width_m
         speed = float(np.hypot(v[0], v[1]))
-        learned_m = m.nominal_radius_m + 0.5 * sum(self._radius_mean)
+        learned_m = self._learned_rear_radius_m()
         factor = self.speed_scale.add(t_ns, speed, wheel_speed, yaw_nominal, learned_m)
         if factor != 1.0:
             # the radii restart and the pose waits for two fixes: this velocity is not used
