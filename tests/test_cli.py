@@ -6,6 +6,7 @@ import json
 import shutil
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 
@@ -30,6 +31,25 @@ def test_simulate_and_info(short_bag: Path, capsys: pytest.CaptureFixture[str]) 
     text = capsys.readouterr().out
     assert "/vehicle/wheel_speeds" in text and "pressure_step" in text
     assert "duration:  180.0 s" in text
+
+
+def test_simulate_another_vehicle(tmp_path: Path) -> None:
+    vehicle = tmp_path / "truck.yaml"
+    vehicle.write_text(
+        "vehicle:\n  name: truck\n  nominal_tire_radius_m: 0.52\n  track_width_m: 2.05\n"
+        "  wheelbase_m: 5.0\n  cg_to_front_axle_m: 2.0\n  cg_to_rear_axle_m: 3.0\n"
+    )
+    out = tmp_path / "bag"
+    argv = ["simulate", "city", "--minutes", "0.2", "--vehicle", str(vehicle), "--out", str(out)]
+    assert main(argv) == 0
+    written = yaml.safe_load((out / "vehicle.yaml").read_text())["vehicle"]
+    assert written["name"] == "truck" and written["nominal_tire_radius_m"] == 0.52
+    # the simulated truth rolls on the stated tyres
+    from tire_estimation.bag.reader import read_bag
+
+    radii = read_bag(out).truth_wheel_radii
+    assert radii is not None
+    assert abs(float(np.nanmean(radii.values)) - 0.52) < 0.002
 
 
 def test_simulate_unknown_scenario_is_a_one_line_error(

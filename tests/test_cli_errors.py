@@ -190,6 +190,11 @@ case("replay_no_out", lambda w: ["replay", w.bag()], "--out")
 case("replay_rank_seeds_text", lambda w: w.replay("--rank-seeds", "abc"), "--rank-seeds")
 case("replay_unknown_flag", lambda w: w.replay("--bogus"), "--bogus")
 case("replay_misspelled_flag", lambda w: w.replay("--no-plotz"), "did you mean --no-plots")
+case(
+    "replay_option_of_another_command",
+    lambda w: w.replay("--overwrite"),
+    "--overwrite is an option of tire-estimation simulate",
+)
 case("replay_config_without_value", lambda w: w.replay("--config"), "--config")
 case("simulate_no_arguments", lambda w: ["simulate"])
 case("simulate_seed_text", lambda w: ["simulate", "ece_r64", "--out", w.dir(), "--seed", "x"])
@@ -491,6 +496,19 @@ case(
     "simulate_sensor_wrong_type",
     lambda w: ["simulate", "city", "--out", w.dir() + "/b", "--sensor", "gnss_rate_hz=fast"],
     "gnss_rate_hz",
+)
+case(
+    "simulate_vehicle_key_misspelled",
+    lambda w: [
+        "simulate", "city", "--out", w.dir() + "/b",
+        "--vehicle", w.file("vehicle:\n  nominal_tire_radius: 0.3\n"),
+    ],
+    "did you mean vehicle.nominal_tire_radius_m",
+)  # fmt: skip
+case(
+    "simulate_vehicle_missing",
+    lambda w: ["simulate", "city", "--out", w.dir() + "/b", "--vehicle", w.dir() + "/none.yaml"],
+    "none.yaml",
 )
 case("simulate_minutes_zero", lambda w: ["simulate", "city", "--out", "b", "--minutes", "0"])
 case("simulate_minutes_nan", lambda w: ["simulate", "city", "--out", "b", "--minutes", "nan"])

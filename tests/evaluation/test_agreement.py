@@ -44,9 +44,11 @@ def _drive(
     fix_latency_s: float = 0.0,
     velocity_latency_s: float = 0.0,
     nan_every: int = 0,
+    antenna_x_m: float = 0.0,
+    declared_antenna_x_m: float = 0.0,
 ) -> np.ndarray:
     rng = np.random.default_rng(seed)
-    bins = agreement.AgreementBins(RN, LT)
+    bins = agreement.AgreementBins(RN, LT, lever_arm_x_m=declared_antenna_x_m)
     dt = 0.1
     t = np.arange(0.0, 60.0 * minutes, dt)
 
@@ -75,7 +77,12 @@ def _drive(
     w_l = (omega - yaw * LT / 2.0 / radius) * radius / (radius - load_coeff * dfz)
     w_r = (omega + yaw * LT / 2.0 / radius) * radius / (radius + load_coeff * dfz)
     vel = at(vel_f, t - velocity_latency_s) + rng.normal(0.0, 0.05, (t.size, 2))
+    # an antenna ahead of the rear axle moves sideways at yaw rate x its offset
+    heading = np.interp(t - velocity_latency_s, tf, psi)
+    vel += (yaw * antenna_x_m)[:, None] * np.column_stack([-np.sin(heading), np.cos(heading)])
     fix = at(pos_f, t - fix_latency_s) + rng.normal(0.0, 0.3, (t.size, 2))
+    fix_heading = np.interp(t - fix_latency_s, tf, psi)
+    fix += antenna_x_m * np.column_stack([np.cos(fix_heading), np.sin(fix_heading)])
     if nan_every:
         vel[::nan_every] = np.nan
     for k in range(t.size):
@@ -109,6 +116,28 @@ def test_a_clean_drive_has_no_significant_effect() -> None:
     assert res["speed"]["bins"] >= 400
     assert _significant(res) == set()
     assert abs(res["speed"]["time_alignment"]["estimate"]) < 0.01
+
+
+def test_the_sideways_speed_of_an_antenna_ahead_of_the_axle_is_taken_out() -> None:
+    # 6 m ahead (a truck's cab): the Doppler ground speed exceeds the rear axle's by
+    # (r a_x)^2 / (2 v), about 10 mm/s on this drive
+    # (against the same drive with the antenna over the axle: the tyre's radius error is in
+    # both)
+    col = agreement.COLUMNS.index("v_gnss_m_s"), agreement.COLUMNS.index("u_m_s")
+    over_axle = _drive()
+    undeclared = _drive(antenna_x_m=6.0)
+    declared = _drive(antenna_x_m=6.0, declared_antenna_x_m=6.0)
+    excess = [
+        float(
+            np.mean(
+                rows[:, col[0]] - rows[:, col[1]] - over_axle[:, col[0]] + over_axle[:, col[1]]
+            )
+        )
+        for rows in (undeclared, declared)
+    ]
+    assert excess[0] > 0.006
+    assert abs(excess[1]) < 0.001
+    assert _significant(_fit(declared)) == set()
 
 
 def test_a_wheel_speed_time_offset_is_sized() -> None:

@@ -35,20 +35,36 @@ class Parser(argparse.ArgumentParser):
 
     def error(self, message: str) -> NoReturn:
         if message.startswith("unrecognized arguments:"):
-            options = sorted(set(_option_strings(self)))
+            owners: dict[str, list[str]] = {}
+            for command, option in _option_strings(self):
+                owners.setdefault(option, []).append(command)
             for word in message.split(":", 1)[1].split():
-                near = difflib.get_close_matches(word.split("=")[0], options, n=1, cutoff=0.75)
-                if word.startswith("-") and near:
+                name = word.split("=")[0]
+                if not word.startswith("-"):
+                    continue
+                if name in owners:
+                    # a valid option of other sub-commands (argparse names none)
+                    cmds = owners[name]
+                    more = f" and {len(cmds) - 2} more" if len(cmds) > 2 else ""
+                    message += (
+                        f" ({name} is an option of {', '.join(cmds[:2])}{more}, not of this "
+                        "command)"
+                    )
+                    break
+                near = difflib.get_close_matches(name, sorted(owners), n=1, cutoff=0.75)
+                if near:
                     message += f" (did you mean {near[0]}?)"
                     break
         text = f"{self.prog}: error: {message} (see {self.prog} --help)"
         self.exit(EXIT_ERROR, one_line(text, MAX_LINE) + "\n")
 
 
-def _option_strings(parser: argparse.ArgumentParser) -> Iterator[str]:
-    """The option strings of ``parser`` and of all its sub-commands."""
+def _option_strings(parser: argparse.ArgumentParser) -> Iterator[tuple[str, str]]:
+    """(command, option string) of the long options of ``parser`` and of all its
+    sub-commands (an option reported unrecognized by the main parser may be a sub-command's
+    when it was given to another one)."""
     for action in parser._actions:
-        yield from (o for o in action.option_strings if o.startswith("--"))
+        yield from ((parser.prog, o) for o in action.option_strings if o.startswith("--"))
         if isinstance(action, argparse._SubParsersAction):
             for sub in action.choices.values():
                 yield from _option_strings(sub)
@@ -71,6 +87,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
     from tire_estimation.bag.writer import write_sim_bag
     from tire_estimation.core.validation import unknown_key_reason
+    from tire_estimation.core.vehicle import load_vehicle_yaml
     from tire_estimation.errors import ConfigError
     from tire_estimation.paths import check_new_path
     from tire_estimation.sim import SensorConfig, simulate
@@ -85,10 +102,16 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         if isinstance(value, list):
             sensor_values[key] = tuple(value)
     sensors = SensorConfig(**sensor_values)
+    vehicle = load_vehicle_yaml(args.vehicle) if args.vehicle is not None else None
     check_new_path(args.out, "--out", overwrite=args.overwrite)
     t0 = time.perf_counter()
     result = simulate(
-        args.scenario, seed=args.seed, minutes=args.minutes, sensors=sensors, **options
+        args.scenario,
+        seed=args.seed,
+        minutes=args.minutes,
+        sensors=sensors,
+        vehicle=vehicle,
+        **options,
     )
     t1 = time.perf_counter()
     path = write_sim_bag(result, args.out, overwrite=args.overwrite)
@@ -213,6 +236,13 @@ def build_parser() -> argparse.ArgumentParser:
         type=parse_key_value,
         metavar="KEY=VALUE",
         help="sensor setting (SensorConfig field), repeatable (e.g. gnss_rate_hz=1)",
+    )
+    sim.add_argument(
+        "--vehicle",
+        default=None,
+        metavar="YAML",
+        help="vehicle.yaml of the simulated vehicle (default: the project's mid-size car); "
+        "written into the bag",
     )
     sim.add_argument("--overwrite", action="store_true", help="replace an existing bag")
     sim.set_defaults(func=_cmd_simulate)

@@ -10,6 +10,9 @@ the rear radii, ``mean over time and wheels of ((estimate - truth) / std)^2`` af
 ``--skip-min`` minutes (1 when the reported std is the error's).
 
     python -m tire_estimation.evaluation.consistency_study --seeds 20 --minutes 10
+
+``--vehicle vehicle.yaml`` simulates another vehicle (geometry, antenna, tyres) than the
+simulator's default car.
 """
 
 from __future__ import annotations
@@ -37,11 +40,15 @@ def run_one(
     sensors: Mapping[str, Any],
     scenario: str = "robustness",
     skip_min: float = 3.0,
+    vehicle: Any = None,
 ) -> dict[str, Any]:
-    """One drive: verdict, mean NIS, whiteness p values, NEES of the rear radii."""
+    """One drive (of ``vehicle``, a ``VehicleParams``; None: the simulator's default car):
+    verdict, mean NIS, whiteness p values, NEES of the rear radii."""
     from tire_estimation.evaluation.residuals import analyze_trace
 
-    sim, _pipeline, trace = simulated_radius_run(scenario, seed, minutes, overrides, sensors)
+    sim, _pipeline, trace = simulated_radius_run(
+        scenario, seed, minutes, overrides, sensors, vehicle=vehicle
+    )
     nominal = sim.vehicle.nominal_tire_radius_m
     a = trace.arrays()
     t = a["t_ns"]
@@ -81,12 +88,20 @@ def main(argv: Sequence[str] | None = None) -> int:
     add_key_value_arg(
         parser, "--sensor", "SensorConfig field of the simulated drives (JSON value)"
     )
+    parser.add_argument(
+        "--vehicle", default=None, metavar="YAML", help="vehicle.yaml of the simulated vehicle"
+    )
     args = parser.parse_args(argv)
     overrides, sensors = key_values(args.set), key_values(args.sensor)
+    vehicle = None
+    if args.vehicle is not None:
+        from tire_estimation.core.vehicle import load_vehicle_yaml
+
+        vehicle = load_vehicle_yaml(args.vehicle)
     rows = run_seeds(
         args,
         lambda seed: [
-            run_one(seed, args.minutes, overrides, sensors, args.scenario, args.skip_min)
+            run_one(seed, args.minutes, overrides, sensors, args.scenario, args.skip_min, vehicle)
         ],
     )
     nees = np.array([r["nees"] for r in rows if r["nees"] is not None])

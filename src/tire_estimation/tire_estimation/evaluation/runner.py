@@ -174,10 +174,17 @@ class RadiusRecorder:
         bins = self._bins
         if bins is None:
             model = estimator.model
-            bins = self._bins = AgreementBins(
-                model.nominal_radius_m, model.track_width_m, self.trace.agreement_rows
-            )
             veh = estimator.vehicle
+            bins = self._bins = AgreementBins(
+                model.nominal_radius_m,
+                model.track_width_m,
+                self.trace.agreement_rows,
+                lever_arm_x_m=float(estimator.lever_arm_m[0]),
+                # k = m l_f / (L C_r) of the rear axle's steady-state slip angle
+                sideslip_s2_per_m=veh.mass_kg
+                * veh.cg_to_front_axle_m
+                / (veh.wheelbase_m * veh.cornering_stiffness_rear_n_rad),
+            )
             self.trace.agreement_params = {
                 "nominal_radius_m": model.nominal_radius_m,
                 "track_width_m": model.track_width_m,
