@@ -77,8 +77,10 @@ def test_truth_round_trip(data: BagData, result: SimResult) -> None:
     _eq(tr.t_ns[rows], radii.t_ns)
     _eq(radii.values, tr.wheel_radius_m[rows])
     stiff = data.truth_stiffness
-    assert stiff is not None and stiff.names == tp.STIFFNESS_NAMES
-    _eq(stiff.values[0], tr.stiffness[0])
+    assert stiff is not None and stiff.names == tp.TRUTH_STIFFNESS_NAMES
+    _eq(stiff.values[0, :3], tr.stiffness[0])
+    # this truth has no rear-axle Cx: read as NaN (not scored)
+    assert tr.cx_rear_n is None and np.isnan(stiff.values[:, 3]).all()
     pressure = data.truth_tire_pressure
     assert pressure is not None
     assert pressure.values[-1, 2] == 150_000.0 and pressure.values[0, 2] == 230_000.0

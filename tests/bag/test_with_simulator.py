@@ -43,3 +43,12 @@ def test_simulated_bag_round_trip(tmp_path: Path) -> None:
     held = radii.values[np.searchsorted(radii.t_ns, result.truth.t_ns, side="right") - 1]
     assert np.max(np.abs(held - result.truth.wheel_radius_m)) <= 1e-5
     assert data.duration_s == pytest.approx(30.0, abs=0.1)
+    # both axles' Cx (the rear one is what a rear-driven vehicle's estimate is scored against)
+    stiff = data.truth_stiffness
+    assert stiff is not None and stiff.names == tp.TRUTH_STIFFNESS_NAMES
+    veh = result.vehicle
+    np.testing.assert_allclose(
+        stiff.values[0, [0, 3]],
+        [veh.longitudinal_stiffness_front_n, veh.longitudinal_stiffness_rear_n],
+        rtol=1e-9,
+    )

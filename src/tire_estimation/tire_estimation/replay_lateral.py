@@ -169,7 +169,13 @@ def stiffness_metrics(bag: ReportBag, trace: ImuLateralTrace) -> dict[str, Any]:
     t_first = int(next(row_chunks(trace, ("t_ns",), 1))["t_ns"][0])
     t_last = int(next(row_chunks(trace, ("t_ns",), 1, n - 1))["t_ns"][-1])
     start = t_first + (t_last - t_first) // 2
-    cols = {j: truth.names.index(name) for j, name in enumerate(names) if name in truth.names}
+    # by name; a name the bag's truth does not carry (all NaN: cx_rear of an older bag) is not
+    # scored
+    cols = {
+        j: truth.names.index(name)
+        for j, name in enumerate(names)
+        if name in truth.names and np.isfinite(truth.values[:, truth.names.index(name)]).any()
+    }
     squares = np.zeros(len(names))
     count = 0
     for c in row_chunks(trace, ("t_ns", "stiffness")):

@@ -92,6 +92,25 @@ def test_state_dict_roundtrip_and_reset() -> None:
     assert est.estimate().reason == "not initialized"
 
 
+def test_a_rear_driven_vehicle_names_its_rear_axle_cx() -> None:
+    rear = VehicleParams(name="rear", drive="rear", longitudinal_stiffness_rear_n=180_000.0)
+    est = StiffnessEstimator(
+        StiffnessEstimatorConfig(n_particles=50), rear, np.random.default_rng(0)
+    )
+    _straight(est, 1.0, steer=0.02)
+    e = est.estimate()
+    assert e.names == ("cx_rear", "cy_front", "cy_rear")
+    assert e.nominal[0] == 180_000.0
+    d = est.state_dict()
+    assert d["names"] == ["cx_rear", "cy_front", "cy_rear"]
+    # the state of a front-driven vehicle of the same name and nominal values is another Cx
+    with pytest.raises(InputError, match="names"):
+        est.load_state_dict({**d, "names": ["cx_front", "cy_front", "cy_rear"]})
+    front = _est()
+    _straight(front, 1.0, steer=0.02)
+    assert front.estimate().names == ("cx_front", "cy_front", "cy_rear")
+
+
 _ZERO3 = [[0.0] * 3 for _ in range(3)]
 
 

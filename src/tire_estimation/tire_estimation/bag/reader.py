@@ -836,7 +836,7 @@ def decode_topics(
     for topic, key, names in (
         (tp.TRUTH_WHEEL_RADII, "truth_wheel_radii", WHEELS),
         (tp.TRUTH_TIRE_PRESSURE, "truth_tire_pressure", WHEELS),
-        (tp.TRUTH_TIRE_STIFFNESS, "truth_stiffness", tp.STIFFNESS_NAMES),
+        (tp.TRUTH_TIRE_STIFFNESS, "truth_stiffness", tp.TRUTH_STIFFNESS_NAMES),
         (tp.REFERENCE_LATERAL_STATE, "reference_lateral", tp.REFERENCE_LATERAL_NAMES),
     ):
         if topic in batches:

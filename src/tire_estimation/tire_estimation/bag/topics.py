@@ -56,6 +56,9 @@ REFERENCE_LATERAL_NAMES: Final[tuple[str, str, str, str]] = (
 
 #: Names on ``/truth/tire_stiffness`` in the order of ``TruthStream.stiffness`` columns.
 STIFFNESS_NAMES: Final[tuple[str, str, str]] = ("cx_front", "cy_front", "cy_rear")
+#: The same and ``cx_rear`` (``TruthStream.cx_rear_n``; the estimate of a rear-driven vehicle),
+#: the names the replay reads from ``/truth/tire_stiffness``.
+TRUTH_STIFFNESS_NAMES: Final[tuple[str, ...]] = (*STIFFNESS_NAMES, "cx_rear")
 
 #: Message type of every contract topic.
 TOPIC_TYPES: Final[dict[str, str]] = {

@@ -334,11 +334,16 @@ def sim_topic_series(result: SimResult) -> list[TopicSeries]:
         odometry_series(tp.TRUTH_ODOMETRY, tr.t_ns, tr.position_enu_m, quat, linear, angular)
     )
 
-    stiff_tol = TRUTH_STIFFNESS_REL_TOL * np.maximum(np.nanmax(np.abs(tr.stiffness), axis=0), 1.0)
+    stiff_names: tuple[str, ...] = tp.STIFFNESS_NAMES
+    stiffness = tr.stiffness
+    if tr.cx_rear_n is not None:
+        stiff_names = tp.TRUTH_STIFFNESS_NAMES
+        stiffness = np.column_stack([tr.stiffness, tr.cx_rear_n])
+    stiff_tol = TRUTH_STIFFNESS_REL_TOL * np.maximum(np.nanmax(np.abs(stiffness), axis=0), 1.0)
     for topic, names, data, tol in (
         (tp.TRUTH_WHEEL_RADII, WHEELS, tr.wheel_radius_m, TRUTH_RADIUS_TOL_M),
         (tp.TRUTH_TIRE_PRESSURE, WHEELS, tr.tire_pressure_pa, TRUTH_PRESSURE_TOL_PA),
-        (tp.TRUTH_TIRE_STIFFNESS, tp.STIFFNESS_NAMES, tr.stiffness, stiff_tol),
+        (tp.TRUTH_TIRE_STIFFNESS, stiff_names, stiffness, stiff_tol),
     ):
         rows = reduced_rate_rows(tr.t_ns, data, tol)
         out.append(joint_series(topic, tr.t_ns[rows], tuple(names), "position", data[rows]))

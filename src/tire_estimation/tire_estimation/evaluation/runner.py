@@ -537,7 +537,10 @@ def _record_lateral(trace: ImuLateralTrace, est: Any, t_ns: int, estimator: Any)
     trace.sideslip_rad.append(float(est.sideslip_rad))
     if hasattr(est, "stiffness"):
         if not trace.stiffness_names:
-            trace.stiffness_names = tuple(getattr(est, "names", STIFFNESS_NAMES))
+            # a TraceRow has no names: the estimator's model has them (the driven axle's Cx)
+            params = getattr(estimator, "params", None)
+            default = STIFFNESS_NAMES if params is None else params.names
+            trace.stiffness_names = tuple(getattr(est, "names", default))
             trace.nominal = np.array(estimator.nominal, dtype=float)
         # (np.array copies, as asarray followed by copy)
         trace.stiffness.append(np.array(est.stiffness, dtype=float))

@@ -75,6 +75,7 @@ class VehicleLog:
     fy_n: F64
     fz_n: F64
     stiffness: F64  # (n, 3) [cx_front N, cy_front N/rad, cy_rear N/rad] axle values
+    cx_rear_n: F64  # (n,) rear-axle longitudinal stiffness, N (scaled with cx_front)
     tire_pressure_pa: F64
 
 
@@ -342,5 +343,6 @@ def integrate(
         fy_n=np.ascontiguousarray(w_fy),
         fz_n=np.ascontiguousarray(w_fz),
         stiffness=stiffness,
+        cx_rear_n=vehicle.longitudinal_stiffness_rear_n * sf[:, 0],
         tire_pressure_pa=pressure_kpa * 1e3,
     )

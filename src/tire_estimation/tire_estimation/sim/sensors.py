@@ -330,4 +330,5 @@ def truth(log: VehicleLog, ltp: LocalTangentPlane, rate_hz: float, start_ns: int
         wheel_radius_m=log.wheel_radius_m[idx].copy(),
         tire_pressure_pa=log.tire_pressure_pa[idx].copy(),
         stiffness=log.stiffness[idx].copy(),
+        cx_rear_n=log.cx_rear_n[idx].copy(),
     )

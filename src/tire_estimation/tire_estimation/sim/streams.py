@@ -166,7 +166,8 @@ class TruthStream:
     ``velocity_m_s`` (M, 2) [vx, vy] in base_link; ``yaw_rate_rad_s`` (M,);
     ``acceleration_m_s2`` (M, 2) [ax, ay] in base_link (kinematic, without gravity);
     ``wheel_radius_m`` (M, 4) effective rolling radius; ``tire_pressure_pa`` (M, 4);
-    ``stiffness`` (M, 3) [cx_front N/unit slip, cy_front N/rad, cy_rear N/rad] (axle values).
+    ``stiffness`` (M, 3) [cx_front N/unit slip, cy_front N/rad, cy_rear N/rad] (axle values);
+    ``cx_rear_n`` (M,) the rear axle's longitudinal stiffness, N/unit slip (None: not known).
     """
 
     t_ns: I64
@@ -181,6 +182,7 @@ class TruthStream:
     wheel_radius_m: F64
     tire_pressure_pa: F64
     stiffness: F64
+    cx_rear_n: F64 | None = None
 
     def __post_init__(self) -> None:
         _check(
@@ -197,6 +199,7 @@ class TruthStream:
             wheel_radius_m=self.wheel_radius_m,
             tire_pressure_pa=self.tire_pressure_pa,
             stiffness=self.stiffness,
+            cx_rear_n=self.cx_rear_n,
         )
 
 

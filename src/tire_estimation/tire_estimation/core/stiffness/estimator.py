@@ -30,11 +30,7 @@ from tire_estimation.core.stiffness.frontend import (
     sideslip,
 )
 from tire_estimation.core.stiffness.grid import GridConfig, GridEkf, posterior
-from tire_estimation.core.stiffness.model import (
-    MAX_STIFFNESS_FRACTION,
-    MIN_STIFFNESS_FRACTION,
-    NAMES,
-)
+from tire_estimation.core.stiffness.model import MAX_STIFFNESS_FRACTION, MIN_STIFFNESS_FRACTION
 from tire_estimation.core.stiffness.mpf import StiffnessMpf
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.errors import InputError
@@ -239,7 +235,7 @@ class StiffnessEstimator(StiffnessFrontEnd[MpfFilter]):
         return {
             "version": STATE_DICT_VERSION,
             "vehicle": self.vehicle.name,
-            "names": list(NAMES),
+            "names": list(self.params.names),
             "nominal": self.mpf.nominal.tolist(),
             "mean": est.mean.tolist(),
             "mean_cov": est.mean_cov.tolist(),
@@ -267,7 +263,7 @@ class StiffnessEstimator(StiffnessFrontEnd[MpfFilter]):
         if d["vehicle"] != self.vehicle.name:
             raise InputError(k, f"state of vehicle {checks.shown(d['vehicle'])}")
         if "names" in d:
-            checks.choice(k, "names", d["names"], list(NAMES))
+            checks.choice(k, "names", d["names"], list(self.params.names))
         # the learned part is relative to the nominal stiffness (eq. 7): a state learned
         # with other nominal values would be restored as the wrong stiffness
         nominal = checks.vector(k, "nominal", d["nominal"], 3)

@@ -40,7 +40,7 @@ from tire_estimation.core.stiffness.filter import (
     Measurement,
     StiffnessFilter,
 )
-from tire_estimation.core.stiffness.model import NAMES, SingleTrackParams
+from tire_estimation.core.stiffness.model import SingleTrackParams
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.errors import InputError
 
@@ -81,7 +81,8 @@ class StiffnessEstimate:
 
     Attributes:
         t_ns: stamp of the last IMU update, ns (0 before the first).
-        names: ("cx_front", "cy_front", "cy_rear"); ``cx_front`` is the driven axle's Cx.
+        names: ("cx_front", "cy_front", "cy_rear"), with ``cx_rear`` for ``cx_front`` on a
+            rear-driven vehicle (the driven axle's Cx).
         stiffness: [Cx N/unit slip, Cy_f N/rad, Cy_r N/rad] axle values (eq. 7, 27a), (3,).
         stiffness_std: sqrt(diag) of eq. (27b), same units, (3,) (a filter other than
             Algorithm 1: the posterior std of its estimate).
@@ -441,7 +442,7 @@ class StiffnessFrontEnd(Generic[F]):
         bias = (0.0, 0.0, 0.0) if e.bias is None else np.asarray(e.bias, dtype=float).tolist()
         return StiffnessEstimate(
             t_ns=self._t_ns,
-            names=NAMES,
+            names=self.params.names,
             stiffness=e.stiffness,
             stiffness_std=e.stiffness_std,
             nominal=self.nominal.copy(),

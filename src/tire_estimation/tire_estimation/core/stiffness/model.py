@@ -38,8 +38,11 @@ from tire_estimation.core.vehicle import VehicleParams
 GRAVITY_M_S2 = 9.81
 #: Speed floor in the slip and slip-angle denominators, m/s.
 MIN_SPEED_M_S = 1.0
-#: Names of the three estimated stiffnesses (order of ``w`` in eq. 8).
+#: Names of the three estimated stiffnesses (order of ``w`` in eq. 8), front- or all-wheel
+#: drive; a rear-driven vehicle's ``Cx`` is its rear axle's (:data:`REAR_DRIVE_NAMES`)
 NAMES = ("cx_front", "cy_front", "cy_rear")
+#: The same for a rear-driven vehicle.
+REAR_DRIVE_NAMES = ("cx_rear", "cy_front", "cy_rear")
 #: Shapes of the saturating lateral tyre (:func:`lateral_slip_function`).
 TYRE_SHAPES = ("tanh", "magic_formula")
 #: Projection bounds of every stiffness (Sec. V), fractions of nominal: wide enough for a
@@ -91,6 +94,12 @@ class SingleTrackParams:
     tyre_shape: str = "tanh"
     magic_formula_shape_c: float = 1.3
     magic_formula_curvature_e: float = 0.0
+
+    @property
+    def names(self) -> tuple[str, str, str]:
+        """Names of ``C`` (the driven axle's ``Cx`` named after it; all-wheel drive: the
+        front axle's, both axles scaled together)."""
+        return REAR_DRIVE_NAMES if self.drive == "rear" else NAMES
 
     @staticmethod
     def from_vehicle(
