@@ -69,6 +69,7 @@ def test_the_summary_names_a_lost_wheel_a_reversing_car_and_a_failed_initializat
     metrics = json.loads((out / "metrics.json").read_text())
     radii = metrics["radii"]
     assert radii["signal_lost_s"] == {} and radii["failed_initializations"]["count"] == 0
+    assert radii["wheels_not_reported"] == []
     assert abs(radii["wheel_speed_lag_s"] - 0.005) < 1e-6  # half the 100 Hz period
     assert metrics["clock_check"]["lag_s"] == 0.0 and metrics["clock_check"]["offset"] is False
     plain = ReplayReport(out, metrics).summary()
@@ -98,6 +99,17 @@ def test_the_summary_names_a_lost_wheel_a_reversing_car_and_a_failed_initializat
     radii["failed_initializations"] = {"count": 1, "median_distance_ratio": 0.02}
     assert "POSE NOT INITIALIZED" not in ReplayReport(out, metrics).summary()  # one glitch
     assert "WHEEL SIGNAL LOST: wheel_rl" in text and "12.5 s" in text
+    assert "radii were not learned then" in text and "not reported" not in plain
+    radii["signal_lost_s"] = {"wheel_fl": 3.0}
+    radii["wheels_not_reported"] = ["wheel_fr"]
+    front = ReplayReport(out, metrics).summary()
+    # a front wheel's loss does not pause the learning of the rear radii
+    assert "WHEEL SIGNAL LOST: wheel_fl" in front and "radii were not learned then" not in front
+    assert "front wheels not reported (wheel_fr): the rear radii do not need them" in front
+    radii["wheels_not_reported"] = ["wheel_fl", "wheel_rr"]
+    assert "WHEELS NOT REPORTED: wheel_rr never had a speed" in (
+        ReplayReport(out, metrics).summary()
+    )
     assert "RADII RESCALED 1 time(s) (+5.7 % from the fixes)" in text
     assert "RADII NOT RESCALED: the GNSS distance was 3.23 times the wheels'" in text
     assert "RADII NOT RESCALED" not in plain and radii["rescales_refused"] == [3.226]

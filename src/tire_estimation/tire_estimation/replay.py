@@ -222,10 +222,29 @@ class ReplayReport:
                 "not a diameter) is wrong"
             )
         for w, lost_s in (r.get("signal_lost_s") or {}).items():
+            # a lost rear wheel pauses the learning; a lost front wheel only what needs it
+            then = (
+                "the radii were not learned then (the pose used the other rear wheel and the gyro)"
+                if w in ("wheel_rl", "wheel_rr")
+                else "the checks that compare the front axle with the rear paused"
+            )
             lines.append(
                 f"  WHEEL SIGNAL LOST: {w} read below {100 * LOST_SPEED_SHARE:.0f} % of the other "
-                f"wheels' speed, or nothing, for {lost_s:.1f} s; the radii were not learned then "
-                "(the pose used the other rear wheel and the gyro)"
+                f"wheels' speed, or nothing, for {lost_s:.1f} s; {then}"
+            )
+        unreported = r.get("wheels_not_reported") or []
+        rear_missing = [w for w in unreported if w in ("wheel_rl", "wheel_rr")]
+        if rear_missing:
+            lines.append(
+                f"  WHEELS NOT REPORTED: {', '.join(rear_missing)} never had a speed on "
+                "/vehicle/wheel_speeds: nothing was learned (the radius model needs both rear "
+                "wheels; a robot's wheels are named wheel_rl / wheel_rr)"
+            )
+        elif unreported:
+            lines.append(
+                f"  front wheels not reported ({', '.join(unreported)}): the rear radii do not "
+                "need them; a driven rear axle's slip is then not learned but taken from "
+                "vehicle.yaml"
             )
         base = r.get("baseline")
         if base and base.get("final_error_vs_truth_m"):
@@ -951,6 +970,7 @@ def build_metrics(
     if axles is not None:
         radii["axles"] = {a: dataclasses.asdict(axles.status(a)) for a in ("front", "rear")}
         radii["signal_lost_s"] = axles.lost_signals()
+        radii["wheels_not_reported"] = list(axles.unreported_wheels())
         # inputs whose sign convention was found reversed and corrected (axle_check.py)
         radii["gyro_reversed"] = axles.gyro_reversed
         radii["wheels_reversed"] = axles.signs.reversed_wheels

@@ -182,6 +182,25 @@ def test_signal_lost_at_once_and_back_after_half_a_second() -> None:
     assert not slow.signal_lost(2)
 
 
+def test_wheels_never_reported_are_not_reported_as_lost() -> None:
+    """A vehicle that publishes only its rear wheels (NaN for the front ones): the front
+    wheels are named as not reported, not as lost signals; a front wheel that reported and
+    then read zero is a lost signal."""
+    nan = float("nan")
+    w = 20.0 / VehicleParams().nominal_tire_radius_m
+    rear_only = AxleCheck(VehicleParams())
+    for k in range(1, 200):
+        rear_only.on_wheel_speeds(k * 10_000_000, [nan, nan, w, w])
+    assert rear_only.unreported_wheels() == ("wheel_fl", "wheel_fr")
+    assert rear_only.lost_signals() == {}
+    assert rear_only.signal_lost(0) and not rear_only.signal_lost(2)
+    lost_front = AxleCheck(VehicleParams())
+    for k in range(1, 200):
+        lost_front.on_wheel_speeds(k * 10_000_000, [w if k < 100 else 0.0, w, w, w])
+    assert lost_front.unreported_wheels() == ()
+    assert lost_front.lost_signals() == {"wheel_fl": pytest.approx(1.0, abs=0.02)}
+
+
 def test_a_dead_rear_wheel_pauses_learning_and_keeps_the_pose() -> None:
     """A rear wheel that reads 0 for 10 s: the estimator says so, learns nothing meanwhile,
     keeps its pose (the live wheel and the gyro), and the axle verdict is not spoiled."""

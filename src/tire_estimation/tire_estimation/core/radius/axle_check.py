@@ -180,6 +180,8 @@ class _SignalCheck:
     def __init__(self) -> None:
         self.lost = False
         self.lost_s = 0.0
+        #: the wheel has had a speed (finite) at least once
+        self.reported = False
         self._since_ns: int | None = None
 
     def add(self, t_ns: int, dt_s: float, share: float) -> None:
@@ -243,8 +245,20 @@ class AxleCheck:
         return self._signals[index].lost
 
     def lost_signals(self) -> dict[str, float]:
-        """Seconds each wheel's signal has been lost, for the wheels whose signal ever was."""
-        return {n: c.lost_s for n, c in zip(WHEELS, self._signals, strict=True) if c.lost_s}
+        """Seconds each wheel's signal has been lost, for the reported wheels whose signal ever
+        was (:meth:`unreported_wheels`: the others)."""
+        return {
+            n: c.lost_s
+            for n, c in zip(WHEELS, self._signals, strict=True)
+            if c.lost_s and c.reported
+        }
+
+    def unreported_wheels(self) -> tuple[str, ...]:
+        """The wheels that never had a speed while others did (a vehicle that publishes only
+        its rear wheels, a two-wheeled robot)."""
+        if not any(c.reported for c in self._signals):
+            return ()
+        return tuple(n for n, c in zip(WHEELS, self._signals, strict=True) if not c.reported)
 
     def _watch_signals(self, t_ns: int, speeds: list[float]) -> None:
         """Each wheel against the mean of the other three, while those turn at speed."""
@@ -259,6 +273,8 @@ class AxleCheck:
         total = sum(live)
         for k, check in enumerate(self._signals):
             mag = mags[k]
+            if not check.reported and math.isfinite(mag):
+                check.reported = True
             # a wheel not reported (NaN) reads as no signal
             others = (total - mag) / (len(live) - 1) if math.isfinite(mag) else total / len(live)
             if others * self._radius_m >= self._min_speed_m_s:
