@@ -186,8 +186,12 @@ def test_a_signal_saves_what_the_node_learned(
     assert saved["vehicle_name"] == "test_car" and saved["state"]
 
 
-def _subscribed(*publishers: Any) -> bool:
-    return all(p.get_subscription_count() > 0 for p in publishers)
+def _subscribed(*publishers: Any, subscription: Any = None) -> bool:
+    """The node subscribes to every feeder publisher and, when given, publishes what the
+    feeder's ``subscription`` listens to (an output published before the two matched is lost,
+    which a loaded machine makes likely)."""
+    matched = all(p.get_subscription_count() > 0 for p in publishers)
+    return matched and (subscription is None or subscription.get_publisher_count() > 0)
 
 
 def _estimator_feed(feeder: Any, executor: Any, qos_mod: Any, proc: Any) -> None:
@@ -202,13 +206,13 @@ def _estimator_feed(feeder: Any, executor: Any, qos_mod: Any, proc: Any) -> None
     wheels = feeder.create_publisher(JointState, "/vehicle/wheel_speeds", qos)
     fixes = feeder.create_publisher(NavSatFix, "/gnss/fix", qos)
     stamps: list[int] = []
-    feeder.create_subscription(
+    odometry = feeder.create_subscription(
         Odometry,
         "/tire_estimation/odometry",
         lambda m: stamps.append(m.header.stamp.sec * 10**9 + m.header.stamp.nanosec),
         100,
     )
-    _spin_until(executor, lambda: _subscribed(wheels, fixes), proc, 15.0)
+    _spin_until(executor, lambda: _subscribed(wheels, fixes, subscription=odometry), proc, 15.0)
     t0_ns, t_ns = 1_000_000_000_000, 1_000_000_000_000
     for k in range(250):
         t_ns = t0_ns + k * 10_000_000
@@ -231,10 +235,10 @@ def _detector_feed(feeder: Any, executor: Any, qos_mod: Any, proc: Any) -> None:
     odometry = feeder.create_publisher(Odometry, "/tire_estimation/odometry", qos)
     radii = feeder.create_publisher(msg_mod.TireRadii, "/tire_estimation/tire_radii", qos)
     statuses: list[Any] = []
-    feeder.create_subscription(
+    status = feeder.create_subscription(
         msg_mod.DeflationStatus, "/tire_estimation/deflation", statuses.append, 100
     )
-    _spin_until(executor, lambda: _subscribed(odometry, radii), proc, 15.0)
+    _spin_until(executor, lambda: _subscribed(odometry, radii, subscription=status), proc, 15.0)
     feed = Feeder(msg_mod, Odometry)
     for _ in range(20):
         feed.t_ns += 100_000_000
