@@ -41,6 +41,7 @@ from tire_estimation.core.radius.axle_check import LOST_SPEED_SHARE, AxleCheck
 from tire_estimation.core.radius.config import RadiusEstimatorConfig
 from tire_estimation.core.stiffness.config import StiffnessEstimatorConfig
 from tire_estimation.core.vehicle import VehicleParams
+from tire_estimation.core.wheels import REAR_WHEELS
 from tire_estimation.errors import BagError, ConfigError
 from tire_estimation.evaluation import metrics as ev
 from tire_estimation.evaluation.residuals import analyze_trace as analyze_residuals
@@ -225,7 +226,7 @@ class ReplayReport:
             # a lost rear wheel pauses the learning; a lost front wheel only what needs it
             then = (
                 "the radii were not learned then (the pose used the other rear wheel and the gyro)"
-                if w in ("wheel_rl", "wheel_rr")
+                if w in REAR_WHEELS
                 else "the checks that compare the front axle with the rear paused"
             )
             lines.append(
@@ -233,7 +234,7 @@ class ReplayReport:
                 f"wheels' speed, or nothing, for {lost_s:.1f} s; {then}"
             )
         unreported = r.get("wheels_not_reported") or []
-        rear_missing = [w for w in unreported if w in ("wheel_rl", "wheel_rr")]
+        rear_missing = [w for w in unreported if w in REAR_WHEELS]
         if rear_missing:
             lines.append(
                 f"  WHEELS NOT REPORTED: {', '.join(rear_missing)} never had a speed on "

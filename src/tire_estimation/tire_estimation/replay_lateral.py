@@ -171,11 +171,8 @@ def stiffness_metrics(bag: ReportBag, trace: ImuLateralTrace) -> dict[str, Any]:
     start = t_first + (t_last - t_first) // 2
     # by name; a name the bag's truth does not carry (all NaN: cx_rear of an older bag) is not
     # scored
-    cols = {
-        j: truth.names.index(name)
-        for j, name in enumerate(names)
-        if name in truth.names and np.isfinite(truth.values[:, truth.names.index(name)]).any()
-    }
+    known = {n: i for i, n in enumerate(truth.names) if np.isfinite(truth.values[:, i]).any()}
+    cols = {j: known[name] for j, name in enumerate(names) if name in known}
     squares = np.zeros(len(names))
     count = 0
     for c in row_chunks(trace, ("t_ns", "stiffness")):
