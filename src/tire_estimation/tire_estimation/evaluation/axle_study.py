@@ -25,18 +25,16 @@ from __future__ import annotations
 import argparse
 import dataclasses
 from collections.abc import Sequence
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from tire_estimation.evaluation.sim_runs import (
-    add_key_value_arg,
     add_seed_args,
     key_values,
     run_seeds,
     simulated_radius_run,
-    write_rows,
+    within,
 )
 
 
@@ -102,13 +100,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Command line: run the seeds, print each run and a summary, write ``--out`` (JSON)."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     add_seed_args(parser, "robustness", 10.0)
-    parser.add_argument("--out", type=Path, default=None, help="JSON file for every run")
     parser.add_argument(
         "--rewire",
         choices=("swap_rear", "flip_gyro", "negate_right", "negate_all"),
         default=None,
     )
-    add_key_value_arg(parser, "--sensor", "simulator SensorConfig setting (JSON value)")
     args = parser.parse_args(argv)
     sensors = key_values(args.sensor)
     rows = run_seeds(
@@ -135,19 +131,16 @@ def main(argv: Sequence[str] | None = None) -> int:
             f"RMS {rms[1]:.3f} mm (the same drives wired right: {rms[0]:.3f} mm), largest "
             f"difference of a final radius from the drive wired right {diff:.3f} mm"
         )
-        write_rows(args.out, rows)
         return 0
     for locked in (False, True):
         sel = [r for r in rows if r["locked"] is locked]
         rel = np.abs([r["common_error_rel"] for r in sel]) * 100.0
         print(
-            f"{'locked' if locked else 'free'}: common rear radius within 0.1 % on "
-            f"{int((rel <= 0.1).sum())}/{len(sel)} (max {rel.max():.3f} %); rear split "
+            f"{'locked' if locked else 'free'}: common rear radius {within(rel, 0.1)}; rear split "
             f"unobservable on {sum(r['split_observable'] is False for r in sel)}, observable on "
             f"{sum(r['split_observable'] is True for r in sel)}; gyro heading used on "
             f"{sum(r['gyro_heading_samples'] > 0 for r in sel)}"
         )
-    write_rows(args.out, rows)
     return 0
 
 

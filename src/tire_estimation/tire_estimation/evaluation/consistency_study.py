@@ -85,9 +85,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     add_seed_args(parser, "robustness", 10.0)
     parser.add_argument("--skip-min", type=float, default=3.0)
     add_key_value_arg(parser, "--set", "radius estimator setting (JSON value)")
-    add_key_value_arg(
-        parser, "--sensor", "SensorConfig field of the simulated drives (JSON value)"
-    )
     parser.add_argument(
         "--vehicle", default=None, metavar="YAML", help="vehicle.yaml of the simulated vehicle"
     )

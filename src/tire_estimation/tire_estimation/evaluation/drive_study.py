@@ -28,7 +28,6 @@ import numpy as np
 
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.evaluation.sim_runs import (
-    add_key_value_arg,
     add_seed_args,
     key_values,
     run_seeds,
@@ -37,9 +36,9 @@ from tire_estimation.evaluation.sim_runs import (
 
 
 def run_one(
+    scenario: str,
     seed: int,
     minutes: float,
-    scenario: str,
     drive: str,
     stated_stiffness_factor: float,
     correction: bool,
@@ -90,6 +89,11 @@ def run_one(
     }
 
 
+def _span(values: Sequence[float], fmt: str) -> str:
+    """``min-max`` of ``values``, each written with ``fmt``."""
+    return f"{min(values):{fmt}}-{max(values):{fmt}}"
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Command line: run the seeds, print each run and a summary."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -100,14 +104,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--stated-drive", choices=("front", "rear", "all"), default=None)
     parser.add_argument("--no-correction", action="store_true")
     parser.add_argument("--no-rescale", action="store_true")
-    add_key_value_arg(parser, "--sensor", "simulator SensorConfig setting (JSON value)")
     args = parser.parse_args(argv)
     sensors = key_values(args.sensor)
     rows = run_seeds(
         args,
         lambda seed: [
             run_one(
-                seed, args.minutes, args.scenario, args.drive, args.stated_stiffness_factor,
+                args.scenario, seed, args.minutes, args.drive, args.stated_stiffness_factor,
                 not args.no_correction, args.stated_radius_m, not args.no_rescale,
                 args.stated_drive, sensors,
             )
@@ -115,18 +118,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     )  # fmt: skip
     err = np.array([r["error_mm"] for r in rows])
     z = np.abs([r["z"] for r in rows])
+    firsts = [r["rescale_s"][0] for r in rows if r["rescale_s"]]
     print(
         f"rear radii error: mean {err.mean(axis=0)[0]:+.3f} / {err.mean(axis=0)[1]:+.3f} mm, "
         f"RMS {np.sqrt(np.mean(err**2)):.3f} mm, max |error| {np.abs(err).max():.3f} mm; "
         f"|error|/std median {np.median(z):.2f}, max {z.max():.2f}, above 3 on "
         f"{int(np.any(z > 3.0, axis=1).sum())}/{len(rows)}; radii rescaled on "
         f"{sum(bool(r['rescales']) for r in rows)}"
-        + (
-            f" (first at {min(r['rescale_s'][0] for r in rows if r['rescale_s']):.1f}-"
-            f"{max(r['rescale_s'][0] for r in rows if r['rescale_s']):.1f} s)"
-            if any(r["rescale_s"] for r in rows)
-            else ""
-        )
+        + (f" (first at {_span(firsts, '.1f')} s)" if firsts else "")
     )
     detected = sum(bool(r["slip"].get("detected")) for r in rows)
     if detected:
@@ -137,8 +136,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         c2 = np.array([s["slip_per_speed2_s2_per_m2"] for s in learned])
         print(
             f"learned on {len(learned)}/{len(rows)}: slip per m/s^2 {c1.mean():.5f} "
-            f"({c1.min():.5f}-{c1.max():.5f}), per (m/s)^2 {c2.mean():.3g} "
-            f"({c2.min():.3g}-{c2.max():.3g})"
+            f"({_span(c1, '.5f')}), per (m/s)^2 {c2.mean():.3g} ({_span(c2, '.3g')})"
         )
     return 0
 

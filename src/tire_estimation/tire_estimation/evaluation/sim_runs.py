@@ -9,6 +9,8 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from tire_estimation.atomic_io import atomic_write_text
 
 
@@ -64,11 +66,17 @@ def key_values(items: Sequence[str]) -> dict[str, Any]:
 
 
 def add_seed_args(parser: argparse.ArgumentParser, scenario: str, minutes: float) -> None:
-    """``--scenario``, ``--minutes``, ``--seeds`` (default 20) and ``--first-seed`` (0)."""
+    """``--scenario``, ``--minutes``, ``--seeds`` (default 20), ``--first-seed`` (0), the
+    repeatable ``--sensor KEY=VALUE`` (``SensorConfig`` of the simulated drives; read with
+    :func:`key_values`) and ``--out`` (a JSON file for every run, :func:`run_seeds`)."""
     parser.add_argument("--scenario", default=scenario)
     parser.add_argument("--minutes", type=float, default=minutes)
     parser.add_argument("--seeds", type=int, default=20)
     parser.add_argument("--first-seed", type=int, default=0)
+    add_key_value_arg(
+        parser, "--sensor", "SensorConfig field of the simulated drives (JSON value)"
+    )
+    parser.add_argument("--out", type=Path, default=None, help="JSON file for every run")
 
 
 def add_key_value_arg(parser: argparse.ArgumentParser, flag: str, help_text: str) -> None:
@@ -80,13 +88,22 @@ def run_seeds(
     args: argparse.Namespace, run: Callable[[int], Sequence[dict[str, Any]]]
 ) -> list[dict[str, Any]]:
     """The rows of ``run(seed)`` for the ``args.seeds`` seeds from ``args.first_seed``, each
-    printed as one JSON line as it comes."""
+    printed as one JSON line as it comes, all written to ``args.out`` when it is set."""
     rows: list[dict[str, Any]] = []
     for seed in range(args.first_seed, args.first_seed + args.seeds):
         for row in run(seed):
             rows.append(row)
             print(json.dumps(row), flush=True)
+    write_rows(getattr(args, "out", None), rows)
     return rows
+
+
+def within(errors_pct: Any, target_pct: float) -> str:
+    """``within T % on n/N (max M %)``: the drives (rows of ``errors_pct``, one radius or more
+    each, %) whose every error is within ``target_pct``, and the largest error."""
+    rel = np.abs(np.asarray(errors_pct, dtype=float)).reshape(len(errors_pct), -1)
+    ok = int(np.all(rel <= target_pct, axis=1).sum())
+    return f"within {target_pct:g} % on {ok}/{len(rel)} (max {rel.max():.3f} %)"
 
 
 def write_rows(path: Path | None, rows: Sequence[dict[str, Any]]) -> None:
