@@ -2,9 +2,21 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import Annotated
+
 import pytest
 
-from tire_estimation.core.validation import require_choice, require_vector3
+from tire_estimation.core.validation import (
+    Checked,
+    NonNegative,
+    Positive,
+    field_rules,
+    in_range,
+    one_of,
+    require_choice,
+    require_vector3,
+)
 from tire_estimation.errors import ConfigError, VehicleConfigError
 
 
@@ -53,3 +65,61 @@ def test_a_vector3_is_three_finite_numbers_within_the_limit(
     with pytest.raises(VehicleConfigError, match=reason) as info:
         require_vector3("p", value, 2.0, VehicleConfigError, " m")
     assert info.value.field == field
+
+
+@dataclass(frozen=True)
+class _Base(Checked):
+    gain: Positive = 1.0
+    share: Annotated[float, in_range(0.0, 1.0)] = 0.5
+    label: str = "x"
+
+
+@dataclass(frozen=True)
+class _Child(_Base):
+    ERROR = VehicleConfigError
+    PREFIX = "child."
+
+    mode: Annotated[str, one_of(("a", "b"))] = "a"
+    low: NonNegative = 0.0
+    high: NonNegative = 1.0
+
+    def check(self) -> None:
+        if self.high < self.low:
+            raise ConfigError("child.high", self.high, f"must be >= low={self.low}")
+
+
+def test_field_rules_read_the_annotations_in_field_order_with_the_bases() -> None:
+    rules = field_rules(_Child)
+    assert list(rules) == ["gain", "share", "mode", "low", "high"]  # label has no rule
+    assert rules["share"].text() == "in [0, 1]"
+    assert rules["mode"].text() == "one of (a, b)"
+    assert rules["gain"].text() == "> 0"
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "field", "value"),
+    [
+        ({"gain": 0.0}, "gain", 0.0),
+        ({"share": 1.5}, "share", 1.5),
+        ({"gain": float("nan")}, "gain", "nan"),
+    ],
+)
+def test_construction_checks_each_annotated_rule(
+    kwargs: dict[str, float], field: str, value: object
+) -> None:
+    with pytest.raises(ConfigError) as info:
+        _Base(**kwargs)
+    assert info.value.field == field
+    assert str(info.value.value) == str(value)
+
+
+def test_a_subclass_names_fields_with_its_prefix_raises_its_error_and_runs_check() -> None:
+    with pytest.raises(VehicleConfigError) as info:
+        _Child(mode="c")
+    assert info.value.field == "child.mode"
+    with pytest.raises(VehicleConfigError) as info:
+        _Child(gain=-1.0)
+    assert info.value.field == "child.gain"
+    with pytest.raises(ConfigError, match=r"must be >= low=2\.0"):
+        _Child(low=2.0, high=1.0)
+    assert _Child(low=1.0, high=2.0).high == 2.0

@@ -5,16 +5,15 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import ClassVar
+from typing import Annotated
 
 from tire_estimation.core.deflation.monitor import MonitorConfig
 from tire_estimation.core.pipeline import PublishPeriods
 from tire_estimation.core.validation import (
-    FINITE,
-    NON_NEGATIVE,
-    POSITIVE,
-    Rule,
-    check_rules,
+    Checked,
+    Finite,
+    NonNegative,
+    Positive,
     one_of,
 )
 from tire_estimation.core.wheels import Names
@@ -24,7 +23,7 @@ SENSOR_QOS = ("sensor_data", "reliable")
 
 
 @dataclass(frozen=True)
-class PersistentNodeOptions:
+class PersistentNodeOptions(Checked):
     """What every node that saves its state to a file takes: the vehicle, the tire set, the
     file and the lifecycle start (the subclasses document the fields and set the file's
     default)."""
@@ -32,15 +31,12 @@ class PersistentNodeOptions:
     vehicle_file: str = ""
     tire_set_id: str = "default"
     persistence_file: str = ""
-    persistence_period_s: float = 60.0
+    persistence_period_s: Finite = 60.0
     autostart: bool = True
 
-    RULES: ClassVar[dict[str, Rule]] = {"persistence_period_s": FINITE}
-
-    def __post_init__(self) -> None:
+    def check(self) -> None:
         if not self.tire_set_id:
             raise ConfigError("tire_set_id", self.tire_set_id, "must not be empty")
-        check_rules(self, self.RULES)
 
 
 @dataclass(frozen=True)
@@ -91,32 +87,20 @@ class EstimatorNodeOptions(PersistentNodeOptions):
     """
 
     persistence_file: str = "~/.ros/tire_estimation/learned_radii.json"
-    odometry_publish_period_s: float = 0.02
-    radii_publish_period_s: float = 0.1
-    lateral_publish_period_s: float = 0.02
+    odometry_publish_period_s: NonNegative = 0.02
+    radii_publish_period_s: Positive = 0.1
+    lateral_publish_period_s: NonNegative = 0.02
     tyre_force_enabled: bool = True
     stiffness_enabled: bool = True
-    stiffness_publish_period_s: float = 0.1
-    diagnostics_period_s: float = 1.0
-    sensor_qos: str = "sensor_data"
-    reorder_delay_s: float = 0.05
-    max_clock_jump_s: float = 5.0
+    stiffness_publish_period_s: NonNegative = 0.1
+    diagnostics_period_s: Positive = 1.0
+    sensor_qos: Annotated[str, one_of(SENSOR_QOS)] = "sensor_data"
+    reorder_delay_s: NonNegative = 0.05
+    max_clock_jump_s: Positive = 5.0
     name_remaps: tuple[str, ...] = ()
 
-    RULES: ClassVar[dict[str, Rule]] = {
-        **PersistentNodeOptions.RULES,
-        "reorder_delay_s": NON_NEGATIVE,
-        "max_clock_jump_s": POSITIVE,
-        "odometry_publish_period_s": NON_NEGATIVE,
-        "radii_publish_period_s": POSITIVE,
-        "lateral_publish_period_s": NON_NEGATIVE,
-        "stiffness_publish_period_s": NON_NEGATIVE,
-        "diagnostics_period_s": POSITIVE,
-        "sensor_qos": one_of(SENSOR_QOS),
-    }
-
-    def __post_init__(self) -> None:
-        super().__post_init__()
+    def check(self) -> None:
+        super().check()
         Names.from_remaps(self.name_remaps)  # raises ConfigError naming name_remaps
 
     @property
@@ -160,16 +144,7 @@ class DetectorNodeOptions(MonitorConfig, PersistentNodeOptions):
     """
 
     persistence_file: str = "~/.ros/tire_estimation/deflation_detector.json"
-    diagnostics_period_s: float = 1.0
-
-    RULES: ClassVar[dict[str, Rule]] = {
-        **PersistentNodeOptions.RULES,
-        "diagnostics_period_s": POSITIVE,
-        **MonitorConfig.RULES,
-    }
-
-    def __post_init__(self) -> None:
-        PersistentNodeOptions.__post_init__(self)
+    diagnostics_period_s: Positive = 1.0
 
 
 @dataclass(frozen=True)

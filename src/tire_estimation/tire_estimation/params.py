@@ -15,7 +15,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, TypeVar
 
-from tire_estimation.core.validation import Rule
+from tire_estimation.core.validation import Rule, field_rules
 from tire_estimation.errors import ConfigError
 
 T = TypeVar("T")
@@ -126,7 +126,7 @@ def parameter_specs(cls: type, prefix: str) -> list[ParameterSpec]:
     """Specs of every scalar field of dataclass ``cls`` (nested dataclasses are not expanded)."""
     hints = typing.get_type_hints(cls)
     docs = attribute_docs(cls)
-    rules: Mapping[str, Rule] = getattr(cls, "RULES", {})
+    rules: Mapping[str, Rule] = field_rules(cls)
     specs = []
     for f in dataclasses.fields(cls):
         if f.default is dataclasses.MISSING:
@@ -175,7 +175,7 @@ def build_config(cls: type[T], prefix: str, values: Mapping[str, Any]) -> T:
     """Build ``cls`` from parameter values keyed by full parameter name (missing = default).
 
     Raises :class:`ConfigError` naming the parameter when a value has the wrong type; range and
-    consistency checks are the dataclass's own ``__post_init__``.
+    consistency checks are the dataclass's own (its annotations and ``check``).
     """
     kwargs: dict[str, Any] = {}
     for spec in parameter_specs(cls, prefix):

@@ -33,7 +33,7 @@ import math
 from collections import Counter
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
-from typing import Any, ClassVar, Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -67,9 +67,8 @@ from tire_estimation.core.samples import (
 from tire_estimation.core.stiffness.config import StiffnessEstimatorConfig
 from tire_estimation.core.stiffness.estimator import StiffnessEstimate, StiffnessEstimator
 from tire_estimation.core.validation import (
-    NON_NEGATIVE,
-    Rule,
-    check_rules,
+    Checked,
+    NonNegative,
     require_non_negative,
     require_positive,
 )
@@ -109,7 +108,7 @@ class PublishPeriods:
 
 
 @dataclass(frozen=True)
-class PipelineConfig:
+class PipelineConfig(Checked):
     """What runs in an :class:`EstimationPipeline` (an estimator is off when its config is None).
 
     Attributes:
@@ -135,17 +134,9 @@ class PipelineConfig:
     detector: DeflationDetectorConfig | None = None
     monitor: MonitorConfig = field(default_factory=MonitorConfig)
     periods: PublishPeriods = field(default_factory=PublishPeriods)
-    max_hold_s: float = 0.5
-    reorder_delay_s: float = 0.05
+    max_hold_s: NonNegative = 0.5
+    reorder_delay_s: NonNegative = 0.05
     clock: ClockGuardConfig = field(default_factory=ClockGuardConfig)
-
-    RULES: ClassVar[dict[str, Rule]] = {
-        "max_hold_s": NON_NEGATIVE,
-        "reorder_delay_s": NON_NEGATIVE,
-    }
-
-    def __post_init__(self) -> None:
-        check_rules(self, self.RULES)
 
 
 @dataclass(frozen=True, slots=True)

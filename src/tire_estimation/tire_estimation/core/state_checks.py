@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from tire_estimation.core.arrays import F64
+from tire_estimation.core.validation import field_rules
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.errors import InputError
 
@@ -42,7 +43,7 @@ def radius_error_limit_m(nominal_tire_radius_m: float | None = None) -> float:
     """Largest plausible |radius error|, m: :data:`MAX_RADIUS_ERROR_FRACTION` of the nominal
     radius, or of the largest nominal radius a vehicle description may give when unknown."""
     if nominal_tire_radius_m is None:
-        high = VehicleParams.RULES["nominal_tire_radius_m"].high
+        high = field_rules(VehicleParams)["nominal_tire_radius_m"].high
         assert high is not None
         nominal_tire_radius_m = high
     return MAX_RADIUS_ERROR_FRACTION * float(nominal_tire_radius_m)

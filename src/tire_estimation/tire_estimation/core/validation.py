@@ -7,10 +7,12 @@ naming the field and its value.
 from __future__ import annotations
 
 import difflib
+import functools
 import math
+import typing
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, fields
-from typing import Any
+from typing import Annotated, Any, ClassVar
 
 from tire_estimation.errors import ConfigError
 
@@ -84,7 +86,8 @@ def require_choice(
 
 @dataclass(frozen=True)
 class Rule:
-    """What a configuration field must hold; a config class lists one per field in ``RULES``.
+    """What a configuration field must hold; a field carries it in its annotation
+    (``Annotated[float, in_range(0, 1)]`` or an alias such as :data:`Positive`).
 
     ``kind`` is ``bool``, ``finite``, ``positive`` (> 0), ``non_negative`` (>= 0), ``range``
     (a number in ``[low, high]``), ``int_range`` (an integer in ``[low, high]``) or ``choice``
@@ -142,6 +145,13 @@ BOOL = Rule("bool")
 FINITE = Rule("finite")
 POSITIVE = Rule("positive")
 NON_NEGATIVE = Rule("non_negative")
+
+
+#: Annotations of configuration fields that carry their rule (read by :func:`field_rules`).
+Flag = Annotated[bool, BOOL]
+Finite = Annotated[float, FINITE]
+Positive = Annotated[float, POSITIVE]
+NonNegative = Annotated[float, NON_NEGATIVE]
 
 
 def in_range(low: float, high: float) -> Rule:
@@ -227,3 +237,32 @@ def check_rules(
     name the field as ``prefix + name``."""
     for name, rule in rules.items():
         rule.check(prefix + name, getattr(config, name), error)
+
+
+@functools.cache
+def field_rules(cls: type) -> dict[str, Rule]:
+    """The rule each field of dataclass ``cls`` carries in its annotation, in field order
+    (fields without one are left out; a subclass inherits its bases' fields and rules)."""
+    hints = typing.get_type_hints(cls, include_extras=True)
+    rules = {}
+    for f in fields(cls):
+        found = [m for m in getattr(hints.get(f.name), "__metadata__", ()) if isinstance(m, Rule)]
+        if found:
+            rules[f.name] = found[0]
+    return rules
+
+
+class Checked:
+    """Base of the frozen configuration dataclasses: construction checks every field against
+    the rule of its annotation (:func:`field_rules`), then :meth:`check`. Errors are ``ERROR``
+    naming the field as ``PREFIX + name``."""
+
+    ERROR: ClassVar[type[ConfigError]] = ConfigError
+    PREFIX: ClassVar[str] = ""
+
+    def __post_init__(self) -> None:
+        check_rules(self, field_rules(type(self)), self.ERROR, self.PREFIX)
+        self.check()
+
+    def check(self) -> None:
+        """Checks across fields, beyond each field's own rule (none here)."""

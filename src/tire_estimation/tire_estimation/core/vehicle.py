@@ -11,14 +11,13 @@ import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import Annotated, Any
 
 import yaml
 
 from tire_estimation.core import yamlio
 from tire_estimation.core.validation import (
-    Rule,
-    check_rules,
+    Checked,
     in_range,
     require_choice,
     require_known_keys,
@@ -31,7 +30,7 @@ DRIVES = ("front", "rear", "all")
 
 
 @dataclass(frozen=True)
-class VehicleParams:
+class VehicleParams(Checked):
     """Geometry and inertia of the vehicle (SI units; ranges checked at construction).
 
     Attributes:
@@ -59,44 +58,30 @@ class VehicleParams:
     """
 
     name: str = "vehicle"
-    nominal_tire_radius_m: float = 0.31
-    track_width_m: float = 1.55
-    wheelbase_m: float = 2.7
-    cg_to_front_axle_m: float = 1.1
-    cg_to_rear_axle_m: float = 1.6
-    cg_height_m: float = 0.55
-    mass_kg: float = 1500.0
-    yaw_inertia_kg_m2: float = 2500.0
+    nominal_tire_radius_m: Annotated[float, in_range(0.1, 1.5)] = 0.31
+    track_width_m: Annotated[float, in_range(0.3, 3.5)] = 1.55
+    wheelbase_m: Annotated[float, in_range(0.3, 8.0)] = 2.7
+    cg_to_front_axle_m: Annotated[float, in_range(0.0, 8.0)] = 1.1
+    cg_to_rear_axle_m: Annotated[float, in_range(0.0, 8.0)] = 1.6
+    cg_height_m: Annotated[float, in_range(0.0, 3.0)] = 0.55
+    mass_kg: Annotated[float, in_range(10.0, 60_000.0)] = 1500.0
+    yaw_inertia_kg_m2: Annotated[float, in_range(0.1, 1e6)] = 2500.0
     drive: str = "front"
     gnss_antenna_position_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
     imu_position_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    steering_ratio: float = 15.0
-    cornering_stiffness_front_n_rad: float = 100_000.0
-    cornering_stiffness_rear_n_rad: float = 120_000.0
-    longitudinal_stiffness_front_n: float = 150_000.0
-    longitudinal_stiffness_rear_n: float = 150_000.0
+    steering_ratio: Annotated[float, in_range(1.0, 50.0)] = 15.0
+    cornering_stiffness_front_n_rad: Annotated[float, in_range(1.0, 1e7)] = 100_000.0
+    cornering_stiffness_rear_n_rad: Annotated[float, in_range(1.0, 1e7)] = 120_000.0
+    longitudinal_stiffness_front_n: Annotated[float, in_range(1.0, 1e7)] = 150_000.0
+    longitudinal_stiffness_rear_n: Annotated[float, in_range(1.0, 1e7)] = 150_000.0
 
-    RULES: ClassVar[dict[str, Rule]] = {
-        "nominal_tire_radius_m": in_range(0.1, 1.5),
-        "track_width_m": in_range(0.3, 3.5),
-        "wheelbase_m": in_range(0.3, 8.0),
-        "cg_to_front_axle_m": in_range(0.0, 8.0),
-        "cg_to_rear_axle_m": in_range(0.0, 8.0),
-        "cg_height_m": in_range(0.0, 3.0),
-        "mass_kg": in_range(10.0, 60_000.0),
-        "yaw_inertia_kg_m2": in_range(0.1, 1e6),
-        "steering_ratio": in_range(1.0, 50.0),
-        "cornering_stiffness_front_n_rad": in_range(1.0, 1e7),
-        "cornering_stiffness_rear_n_rad": in_range(1.0, 1e7),
-        "longitudinal_stiffness_front_n": in_range(1.0, 1e7),
-        "longitudinal_stiffness_rear_n": in_range(1.0, 1e7),
-    }
+    ERROR = VehicleConfigError
+    PREFIX = "vehicle."
 
-    def __post_init__(self) -> None:
+    def check(self) -> None:
         err = VehicleConfigError
         if not isinstance(self.name, str) or not self.name:
             raise err("vehicle.name", self.name, "must be a non-empty string")
-        check_rules(self, self.RULES, err, prefix="vehicle.")
         lf_lr = self.cg_to_front_axle_m + self.cg_to_rear_axle_m
         if abs(lf_lr - self.wheelbase_m) > 0.02:
             raise err(

@@ -45,7 +45,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import ClassVar
+from typing import Annotated
 
 import numpy as np
 
@@ -70,10 +70,9 @@ from tire_estimation.core.stiffness.model import (
     stiffness_bounds,
 )
 from tire_estimation.core.validation import (
-    BOOL,
-    NON_NEGATIVE,
-    POSITIVE,
-    Rule,
+    Flag,
+    NonNegative,
+    Positive,
     in_range,
     int_in_range,
     one_of,
@@ -90,18 +89,12 @@ _LOG_2PI = math.log(2.0 * math.pi)
 _STATE_NOISES = ("vx_m_s_sqrt_s", "vy_m_s_sqrt_s", "yaw_rate_rad_s_sqrt_s")
 
 
-def _walk_rules(prefix: str, state_rule: Rule) -> dict[str, Rule]:
-    """The stiffness random walk within [0, 5] of nominal per sqrt(s), and ``state_rule`` on
-    the state noises ``{prefix}_vx_m_s_sqrt_s``, ``_vy_m_s_sqrt_s`` and
-    ``_yaw_rate_rad_s_sqrt_s``."""
-    return {
-        "stiffness_walk_std_fraction_sqrt_s": in_range(0.0, 5.0),
-        **{f"{prefix}_{state}": state_rule for state in _STATE_NOISES},
-    }
+#: the std of the stiffness random walk: within [0, 5] of nominal per sqrt(s)
+WalkFraction = Annotated[float, in_range(0.0, 5.0)]
 
 
 def _state_noise(config: BaselineConfig, prefix: str) -> F64:
-    """The state noises ``{prefix}_...`` of :func:`_walk_rules` of ``config``, (3,) =
+    """The state noises ``{prefix}_...`` (suffixes :data:`_STATE_NOISES`) of ``config``, (3,) =
     [vX, vY, r], per sqrt(s)."""
     return np.array([getattr(config, f"{prefix}_{state}") for state in _STATE_NOISES])
 
@@ -123,19 +116,12 @@ class AugPfConfig(BaselineConfig):
             (0.002).
     """
 
-    n_particles: int = 200
-    resample_threshold: float = 0.5
-    stiffness_walk_std_fraction_sqrt_s: float = 0.2
-    state_jitter_vx_m_s_sqrt_s: float = 0.05
-    state_jitter_vy_m_s_sqrt_s: float = 0.02
-    state_jitter_yaw_rate_rad_s_sqrt_s: float = 0.002
-
-    RULES: ClassVar[dict[str, Rule]] = {
-        **BaselineConfig.RULES,
-        "n_particles": int_in_range(1, 1_000_000),
-        "resample_threshold": in_range(0.0, 1.0),
-        **_walk_rules("state_jitter", NON_NEGATIVE),
-    }
+    n_particles: Annotated[int, int_in_range(1, 1_000_000)] = 200
+    resample_threshold: Annotated[float, in_range(0.0, 1.0)] = 0.5
+    stiffness_walk_std_fraction_sqrt_s: WalkFraction = 0.2
+    state_jitter_vx_m_s_sqrt_s: NonNegative = 0.05
+    state_jitter_vy_m_s_sqrt_s: NonNegative = 0.02
+    state_jitter_yaw_rate_rad_s_sqrt_s: NonNegative = 0.002
 
 
 @dataclass(frozen=True)
@@ -151,15 +137,10 @@ class EkfConfig(BaselineConfig):
             (default 0.002).
     """
 
-    stiffness_walk_std_fraction_sqrt_s: float = 0.02
-    process_vx_m_s_sqrt_s: float = 0.05
-    process_vy_m_s_sqrt_s: float = 0.02
-    process_yaw_rate_rad_s_sqrt_s: float = 0.002
-
-    RULES: ClassVar[dict[str, Rule]] = {
-        **BaselineConfig.RULES,
-        **_walk_rules("process", POSITIVE),
-    }
+    stiffness_walk_std_fraction_sqrt_s: WalkFraction = 0.02
+    process_vx_m_s_sqrt_s: Positive = 0.05
+    process_vy_m_s_sqrt_s: Positive = 0.02
+    process_yaw_rate_rad_s_sqrt_s: Positive = 0.002
 
 
 @dataclass(frozen=True)
@@ -180,20 +161,11 @@ class RlsConfig(BaselineConfig):
             (default 0.002).
     """
 
-    forgetting: float = 0.99
-    kf_stiffness: str = "estimate"
-    kf_measures_accel: bool = False
-    process_vy_m_s_sqrt_s: float = 0.02
-    process_yaw_rate_rad_s_sqrt_s: float = 0.002
-
-    RULES: ClassVar[dict[str, Rule]] = {
-        **BaselineConfig.RULES,
-        "forgetting": in_range(0.5, 1.0),
-        "kf_stiffness": one_of(("estimate", "nominal")),
-        "kf_measures_accel": BOOL,
-        "process_vy_m_s_sqrt_s": POSITIVE,
-        "process_yaw_rate_rad_s_sqrt_s": POSITIVE,
-    }
+    forgetting: Annotated[float, in_range(0.5, 1.0)] = 0.99
+    kf_stiffness: Annotated[str, one_of(("estimate", "nominal"))] = "estimate"
+    kf_measures_accel: Flag = False
+    process_vy_m_s_sqrt_s: Positive = 0.02
+    process_yaw_rate_rad_s_sqrt_s: Positive = 0.002
 
 
 # ---------------------------------------------------------------------------- model helpers

@@ -27,13 +27,12 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import Annotated, Any
 
 from tire_estimation.core.validation import (
-    BOOL,
-    NON_NEGATIVE,
-    Rule,
-    check_rules,
+    Checked,
+    Flag,
+    NonNegative,
     in_range,
     int_in_range,
     one_of,
@@ -45,7 +44,7 @@ from tire_estimation.errors import ConfigError
 
 
 @dataclass(frozen=True)
-class SensorConfig:
+class SensorConfig(Checked):
     """Rates, noise and injected effects of the simulated sensors (SI units in the names).
 
     Injected effects (``*_time_offset_s``, ``gnss_latency_s``, ``gnss_velocity_latency_s``,
@@ -55,135 +54,89 @@ class SensorConfig:
     """
 
     # --- ABS wheel speeds (edge timing on a tone ring) ---
-    wheel_speed_rate_hz: float = 100.0
-    wheel_speed_teeth: int = 48
-    wheel_speed_timer_resolution_s: float = 1.0e-6
+    wheel_speed_rate_hz: Annotated[float, in_range(10.0, 1000.0)] = 100.0
+    wheel_speed_teeth: Annotated[int, int_in_range(4, 1000)] = 48
+    wheel_speed_timer_resolution_s: Annotated[float, in_range(0.0, 1e-3)] = 1.0e-6
     wheel_speed_tooth_pitch_error_std_rad: float = 1.0e-3
     #: With no tooth edge in a period, the last speed is held (decaying as pitch / time since
     #: the last edge) until this long after the last edge, then 0 is reported.
-    wheel_speed_timeout_s: float = 0.2
+    wheel_speed_timeout_s: Annotated[float, in_range(0.0, 10.0)] = 0.2
     #: Injected: stamps are late by this much (the stamp of a sample is measurement time + this).
-    wheel_speed_time_offset_s: float = 0.0
+    wheel_speed_time_offset_s: Annotated[float, in_range(-1.0, 1.0)] = 0.0
     #: Injected: a locked rear axle (spool): both rear wheels turn at the mean of their
     #: free-rolling speeds (the scrubbing tyres' yaw moment is not simulated).
-    wheel_speed_rear_locked: bool = False
+    wheel_speed_rear_locked: Flag = False
     #: Injected: this wheel's sensor reads 0 from ``wheel_speed_lost_from_s`` (time since the
     #: drive's start) for ``wheel_speed_lost_duration_s`` ("none": no such fault).
-    wheel_speed_lost_wheel: str = "none"
-    wheel_speed_lost_from_s: float = 0.0
-    wheel_speed_lost_duration_s: float = 0.0
+    wheel_speed_lost_wheel: Annotated[str, one_of(("none", *WHEELS))] = "none"
+    wheel_speed_lost_from_s: Annotated[float, in_range(0.0, 1e6)] = 0.0
+    wheel_speed_lost_duration_s: Annotated[float, in_range(0.0, 1e6)] = 0.0
 
     # --- steering (mean road-wheel angle) ---
-    steering_rate_hz: float = 100.0
-    steering_noise_std_rad: float = 5.0e-4
-    steering_resolution_rad: float = 1.0e-4
+    steering_rate_hz: Annotated[float, in_range(1.0, 1000.0)] = 100.0
+    steering_noise_std_rad: Annotated[float, in_range(0.0, 0.1)] = 5.0e-4
+    steering_resolution_rad: Annotated[float, in_range(0.0, 0.1)] = 1.0e-4
     #: Injected: constant offset added to the reported steer angle, rad.
-    steering_offset_rad: float = 0.0
+    steering_offset_rad: Annotated[float, in_range(-0.2, 0.2)] = 0.0
 
     # --- IMU (MEMS, base_link axes, at VehicleParams.imu_position_m) ---
-    imu_rate_hz: float = 100.0
-    gyro_noise_std_rad_s: float = 1.75e-3
-    gyro_bias_initial_std_rad_s: float = 5.0e-3
-    gyro_bias_random_walk_rad_s_sqrt_s: float = 1.0e-4
+    imu_rate_hz: Annotated[float, in_range(1.0, 2000.0)] = 100.0
+    gyro_noise_std_rad_s: Annotated[float, in_range(0.0, 1.0)] = 1.75e-3
+    gyro_bias_initial_std_rad_s: Annotated[float, in_range(0.0, 1.0)] = 5.0e-3
+    gyro_bias_random_walk_rad_s_sqrt_s: Annotated[float, in_range(0.0, 1.0)] = 1.0e-4
     #: Injected: deterministic gyro bias (x, y, z) added on top of the random bias, rad/s.
     gyro_bias_rad_s: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    accel_noise_std_m_s2: float = 0.05
-    accel_bias_initial_std_m_s2: float = 0.1
-    accel_bias_random_walk_m_s2_sqrt_s: float = 5.0e-4
+    accel_noise_std_m_s2: Annotated[float, in_range(0.0, 10.0)] = 0.05
+    accel_bias_initial_std_m_s2: Annotated[float, in_range(0.0, 10.0)] = 0.1
+    accel_bias_random_walk_m_s2_sqrt_s: Annotated[float, in_range(0.0, 10.0)] = 5.0e-4
 
     # --- GNSS (antenna at VehicleParams.gnss_antenna_position_m) ---
-    gnss_rate_hz: float = 10.0
-    gnss_white_std_m: float = 1.0
-    gnss_white_vertical_std_m: float = 1.5
-    gnss_gm_std_m: float = 1.0
-    gnss_gm_vertical_std_m: float = 1.5
-    gnss_gm_tau_s: float = 120.0
+    gnss_rate_hz: Annotated[float, in_range(0.1, 100.0)] = 10.0
+    gnss_white_std_m: Annotated[float, in_range(0.0, 100.0)] = 1.0
+    gnss_white_vertical_std_m: Annotated[float, in_range(0.0, 100.0)] = 1.5
+    gnss_gm_std_m: Annotated[float, in_range(0.0, 100.0)] = 1.0
+    gnss_gm_vertical_std_m: Annotated[float, in_range(0.0, 100.0)] = 1.5
+    gnss_gm_tau_s: Annotated[float, in_range(0.01, 1e5)] = 120.0
     #: Reported covariance = (scale * true std)^2; 1.0 reports the true total error variance.
-    gnss_covariance_scale: float = 1.0
+    gnss_covariance_scale: Annotated[float, in_range(0.01, 100.0)] = 1.0
     #: Publish the receiver's Doppler velocity (``/gnss/velocity``), as receivers do.
-    gnss_velocity_enabled: bool = True
-    gnss_velocity_noise_std_m_s: float = 0.05
-    gnss_velocity_vertical_noise_std_m_s: float = 0.1
+    gnss_velocity_enabled: Flag = True
+    gnss_velocity_noise_std_m_s: Annotated[float, in_range(0.0, 10.0)] = 0.05
+    gnss_velocity_vertical_noise_std_m_s: Annotated[float, in_range(0.0, 10.0)] = 0.1
     #: Injected: a fix stamped t describes the antenna at t - latency, s.
-    gnss_latency_s: float = 0.0
+    gnss_latency_s: Annotated[float, in_range(0.0, 2.0)] = 0.0
     #: Injected: a Doppler velocity stamped t (the fix's stamp) describes the antenna at
     #: t - this, s (receivers often filter the velocity more than the position).
-    gnss_velocity_latency_s: float = 0.0
+    gnss_velocity_latency_s: Annotated[float, in_range(0.0, 2.0)] = 0.0
     #: Injected: the receiver stamps its fixes and velocities this far ahead of the other
     #: sensors' clock, s (a receiver stamping in GPS time, 18 s ahead of UTC).
-    gnss_clock_offset_s: float = 0.0
+    gnss_clock_offset_s: Annotated[float, in_range(-60.0, 60.0)] = 0.0
     #: Injected: no fix and no velocity from ``gnss_outage_from_s`` (time since the drive's
     #: start) for ``gnss_outage_duration_s`` (a tunnel, a car park).
-    gnss_outage_from_s: float = 0.0
-    gnss_outage_duration_s: float = 0.0
+    gnss_outage_from_s: Annotated[float, in_range(0.0, 1e6)] = 0.0
+    gnss_outage_duration_s: Annotated[float, in_range(0.0, 1e6)] = 0.0
 
     # --- tyre force sensors (Tuononen 2009: optical tyre sensors on fl and rr) ---
-    tire_force_enabled: bool = True
-    tire_force_rate_hz: float = 100.0
+    tire_force_enabled: Flag = True
+    tire_force_rate_hz: Annotated[float, in_range(1.0, 2000.0)] = 100.0
     tire_force_wheels: tuple[str, ...] = ("wheel_fl", "wheel_rr")
-    tire_force_noise_fx_n: float = 100.0
-    tire_force_noise_fy_n: float = 150.0
-    tire_force_noise_fz_n: float = 100.0
+    tire_force_noise_fx_n: NonNegative = 100.0
+    tire_force_noise_fy_n: NonNegative = 150.0
+    tire_force_noise_fz_n: NonNegative = 100.0
 
     # --- injected tyre/road effects ---
     #: r_eff += coefficient * v^2 (centrifugal tyre growth), m per (m/s)^2; ~2e-6 is realistic.
-    radius_speed_coefficient_m_per_m2_s2: float = 0.0
+    radius_speed_coefficient_m_per_m2_s2: Annotated[float, in_range(-1e-4, 1e-4)] = 0.0
     #: r_eff += coefficient * (Fz - Fz_static); negative shrinks a loaded tyre, m per N.
-    radius_load_coefficient_m_per_n: float = 0.0
+    radius_load_coefficient_m_per_n: Annotated[float, in_range(-1e-4, 1e-4)] = 0.0
     #: Road grade = amplitude * sin(2 pi s / wavelength) along the travelled distance s, rad.
-    road_grade_amplitude_rad: float = 0.0
-    road_grade_wavelength_m: float = 1000.0
+    road_grade_amplitude_rad: Annotated[float, in_range(0.0, 0.3)] = 0.0
+    road_grade_wavelength_m: Annotated[float, in_range(10.0, 1e6)] = 1000.0
 
-    RULES: ClassVar[dict[str, Rule]] = {
-        "wheel_speed_rate_hz": in_range(10.0, 1000.0),
-        "wheel_speed_teeth": int_in_range(4, 1000),
-        "wheel_speed_timer_resolution_s": in_range(0.0, 1e-3),
-        "wheel_speed_timeout_s": in_range(0.0, 10.0),
-        "wheel_speed_time_offset_s": in_range(-1.0, 1.0),
-        "wheel_speed_rear_locked": BOOL,
-        "wheel_speed_lost_wheel": one_of(("none", *WHEELS)),
-        "wheel_speed_lost_from_s": in_range(0.0, 1e6),
-        "wheel_speed_lost_duration_s": in_range(0.0, 1e6),
-        "steering_rate_hz": in_range(1.0, 1000.0),
-        "steering_noise_std_rad": in_range(0.0, 0.1),
-        "steering_resolution_rad": in_range(0.0, 0.1),
-        "steering_offset_rad": in_range(-0.2, 0.2),
-        "imu_rate_hz": in_range(1.0, 2000.0),
-        "gyro_noise_std_rad_s": in_range(0.0, 1.0),
-        "gyro_bias_initial_std_rad_s": in_range(0.0, 1.0),
-        "gyro_bias_random_walk_rad_s_sqrt_s": in_range(0.0, 1.0),
-        "accel_noise_std_m_s2": in_range(0.0, 10.0),
-        "accel_bias_initial_std_m_s2": in_range(0.0, 10.0),
-        "accel_bias_random_walk_m_s2_sqrt_s": in_range(0.0, 10.0),
-        "gnss_rate_hz": in_range(0.1, 100.0),
-        "gnss_white_std_m": in_range(0.0, 100.0),
-        "gnss_white_vertical_std_m": in_range(0.0, 100.0),
-        "gnss_gm_std_m": in_range(0.0, 100.0),
-        "gnss_gm_vertical_std_m": in_range(0.0, 100.0),
-        "gnss_gm_tau_s": in_range(0.01, 1e5),
-        "gnss_covariance_scale": in_range(0.01, 100.0),
-        "gnss_velocity_enabled": BOOL,
-        "gnss_velocity_noise_std_m_s": in_range(0.0, 10.0),
-        "gnss_velocity_vertical_noise_std_m_s": in_range(0.0, 10.0),
-        "gnss_latency_s": in_range(0.0, 2.0),
-        "gnss_clock_offset_s": in_range(-60.0, 60.0),
-        "gnss_velocity_latency_s": in_range(0.0, 2.0),
-        "gnss_outage_from_s": in_range(0.0, 1e6),
-        "gnss_outage_duration_s": in_range(0.0, 1e6),
-        "tire_force_enabled": BOOL,
-        "tire_force_rate_hz": in_range(1.0, 2000.0),
-        "tire_force_noise_fx_n": NON_NEGATIVE,
-        "tire_force_noise_fy_n": NON_NEGATIVE,
-        "tire_force_noise_fz_n": NON_NEGATIVE,
-        "radius_speed_coefficient_m_per_m2_s2": in_range(-1e-4, 1e-4),
-        "radius_load_coefficient_m_per_n": in_range(-1e-4, 1e-4),
-        "road_grade_amplitude_rad": in_range(0.0, 0.3),
-        "road_grade_wavelength_m": in_range(10.0, 1e6),
-    }
+    PREFIX = "sensors."
 
-    def __post_init__(self) -> None:
-        p = "sensors."
-        check_rules(self, self.RULES, prefix=p)
+    def check(self) -> None:
+        p = self.PREFIX
         pitch = 2.0 * math.pi / self.wheel_speed_teeth
         require_range(
             p + "wheel_speed_tooth_pitch_error_std_rad",

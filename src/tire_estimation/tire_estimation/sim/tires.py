@@ -18,16 +18,19 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import ClassVar
+from typing import Annotated
 
-from tire_estimation.core.validation import Rule, check_rules, in_range
+from tire_estimation.core.validation import (
+    Checked,
+    in_range,
+)
 
 #: Smallest vertical load used in the force laws (a lifted wheel still gets a tiny D), N.
 MIN_FZ_N = 100.0
 
 
 @dataclass(frozen=True)
-class TireModelConfig:
+class TireModelConfig(Checked):
     """Tyre and resistance parameters (SI units in names; checked at construction).
 
     Attributes:
@@ -46,34 +49,19 @@ class TireModelConfig:
         brake_front_share: share of the braking force on the front axle, 1.
     """
 
-    nominal_pressure_kpa: float = 230.0
-    pressure_sensitivity_mm_per_kpa: float = 0.03
-    radius_offset_std_mm: float = 0.3
-    lateral_shape_c: float = 1.3
-    lateral_curvature_e: float = -0.5
-    longitudinal_shape_c: float = 1.65
-    rolling_resistance_coefficient: float = 0.012
-    drag_area_m2: float = 0.7
-    air_density_kg_m3: float = 1.2
-    max_drive_power_w: float = 110_000.0
-    brake_front_share: float = 0.65
+    nominal_pressure_kpa: Annotated[float, in_range(50.0, 1000.0)] = 230.0
+    pressure_sensitivity_mm_per_kpa: Annotated[float, in_range(0.0, 1.0)] = 0.03
+    radius_offset_std_mm: Annotated[float, in_range(0.0, 10.0)] = 0.3
+    lateral_shape_c: Annotated[float, in_range(1.0, 1.9)] = 1.3
+    lateral_curvature_e: Annotated[float, in_range(-5.0, 0.99)] = -0.5
+    longitudinal_shape_c: Annotated[float, in_range(1.0, 1.9)] = 1.65
+    rolling_resistance_coefficient: Annotated[float, in_range(0.0, 0.1)] = 0.012
+    drag_area_m2: Annotated[float, in_range(0.0, 20.0)] = 0.7
+    air_density_kg_m3: Annotated[float, in_range(0.5, 2.0)] = 1.2
+    max_drive_power_w: Annotated[float, in_range(1e3, 1e7)] = 110_000.0
+    brake_front_share: Annotated[float, in_range(0.0, 1.0)] = 0.65
 
-    RULES: ClassVar[dict[str, Rule]] = {
-        "nominal_pressure_kpa": in_range(50.0, 1000.0),
-        "pressure_sensitivity_mm_per_kpa": in_range(0.0, 1.0),
-        "radius_offset_std_mm": in_range(0.0, 10.0),
-        "lateral_shape_c": in_range(1.0, 1.9),
-        "lateral_curvature_e": in_range(-5.0, 0.99),
-        "longitudinal_shape_c": in_range(1.0, 1.9),
-        "rolling_resistance_coefficient": in_range(0.0, 0.1),
-        "drag_area_m2": in_range(0.0, 20.0),
-        "air_density_kg_m3": in_range(0.5, 2.0),
-        "max_drive_power_w": in_range(1e3, 1e7),
-        "brake_front_share": in_range(0.0, 1.0),
-    }
-
-    def __post_init__(self) -> None:
-        check_rules(self, self.RULES, prefix="tires.")
+    PREFIX = "tires."
 
 
 def magic_formula(x: float, stiffness: float, shape_c: float, peak_d: float, e: float) -> float:

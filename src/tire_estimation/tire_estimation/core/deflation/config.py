@@ -4,14 +4,13 @@ docstring of :mod:`.detector`)."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import ClassVar
+from typing import Annotated
 
 from tire_estimation.core.validation import (
-    BOOL,
-    NON_NEGATIVE,
-    POSITIVE,
-    Rule,
-    check_rules,
+    Checked,
+    Flag,
+    NonNegative,
+    Positive,
     in_range,
 )
 from tire_estimation.errors import ConfigError
@@ -20,7 +19,7 @@ KMH = 1.0 / 3.6  # m/s per km/h
 
 
 @dataclass(frozen=True)
-class DeflationDetectorConfig:
+class DeflationDetectorConfig(Checked):
     """Configuration of :class:`DeflationDetector` (validated at construction).
 
     Attributes:
@@ -84,56 +83,36 @@ class DeflationDetectorConfig:
             0.36 mm off (ECE campaign, poor GNSS).
     """
 
-    drift_m: float = field(default=0.4e-3, metadata={"unit": "m"})
-    threshold_m: float = field(default=9e-3, metadata={"unit": "m"})
-    reference_sample_period_s: float = field(default=2.0, metadata={"unit": "s"})
-    lowpass_time_constant_s: float = field(default=30.0, metadata={"unit": "s"})
-    rate_limit_m_s: float = field(default=2e-5, metadata={"unit": "m/s"})
-    adaptive_threshold: bool = True
-    adaptive_reference_std_m: float = field(default=1e-3, metadata={"unit": "m"})
-    adaptive_max_factor: float = field(default=4.0, metadata={"unit": "1"})
-    min_speed_m_s: float = field(default=40.0 * KMH, metadata={"unit": "m/s"})
-    max_speed_m_s: float = field(default=120.0 * KMH, metadata={"unit": "m/s"})
-    exclude_braking: bool = True
-    calibration_time_s: float = field(default=1200.0, metadata={"unit": "s"})
-    calibration_average_s: float = field(default=300.0, metadata={"unit": "s"})
-    stale_timeout_s: float = field(default=5.0, metadata={"unit": "s"})
-    max_sample_gap_s: float = field(default=1.0, metadata={"unit": "s"})
-    warn_fraction: float = field(default=0.5, metadata={"unit": "1"})
-    common_mode_fraction: float = field(default=1.0, metadata={"unit": "1"})
-    common_channel: bool = True
-    common_drift_m: float = field(default=0.35e-3, metadata={"unit": "m"})
-    common_threshold_m: float = field(default=9e-3, metadata={"unit": "m"})
-    common_lowpass_time_constant_s: float = field(default=600.0, metadata={"unit": "s"})
-    common_calibration_average_s: float = field(default=900.0, metadata={"unit": "s"})
+    drift_m: Annotated[float, in_range(0.0, 0.05)] = 0.4e-3
+    threshold_m: Annotated[float, in_range(1e-9, 10.0)] = 9e-3
+    reference_sample_period_s: Positive = 2.0
+    lowpass_time_constant_s: NonNegative = 30.0
+    rate_limit_m_s: NonNegative = 2e-5
+    adaptive_threshold: Flag = True
+    adaptive_reference_std_m: Annotated[float, in_range(1e-9, 0.1)] = 1e-3
+    adaptive_max_factor: Annotated[float, in_range(1.0, 1e6)] = field(
+        default=4.0, metadata={"unit": "1"}
+    )
+    min_speed_m_s: NonNegative = 40.0 * KMH
+    max_speed_m_s: Positive = 120.0 * KMH
+    exclude_braking: Flag = True
+    calibration_time_s: NonNegative = 1200.0
+    calibration_average_s: NonNegative = 300.0
+    stale_timeout_s: Positive = 5.0
+    max_sample_gap_s: Positive = 1.0
+    warn_fraction: Annotated[float, in_range(0.0, 1.0)] = field(
+        default=0.5, metadata={"unit": "1"}
+    )
+    common_mode_fraction: Annotated[float, in_range(0.0, 1.0)] = field(
+        default=1.0, metadata={"unit": "1"}
+    )
+    common_channel: Flag = True
+    common_drift_m: Annotated[float, in_range(0.0, 0.05)] = 0.35e-3
+    common_threshold_m: Annotated[float, in_range(1e-9, 10.0)] = 9e-3
+    common_lowpass_time_constant_s: NonNegative = 600.0
+    common_calibration_average_s: NonNegative = 900.0
 
-    RULES: ClassVar[dict[str, Rule]] = {
-        "drift_m": in_range(0.0, 0.05),
-        "threshold_m": in_range(1e-9, 10.0),
-        "reference_sample_period_s": POSITIVE,
-        "lowpass_time_constant_s": NON_NEGATIVE,
-        "rate_limit_m_s": NON_NEGATIVE,
-        "adaptive_reference_std_m": in_range(1e-9, 0.1),
-        "adaptive_max_factor": in_range(1.0, 1e6),
-        "min_speed_m_s": NON_NEGATIVE,
-        "max_speed_m_s": POSITIVE,
-        "calibration_time_s": NON_NEGATIVE,
-        "calibration_average_s": NON_NEGATIVE,
-        "stale_timeout_s": POSITIVE,
-        "max_sample_gap_s": POSITIVE,
-        "warn_fraction": in_range(0.0, 1.0),
-        "common_mode_fraction": in_range(0.0, 1.0),
-        "common_drift_m": in_range(0.0, 0.05),
-        "common_threshold_m": in_range(1e-9, 10.0),
-        "common_lowpass_time_constant_s": NON_NEGATIVE,
-        "common_calibration_average_s": NON_NEGATIVE,
-        "adaptive_threshold": BOOL,
-        "exclude_braking": BOOL,
-        "common_channel": BOOL,
-    }
-
-    def __post_init__(self) -> None:
-        check_rules(self, self.RULES)
+    def check(self) -> None:
         if self.max_speed_m_s <= self.min_speed_m_s:
             raise ConfigError(
                 "max_speed_m_s",

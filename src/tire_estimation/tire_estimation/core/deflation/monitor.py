@@ -12,7 +12,6 @@ from __future__ import annotations
 import math
 from collections import Counter
 from dataclasses import dataclass
-from typing import ClassVar
 
 from tire_estimation.core.deflation.config import DeflationDetectorConfig
 from tire_estimation.core.deflation.detector import DeflationDetector
@@ -21,12 +20,15 @@ from tire_estimation.core.deflation.status import (
     DeflationStatusData,
     RadiusErrors,
 )
-from tire_estimation.core.validation import POSITIVE, Rule, check_rules
+from tire_estimation.core.validation import (
+    Checked,
+    Positive,
+)
 from tire_estimation.errors import InputError
 
 
 @dataclass(frozen=True)
-class MonitorConfig:
+class MonitorConfig(Checked):
     """How the monitor derives speed and braking from the odometry stream.
 
     Attributes:
@@ -37,18 +39,9 @@ class MonitorConfig:
             Default 1.
     """
 
-    braking_decel_m_s2: float = 1.0
-    braking_window_s: float = 0.5
-    odometry_timeout_s: float = 1.0
-
-    RULES: ClassVar[dict[str, Rule]] = {
-        "braking_decel_m_s2": POSITIVE,
-        "braking_window_s": POSITIVE,
-        "odometry_timeout_s": POSITIVE,
-    }
-
-    def __post_init__(self) -> None:
-        check_rules(self, self.RULES)
+    braking_decel_m_s2: Positive = 1.0
+    braking_window_s: Positive = 0.5
+    odometry_timeout_s: Positive = 1.0
 
 
 @dataclass(frozen=True)

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
-from typing import Any, ClassVar
+from typing import Any
 
 import numpy as np
 
@@ -30,13 +30,17 @@ from tire_estimation.core.input_checks import drop_key, finite_vector, stamp_aft
 from tire_estimation.core.lateral import single_track_kernels as kernels
 from tire_estimation.core.lateral.estimate import LateralState
 from tire_estimation.core.lateral.single_track import SingleTrackParams, steady_state
-from tire_estimation.core.validation import NON_NEGATIVE, POSITIVE, Rule, check_rules
+from tire_estimation.core.validation import (
+    Checked,
+    NonNegative,
+    Positive,
+)
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.errors import InputError
 
 
 @dataclass(frozen=True)
-class LinearLateralKFConfig:
+class LinearLateralKFConfig(Checked):
     """Tuning of the linear single-track Kalman filter; checked at construction.
 
     Attributes:
@@ -55,30 +59,15 @@ class LinearLateralKFConfig:
         max_input_age_s: speed / steering older than this are stale, s (default 0.2).
     """
 
-    cornering_stiffness_front_n_rad: float = 0.0
-    cornering_stiffness_rear_n_rad: float = 0.0
-    vy_process_std_m_s_sqrt_s: float = 0.5
-    yaw_rate_process_std_rad_s_sqrt_s: float = 0.1
-    accel_y_std_m_s2: float = 0.5
-    yaw_rate_std_rad_s: float = 0.005
-    min_speed_m_s: float = 3.0
-    max_gap_s: float = 0.5
-    max_input_age_s: float = 0.2
-
-    RULES: ClassVar[dict[str, Rule]] = {
-        "cornering_stiffness_front_n_rad": NON_NEGATIVE,
-        "cornering_stiffness_rear_n_rad": NON_NEGATIVE,
-        "vy_process_std_m_s_sqrt_s": POSITIVE,
-        "yaw_rate_process_std_rad_s_sqrt_s": POSITIVE,
-        "accel_y_std_m_s2": POSITIVE,
-        "yaw_rate_std_rad_s": POSITIVE,
-        "min_speed_m_s": POSITIVE,
-        "max_gap_s": POSITIVE,
-        "max_input_age_s": POSITIVE,
-    }
-
-    def __post_init__(self) -> None:
-        check_rules(self, self.RULES)
+    cornering_stiffness_front_n_rad: NonNegative = 0.0
+    cornering_stiffness_rear_n_rad: NonNegative = 0.0
+    vy_process_std_m_s_sqrt_s: Positive = 0.5
+    yaw_rate_process_std_rad_s_sqrt_s: Positive = 0.1
+    accel_y_std_m_s2: Positive = 0.5
+    yaw_rate_std_rad_s: Positive = 0.005
+    min_speed_m_s: Positive = 3.0
+    max_gap_s: Positive = 0.5
+    max_input_age_s: Positive = 0.2
 
 
 class LinearLateralKF:

@@ -35,7 +35,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import Annotated, Any
 
 import numpy as np
 
@@ -57,8 +57,7 @@ from tire_estimation.core.lateral.tyre_force_filter import (
 )
 from tire_estimation.core.lateral.virtual_tyre import MagicFormulaTyre, virtual_load
 from tire_estimation.core.validation import (
-    Rule,
-    check_rules,
+    Checked,
     in_range,
     require_positive,
 )
@@ -90,7 +89,7 @@ TUONONEN_2009_VEHICLE = VehicleParams(
 
 
 @dataclass(frozen=True)
-class TyreForceKFConfig:
+class TyreForceKFConfig(Checked):
     """Configuration of :class:`TyreForceEstimator` (Tuononen 2009; checked at construction).
 
     m, Iz, lf, lr and the single-track cornering stiffnesses Cf, Cr come from
@@ -137,15 +136,11 @@ class TyreForceKFConfig:
     linear_yaw_rate_variance_rad2_s2: float = 1e-4
     nonlinear_vy_variance_m2_s2: float = 3.0
     nonlinear_yaw_rate_variance_rad2_s2: float = 0.3
-    min_speed_m_s: float = 5.0
+    min_speed_m_s: Annotated[float, in_range(0.5, 100.0)] = 5.0
     max_gap_s: float = 0.5
     input_timeout_s: float = 0.5
 
-    RULES: ClassVar[dict[str, Rule]] = {
-        "min_speed_m_s": in_range(0.5, 100.0),
-    }
-
-    def __post_init__(self) -> None:
+    def check(self) -> None:
         for f in dataclasses.fields(self):
             if f.name == "min_speed_m_s":
                 continue
@@ -153,7 +148,6 @@ class TyreForceKFConfig:
             require_positive(f.name, value)
             if value > 1e12:
                 raise ConfigError(f.name, value, "must be <= 1e12")
-        check_rules(self, self.RULES)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain mapping of every field."""

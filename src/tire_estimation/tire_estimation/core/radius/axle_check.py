@@ -37,11 +37,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import Annotated, Any
 
 from tire_estimation.core.arrays import F64
 from tire_estimation.core.radius.wheel_signs import WheelSigns
-from tire_estimation.core.validation import POSITIVE, Rule, check_rules, in_range
+from tire_estimation.core.validation import (
+    Checked,
+    Positive,
+    in_range,
+)
 from tire_estimation.core.vehicle import VehicleParams
 from tire_estimation.core.wheels import WHEELS
 
@@ -71,7 +75,7 @@ COURSE_INFO_FACTOR = 10.0
 
 
 @dataclass(frozen=True)
-class AxleCheckConfig:
+class AxleCheckConfig(Checked):
     """Thresholds of :class:`AxleCheck`.
 
     Attributes:
@@ -87,24 +91,12 @@ class AxleCheckConfig:
             Default 0.5 (midway between a free and a locked axle).
     """
 
-    min_yaw_rate_rad_s: float = 0.05
-    min_speed_m_s: float = 2.0
-    block_s: float = 20.0
-    memory_s: float = 60.0
-    min_turning_s: float = 3.0
-    locked_slope: float = 0.5
-
-    RULES: ClassVar[dict[str, Rule]] = {
-        "min_yaw_rate_rad_s": POSITIVE,
-        "min_speed_m_s": POSITIVE,
-        "block_s": POSITIVE,
-        "memory_s": POSITIVE,
-        "min_turning_s": POSITIVE,
-        "locked_slope": in_range(0.0, 1.0),
-    }
-
-    def __post_init__(self) -> None:
-        check_rules(self, self.RULES)
+    min_yaw_rate_rad_s: Positive = 0.05
+    min_speed_m_s: Positive = 2.0
+    block_s: Positive = 20.0
+    memory_s: Positive = 60.0
+    min_turning_s: Positive = 3.0
+    locked_slope: Annotated[float, in_range(0.0, 1.0)] = 0.5
 
 
 @dataclass(frozen=True)

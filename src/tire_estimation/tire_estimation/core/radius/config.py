@@ -9,16 +9,16 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import Annotated, Any
 
 from tire_estimation.core.radius.effects import EFFECTS
 from tire_estimation.core.radius.road_grade import GRADE_SOURCE_MODES
 from tire_estimation.core.validation import (
-    BOOL,
-    NON_NEGATIVE,
-    POSITIVE,
+    Checked,
+    Flag,
+    NonNegative,
+    Positive,
     Rule,
-    check_rules,
     in_range,
     int_in_range,
     one_of,
@@ -27,35 +27,15 @@ from tire_estimation.core.validation import (
 
 WHEEL_MODES = ("rear", "all")
 
-#: (field, lower, upper) of the bounded fields (the effects' fields: :data:`.effects.EFFECTS`)
-_RANGES: tuple[tuple[str, float, float], ...] = (
-    ("forgetting_factor", 0.5, 1.0),
-    ("prior_radius_error_std_m", 1e-6, 0.05),
-    ("radius_random_walk_m_sqrt_s", 0.0, 0.01),
-    ("gnss_bias_std_m", 0.0, 100.0),
-    ("gnss_bias_fraction", 0.0, 0.9),
-    ("gnss_bias_time_constant_s", 0.1, 1e5),
-    ("gnss_gate_probability", 0.5, 1.0 - 1e-15),
-    ("gnss_velocity_max_accel_m_s2", 0.01, 100.0),
-)
-_NON_NEGATIVE = (
-    "position_process_noise_m_sqrt_s",
-    "yaw_process_noise_rad_sqrt_s",
-    "min_speed_m_s",
-)
-_POSITIVE = (
-    "gnss_default_std_m",
-    "max_gap_s",
-    "init_min_distance_m",
-    "max_abs_ax_m_s2",
-    "max_abs_ay_m_s2",
-    "braking_decel_m_s2",
-)
-_BOOLS = ("gnss_velocity_enabled", "run_aug_kf")
+
+def _effect(field: str) -> Rule:
+    """The range of the effect that ``field`` switches on (:data:`.effects.EFFECTS`)."""
+    (effect,) = [e for e in EFFECTS if e.config_field == field]
+    return in_range(*effect.limits)
 
 
 @dataclass(frozen=True)
-class RadiusEstimatorConfig:
+class RadiusEstimatorConfig(Checked):
     """Configuration of :class:`~tire_estimation.core.radius.estimator.RadiusEstimator`.
 
     Equation numbers refer to Lundquist et al., IEEE T-ITS 2014. The fields of the switchable
@@ -173,53 +153,42 @@ class RadiusEstimatorConfig:
         seed: seed for the node's ``np.random.Generator``. Default 0.
     """
 
-    n_particles: int = 500
-    forgetting_factor: float = 0.9998
-    prior_radius_error_std_m: float = 0.003
-    radius_random_walk_m_sqrt_s: float = 5e-5
-    position_process_noise_m_sqrt_s: float = 0.01
-    yaw_process_noise_rad_sqrt_s: float = 0.002
-    gnss_default_std_m: float = 1.5
-    gnss_bias_std_m: float = 0.0
-    gnss_bias_fraction: float = 0.5
-    gnss_bias_time_constant_s: float = 120.0
-    gnss_gate_probability: float = 0.9999
-    gnss_velocity_enabled: bool = True
-    gnss_velocity_latency_s: float = 0.0
-    gnss_velocity_max_accel_m_s2: float = 0.5
-    max_gap_s: float = 2.0
-    init_min_distance_m: float = 10.0
-    min_speed_m_s: float = 1.0
-    max_abs_ax_m_s2: float = 2.0
-    max_abs_ay_m_s2: float = 4.0
-    braking_decel_m_s2: float = 1.0
-    wheels: str = "rear"
-    run_aug_kf: bool = False
-    gnss_latency_s: float = 0.0
-    wheel_speed_time_offset_s: float = 0.0
-    gnss_antenna_offset_x_m: float = 0.0
-    gnss_antenna_offset_y_m: float = 0.0
-    radius_speed_coefficient_m_per_m2_s2: float = 0.0
-    radius_load_coefficient_m_per_n: float = 0.0
-    road_grade_correction_gain: float = 1.0
-    rear_brake_slip_s2_per_m: float = 0.0
-    road_grade_source: str = "checked"
-    seed: int = 0
-
-    RULES: ClassVar[dict[str, Rule]] = {
-        "n_particles": int_in_range(10, 1_000_000),
-        **{name: in_range(lo, hi) for name, lo, hi in _RANGES},
-        **dict.fromkeys(_NON_NEGATIVE, NON_NEGATIVE),
-        **dict.fromkeys(_POSITIVE, POSITIVE),
-        **dict.fromkeys(_BOOLS, BOOL),
-        "wheels": one_of(WHEEL_MODES),
-        "road_grade_source": one_of(GRADE_SOURCE_MODES),
-        **{effect.config_field: in_range(*effect.limits) for effect in EFFECTS},
-        "seed": int_in_range(0, 2**63 - 1),
-    }
-
-    def __post_init__(self) -> None:
-        check_rules(self, self.RULES)
+    n_particles: Annotated[int, int_in_range(10, 1_000_000)] = 500
+    forgetting_factor: Annotated[float, in_range(0.5, 1.0)] = 0.9998
+    prior_radius_error_std_m: Annotated[float, in_range(1e-6, 0.05)] = 0.003
+    radius_random_walk_m_sqrt_s: Annotated[float, in_range(0.0, 0.01)] = 5e-5
+    position_process_noise_m_sqrt_s: NonNegative = 0.01
+    yaw_process_noise_rad_sqrt_s: NonNegative = 0.002
+    gnss_default_std_m: Positive = 1.5
+    gnss_bias_std_m: Annotated[float, in_range(0.0, 100.0)] = 0.0
+    gnss_bias_fraction: Annotated[float, in_range(0.0, 0.9)] = 0.5
+    gnss_bias_time_constant_s: Annotated[float, in_range(0.1, 1e5)] = 120.0
+    gnss_gate_probability: Annotated[float, in_range(0.5, 1.0 - 1e-15)] = 0.9999
+    gnss_velocity_enabled: Flag = True
+    gnss_velocity_latency_s: Annotated[float, _effect("gnss_velocity_latency_s")] = 0.0
+    gnss_velocity_max_accel_m_s2: Annotated[float, in_range(0.01, 100.0)] = 0.5
+    max_gap_s: Positive = 2.0
+    init_min_distance_m: Positive = 10.0
+    min_speed_m_s: NonNegative = 1.0
+    max_abs_ax_m_s2: Positive = 2.0
+    max_abs_ay_m_s2: Positive = 4.0
+    braking_decel_m_s2: Positive = 1.0
+    wheels: Annotated[str, one_of(WHEEL_MODES)] = "rear"
+    run_aug_kf: Flag = False
+    gnss_latency_s: Annotated[float, _effect("gnss_latency_s")] = 0.0
+    wheel_speed_time_offset_s: Annotated[float, _effect("wheel_speed_time_offset_s")] = 0.0
+    gnss_antenna_offset_x_m: Annotated[float, _effect("gnss_antenna_offset_x_m")] = 0.0
+    gnss_antenna_offset_y_m: Annotated[float, _effect("gnss_antenna_offset_y_m")] = 0.0
+    radius_speed_coefficient_m_per_m2_s2: Annotated[
+        float, _effect("radius_speed_coefficient_m_per_m2_s2")
+    ] = 0.0
+    radius_load_coefficient_m_per_n: Annotated[
+        float, _effect("radius_load_coefficient_m_per_n")
+    ] = 0.0
+    road_grade_correction_gain: Annotated[float, _effect("road_grade_correction_gain")] = 1.0
+    rear_brake_slip_s2_per_m: Annotated[float, _effect("rear_brake_slip_s2_per_m")] = 0.0
+    road_grade_source: Annotated[str, one_of(GRADE_SOURCE_MODES)] = "checked"
+    seed: Annotated[int, int_in_range(0, 2**63 - 1)] = 0
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> RadiusEstimatorConfig:

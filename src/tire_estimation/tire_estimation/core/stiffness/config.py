@@ -3,14 +3,13 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
-from typing import Any, ClassVar, TypeVar
+from typing import Annotated, Any, TypeVar
 
 from tire_estimation.core.stiffness.model import TYRE_SHAPES
 from tire_estimation.core.validation import (
-    NON_NEGATIVE,
-    POSITIVE,
-    Rule,
-    check_rules,
+    Checked,
+    NonNegative,
+    Positive,
     in_range,
     int_in_range,
     one_of,
@@ -23,16 +22,8 @@ FIRST_LEARNING = ("mpf", "grid")
 C = TypeVar("C", bound="BaselineConfig")
 
 
-#: The tyre law's choice and the Magic Formula factors (shared by every config with a tyre law).
-TYRE_SHAPE_RULES: dict[str, Rule] = {
-    "tyre_shape": one_of(TYRE_SHAPES),
-    "magic_formula_shape_c": in_range(1.0, 1.9),
-    "magic_formula_curvature_e": in_range(-5.0, 0.99),
-}
-
-
 @dataclass(frozen=True)
-class BaselineConfig:
+class BaselineConfig(Checked):
     """Settings every stiffness filter shares: Algorithm 1's (:class:`StiffnessEstimatorConfig`
     extends them) and those of the filters it is compared with (``core.stiffness.grid``,
     ``evaluation.stiffness_baselines``); ranges as in :class:`StiffnessEstimatorConfig`.
@@ -59,37 +50,21 @@ class BaselineConfig:
             vehicle's (0.0).
     """
 
-    initial_stiffness_factor: float = 1.0
-    initial_stiffness_std_fraction: float = 0.3
-    accel_noise_std_m_s2: float = 0.05
-    gyro_noise_std_rad_s: float = 0.00175
-    initial_vy_std_m_s: float = 0.3
-    rolling_resistance_n: float = 0.0
-    drag_n_s2_m2: float = 0.0
+    initial_stiffness_factor: Annotated[float, in_range(0.05, 5.0)] = 1.0
+    initial_stiffness_std_fraction: Annotated[float, in_range(1e-4, 5.0)] = 0.3
+    accel_noise_std_m_s2: Positive = 0.05
+    gyro_noise_std_rad_s: Positive = 0.00175
+    initial_vy_std_m_s: NonNegative = 0.3
+    rolling_resistance_n: NonNegative = 0.0
+    drag_n_s2_m2: NonNegative = 0.0
     friction_coefficient: float = 0.0
-    tyre_shape: str = "tanh"
-    magic_formula_shape_c: float = 1.3
-    magic_formula_curvature_e: float = 0.0
-    cornering_stiffness_front_n_rad: float = 0.0
-    cornering_stiffness_rear_n_rad: float = 0.0
+    tyre_shape: Annotated[str, one_of(TYRE_SHAPES)] = "tanh"
+    magic_formula_shape_c: Annotated[float, in_range(1.0, 1.9)] = 1.3
+    magic_formula_curvature_e: Annotated[float, in_range(-5.0, 0.99)] = 0.0
+    cornering_stiffness_front_n_rad: Annotated[float, in_range(0.0, 1e7)] = 0.0
+    cornering_stiffness_rear_n_rad: Annotated[float, in_range(0.0, 1e7)] = 0.0
 
-    #: A subclass's table spreads this one (``{**BaselineConfig.RULES, ...}``): the checks
-    #: below run on the subclass's table.
-    RULES: ClassVar[dict[str, Rule]] = {
-        "initial_stiffness_factor": in_range(0.05, 5.0),
-        "initial_stiffness_std_fraction": in_range(1e-4, 5.0),
-        "accel_noise_std_m_s2": POSITIVE,
-        "gyro_noise_std_rad_s": POSITIVE,
-        "initial_vy_std_m_s": NON_NEGATIVE,
-        "rolling_resistance_n": NON_NEGATIVE,
-        "drag_n_s2_m2": NON_NEGATIVE,
-        **TYRE_SHAPE_RULES,
-        "cornering_stiffness_front_n_rad": in_range(0.0, 1e7),
-        "cornering_stiffness_rear_n_rad": in_range(0.0, 1e7),
-    }
-
-    def __post_init__(self) -> None:
-        check_rules(self, self.RULES)
+    def check(self) -> None:
         if self.friction_coefficient != 0.0:
             require_range("friction_coefficient", self.friction_coefficient, 0.1, 5.0)
 
@@ -179,28 +154,14 @@ class StiffnessEstimatorConfig(BaselineConfig):
             0.02, an RTK-aided INS).
     """
 
-    n_particles: int = 200
-    forgetting: float = 0.99
-    stiffness_noise_std_fraction: float = 0.03
+    n_particles: Annotated[int, int_in_range(1, 1_000_000)] = 200
+    forgetting: Annotated[float, in_range(0.5, 1.0)] = 0.99
+    stiffness_noise_std_fraction: Annotated[float, in_range(1e-5, 5.0)] = 0.03
     imu_bias_states: bool = True
-    state_jitter_vx_m_s_sqrt_s: float = 0.015
-    state_proposal: str = "prior"
-    niw_update: str = "sampled"
-    first_learning: str = "mpf"
-    grid_handover_s: float = 2.0
-    grid_publish_s: float = 30.0
-    speed_noise_std_m_s: float = 0.02
-
-    RULES: ClassVar[dict[str, Rule]] = {
-        **BaselineConfig.RULES,
-        "n_particles": int_in_range(1, 1_000_000),
-        "forgetting": in_range(0.5, 1.0),
-        "state_proposal": one_of(STATE_PROPOSALS),
-        "niw_update": one_of(NIW_UPDATES),
-        "first_learning": one_of(FIRST_LEARNING),
-        "grid_handover_s": in_range(0.01, 600.0),
-        "grid_publish_s": in_range(0.0, 1e6),
-        "speed_noise_std_m_s": POSITIVE,
-        "state_jitter_vx_m_s_sqrt_s": NON_NEGATIVE,
-        "stiffness_noise_std_fraction": in_range(1e-5, 5.0),
-    }
+    state_jitter_vx_m_s_sqrt_s: NonNegative = 0.015
+    state_proposal: Annotated[str, one_of(STATE_PROPOSALS)] = "prior"
+    niw_update: Annotated[str, one_of(NIW_UPDATES)] = "sampled"
+    first_learning: Annotated[str, one_of(FIRST_LEARNING)] = "mpf"
+    grid_handover_s: Annotated[float, in_range(0.01, 600.0)] = 2.0
+    grid_publish_s: Annotated[float, in_range(0.0, 1e6)] = 30.0
+    speed_noise_std_m_s: Positive = 0.02

@@ -50,7 +50,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import Annotated, Any, ClassVar
 
 import numpy as np
 
@@ -70,9 +70,8 @@ from tire_estimation.core.stiffness.model import (
     measurement_cov,
 )
 from tire_estimation.core.validation import (
-    NON_NEGATIVE,
-    POSITIVE,
-    Rule,
+    NonNegative,
+    Positive,
     in_range,
     int_in_range,
 )
@@ -123,20 +122,20 @@ class GridConfig(BaselineConfig):
         "gyro_bias_walk_rad_s_sqrt_s",
     )
 
-    grid_points: int = 25
-    grid_span_sigma: float = 4.0
-    regrid_min_cells: float = 1.5
-    regrid_edge_mass: float = 1e-3
-    forgetting: float = 0.999
-    state_jitter_vx_m_s_sqrt_s: float = 0.015
-    state_jitter_vy_m_s_sqrt_s: float = 0.006
-    state_jitter_yaw_rate_rad_s_sqrt_s: float = 0.0006
-    accel_bias_std_m_s2: float = 0.1
-    gyro_bias_std_rad_s: float = 0.005
-    accel_bias_walk_m_s2_sqrt_s: float = 0.0005
-    gyro_bias_walk_rad_s_sqrt_s: float = 0.0001
-    learn_hold_s: float = 2.0
-    fit_window_s: float = 1.0
+    grid_points: Annotated[int, int_in_range(5, 201)] = 25
+    grid_span_sigma: Annotated[float, in_range(1.0, 20.0)] = 4.0
+    regrid_min_cells: Annotated[float, in_range(0.1, 100.0)] = 1.5
+    regrid_edge_mass: Annotated[float, in_range(0.0, 1.0)] = 1e-3
+    forgetting: Annotated[float, in_range(0.5, 1.0)] = 0.999
+    state_jitter_vx_m_s_sqrt_s: NonNegative = 0.015
+    state_jitter_vy_m_s_sqrt_s: NonNegative = 0.006
+    state_jitter_yaw_rate_rad_s_sqrt_s: NonNegative = 0.0006
+    accel_bias_std_m_s2: NonNegative = 0.1
+    gyro_bias_std_rad_s: NonNegative = 0.005
+    accel_bias_walk_m_s2_sqrt_s: NonNegative = 0.0005
+    gyro_bias_walk_rad_s_sqrt_s: NonNegative = 0.0001
+    learn_hold_s: Annotated[float, in_range(0.0, 600.0)] = 2.0
+    fit_window_s: Positive = 1.0
 
     @classmethod
     def sharing(cls, other: Any, **overrides: Any) -> GridConfig:
@@ -151,22 +150,6 @@ class GridConfig(BaselineConfig):
     def estimates_bias(self) -> bool:
         """The EKFs carry the IMU biases (a non-zero prior std)."""
         return self.accel_bias_std_m_s2 > 0.0 or self.gyro_bias_std_rad_s > 0.0
-
-    RULES: ClassVar[dict[str, Rule]] = {
-        **BaselineConfig.RULES,
-        "grid_points": int_in_range(5, 201),
-        "grid_span_sigma": in_range(1.0, 20.0),
-        "regrid_min_cells": in_range(0.1, 100.0),
-        "regrid_edge_mass": in_range(0.0, 1.0),
-        "forgetting": in_range(0.5, 1.0),
-        "learn_hold_s": in_range(0.0, 600.0),
-        "fit_window_s": POSITIVE,
-        "initial_stiffness_std_fraction": POSITIVE,
-        "state_jitter_vx_m_s_sqrt_s": NON_NEGATIVE,
-        "state_jitter_vy_m_s_sqrt_s": NON_NEGATIVE,
-        "state_jitter_yaw_rate_rad_s_sqrt_s": NON_NEGATIVE,
-        **dict.fromkeys(BIAS_FIELDS, NON_NEGATIVE),
-    }
 
 
 def lattice(points: int) -> F64:
