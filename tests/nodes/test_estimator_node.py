@@ -482,6 +482,8 @@ def test_gnss_velocity_is_subscribed_used_and_bad_ones_are_counted(
     # straight driving tells neither the axles nor the gyro's sign: nothing is rewired
     assert values["gyro.yaw_reversed"] == "false" and values["axle.rear.swapped"] == "false"
     assert values["wheels.sign_reversed"] == "none"
+    # constant speed, no IMU: the IMU's mounting is never decided
+    assert values["imu.mounting_yaw_deg"] == "checking" and values["imu.rotated"] == "false"
     est = node.estimator.estimate()
     # 30 s of straight driving: filter seeds 0-5 end at 0.14-0.56 mm (the common mode of the
     # two radii, which a straight drive observes weakly); 1 mm catches a velocity misuse

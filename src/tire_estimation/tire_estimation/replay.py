@@ -33,6 +33,7 @@ from tire_estimation.core import yamlio
 from tire_estimation.core.clock_check import ClockCheck, leading_check
 from tire_estimation.core.deflation.config import DeflationDetectorConfig
 from tire_estimation.core.geodesy import LocalTangentPlane
+from tire_estimation.core.imu_mounting import MountingResult
 from tire_estimation.core.input_checks import merged_counts
 from tire_estimation.core.lateral.linear_kf import LinearLateralKF, LinearLateralKFConfig
 from tire_estimation.core.lateral.tyre_force_kf import TyreForceKFConfig
@@ -113,6 +114,15 @@ class ReplayReport:
                 f"(correlation {clock['correlation']:.2f}, {clock['correlation_at_zero']:.2f} at "
                 "no lag): the fixes and the wheel speeds are stamped by clocks that far apart, "
                 "and every estimate below assumes one clock"
+            )
+        mount = m.get("imu_mounting") or {}
+        if mount.get("corrected"):
+            lines.append(
+                f"  IMU AXES: the IMU's horizontal axes are turned {mount['yaw_deg']:+.1f} deg "
+                "from base_link's (its specific force against the wheels' acceleration, "
+                f"correlation {mount['correlation']:.2f}); its samples were rotated into "
+                f"base_link from {mount['decided_s']:.0f} s on and the IMU-driven lateral "
+                "estimators restarted then: publish the IMU in base_link axes (REP-103)"
             )
         failed = r.get("failed_initializations") or {}
         ratio = failed.get("median_distance_ratio")
@@ -805,6 +815,7 @@ def _run(
     if closed_loop is not None:
         metrics["closed_loop"] = closed_loop
     metrics["clock_check"] = clock_check.result()
+    metrics["imu_mounting"] = imu_mounting_metrics(pipeline.imu_mounting.result, bag.start_ns)
     # the lag found over the first minutes and taken out of the GNSS stamps (0: none)
     metrics["clock_check"]["corrected_s"] = -stamp_shift.get(topics.GNSS_FIX, 0.0)
     metrics["clock_check"]["leading"] = leading
@@ -924,6 +935,19 @@ def write_detection_plot(
         [(w, (t - bag.start_ns) * 1e-9) for w, t in rec.alarms],
         [(e.t_s, e.kind) for e in bag.events],
     )
+
+
+def imu_mounting_metrics(result: MountingResult, start_ns: int) -> dict[str, Any]:
+    """The IMU's mounting yaw as the check found it (``core/imu_mounting.py``); ``decided_s``
+    from the bag's start."""
+    decided_s = None if result.decided_t_ns is None else (result.decided_t_ns - start_ns) * 1e-9
+    return {
+        "yaw_deg": result.yaw_deg,
+        "correlation": result.correlation,
+        "decided": result.decided,
+        "corrected": result.corrected,
+        "decided_s": decided_s,
+    }
 
 
 def build_metrics(

@@ -41,6 +41,7 @@ from tire_estimation.core.clock import ClockGuard, ClockGuardConfig
 from tire_estimation.core.deflation.config import DeflationDetectorConfig
 from tire_estimation.core.deflation.monitor import DeflationMonitor, MonitorConfig, MonitorStep
 from tire_estimation.core.deflation.status import RadiusErrors
+from tire_estimation.core.imu_mounting import ImuMountingCheck
 from tire_estimation.core.lateral.estimate import LateralEstimate
 from tire_estimation.core.lateral.tyre_force_kf import TyreForceEstimator, TyreForceKFConfig
 from tire_estimation.core.ordering import ReorderBuffer
@@ -234,6 +235,7 @@ class LateralBaseline(Protocol):
     def on_velocity(self, t_ns: int, vx_m_s: float) -> None: ...
     def on_imu(self, t_ns: int, gyro_rad_s: Any, accel_m_s2: Any) -> None: ...
     def estimate(self) -> Any: ...
+    def reset(self) -> None: ...
 
 
 def lateral_from_stiffness(est: StiffnessEstimate, lr_m: float) -> LateralEstimate:
@@ -300,6 +302,10 @@ class EstimationPipeline:
         if config.detector is not None:
             self.monitor = DeflationMonitor(config.detector, config.monitor)
         self.baselines: dict[str, LateralBaseline] = dict(baselines or {})
+        #: the IMU's mounting yaw, fitted against the wheels; rotates the IMU samples into
+        #: base_link once a large one is decided
+        self.imu_mounting = ImuMountingCheck(vehicle.nominal_tire_radius_m, vehicle.track_width_m)
+        self._imu_rotated = False
         self._observers: tuple[Observer, ...] = ()
         self._sample_observers: dict[type, tuple[Observer, ...]] = {}
         self.add_observers(*observers)
@@ -414,6 +420,7 @@ class EstimationPipeline:
         kind = type(sample)
         if kind is WheelSpeeds:
             ws = sample.wheel_speed_rad_s
+            self.imu_mounting.on_wheel_speeds(t, ws)
             for on_wheel_speeds in self._to_wheel_speeds:
                 on_wheel_speeds(t, ws)
             if self.radius is not None:
@@ -421,7 +428,15 @@ class EstimationPipeline:
                     self.wheel_noise.push(t, ws)
                 self._radius_outputs(t, out)
         elif kind is ImuSample:
-            gyro, acc = sample.angular_velocity_rad_s, sample.linear_acceleration_m_s2
+            mounting = self.imu_mounting
+            gyro, acc = mounting.on_imu(
+                t, sample.angular_velocity_rad_s, sample.linear_acceleration_m_s2
+            )
+            if mounting.rotating and not self._imu_rotated:
+                # the IMU-driven lateral estimators learned from rotated axes
+                self._imu_rotated = True
+                for est in self._lateral_imu:
+                    est.reset()
             for on_imu in self._to_imu:
                 on_imu(t, gyro, acc)
             if self.stiffness is not None and self.outputs:

@@ -159,6 +159,10 @@ def in_range(low: float, high: float) -> Rule:
     return Rule("range", float(low), float(high))
 
 
+#: A share, probability or ratio within [0, 1].
+Fraction = Annotated[float, in_range(0.0, 1.0)]
+
+
 def int_in_range(low: int, high: int) -> Rule:
     """An integer within ``[low, high]``."""
     return Rule("int_range", int(low), int(high))

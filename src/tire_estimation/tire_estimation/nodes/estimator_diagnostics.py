@@ -101,6 +101,13 @@ def statuses(
             # wheels whose speed turned backward while the GNSS moved forward, negated since
             reversed_wheels = pipeline.axles.signs.reversed_wheels
             values["wheels.sign_reversed"] = ",".join(reversed_wheels) or "none"
+        # the IMU's mounting yaw against the wheels (core/imu_mounting.py): "checking" until
+        # decided; a large one is taken out of the IMU samples
+        mount = pipeline.imu_mounting.result
+        values["imu.mounting_yaw_deg"] = (
+            f"{mount.yaw_deg:.1f}" if mount.decided and mount.yaw_deg is not None else "checking"
+        )
+        values["imu.rotated"] = str(mount.corrected).lower()
         # the GNSS stamps against the wheel speeds' clock (core/clock_check.py), decided over
         # the first minutes: an offset is reported, not taken out
         lag = None if clock is None else clock.get("lag_s")

@@ -89,6 +89,9 @@ class SensorConfig(Checked):
     accel_noise_std_m_s2: Annotated[float, in_range(0.0, 10.0)] = 0.05
     accel_bias_initial_std_m_s2: Annotated[float, in_range(0.0, 10.0)] = 0.1
     accel_bias_random_walk_m_s2_sqrt_s: Annotated[float, in_range(0.0, 10.0)] = 5.0e-4
+    #: Injected: the IMU turned by this angle about z on its mount (or published in its own
+    #: axes): it reports base_link's horizontal vectors rotated by minus this angle, deg.
+    imu_mounting_yaw_deg: Annotated[float, in_range(-180.0, 180.0)] = 0.0
 
     # --- GNSS (antenna at VehicleParams.gnss_antenna_position_m) ---
     gnss_rate_hz: Annotated[float, in_range(0.1, 100.0)] = 10.0

@@ -198,6 +198,14 @@ def imu(
     )
     gyro = w_true + gyro_bias + rng.standard_normal((m, 3)) * cfg.gyro_noise_std_rad_s
     accel = f_true + acc_bias + rng.standard_normal((m, 3)) * cfg.accel_noise_std_m_s2
+    if cfg.imu_mounting_yaw_deg:
+        # injected: the IMU turned by psi about z reports R(-psi) times the base_link vectors
+        c, s = (
+            math.cos(math.radians(cfg.imu_mounting_yaw_deg)),
+            math.sin(math.radians(cfg.imu_mounting_yaw_deg)),
+        )
+        to_imu = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
+        gyro, accel = gyro @ to_imu.T, accel @ to_imu.T
     return ImuStream(
         t_ns=start_ns + rel_ns,
         angular_velocity_rad_s=gyro,

@@ -20,8 +20,10 @@ import math
 from dataclasses import dataclass
 from typing import Annotated
 
+from tire_estimation.core.stiffness.model import CurvatureFactor, ShapeFactor
 from tire_estimation.core.validation import (
     Checked,
+    Fraction,
     in_range,
 )
 
@@ -52,14 +54,14 @@ class TireModelConfig(Checked):
     nominal_pressure_kpa: Annotated[float, in_range(50.0, 1000.0)] = 230.0
     pressure_sensitivity_mm_per_kpa: Annotated[float, in_range(0.0, 1.0)] = 0.03
     radius_offset_std_mm: Annotated[float, in_range(0.0, 10.0)] = 0.3
-    lateral_shape_c: Annotated[float, in_range(1.0, 1.9)] = 1.3
-    lateral_curvature_e: Annotated[float, in_range(-5.0, 0.99)] = -0.5
-    longitudinal_shape_c: Annotated[float, in_range(1.0, 1.9)] = 1.65
+    lateral_shape_c: ShapeFactor = 1.3
+    lateral_curvature_e: CurvatureFactor = -0.5
+    longitudinal_shape_c: ShapeFactor = 1.65
     rolling_resistance_coefficient: Annotated[float, in_range(0.0, 0.1)] = 0.012
     drag_area_m2: Annotated[float, in_range(0.0, 20.0)] = 0.7
     air_density_kg_m3: Annotated[float, in_range(0.5, 2.0)] = 1.2
     max_drive_power_w: Annotated[float, in_range(1e3, 1e7)] = 110_000.0
-    brake_front_share: Annotated[float, in_range(0.0, 1.0)] = 0.65
+    brake_front_share: Fraction = 0.65
 
     PREFIX = "tires."
 

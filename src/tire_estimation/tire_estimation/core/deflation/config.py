@@ -9,6 +9,7 @@ from typing import Annotated
 from tire_estimation.core.validation import (
     Checked,
     Flag,
+    Fraction,
     NonNegative,
     Positive,
     in_range,
@@ -100,12 +101,8 @@ class DeflationDetectorConfig(Checked):
     calibration_average_s: NonNegative = 300.0
     stale_timeout_s: Positive = 5.0
     max_sample_gap_s: Positive = 1.0
-    warn_fraction: Annotated[float, in_range(0.0, 1.0)] = field(
-        default=0.5, metadata={"unit": "1"}
-    )
-    common_mode_fraction: Annotated[float, in_range(0.0, 1.0)] = field(
-        default=1.0, metadata={"unit": "1"}
-    )
+    warn_fraction: Fraction = field(default=0.5, metadata={"unit": "1"})
+    common_mode_fraction: Fraction = field(default=1.0, metadata={"unit": "1"})
     common_channel: Flag = True
     common_drift_m: Annotated[float, in_range(0.0, 0.05)] = 0.35e-3
     common_threshold_m: Annotated[float, in_range(1e-9, 10.0)] = 9e-3

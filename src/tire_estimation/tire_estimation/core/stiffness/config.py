@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, fields
 from typing import Annotated, Any, TypeVar
 
-from tire_estimation.core.stiffness.model import TYRE_SHAPES
+from tire_estimation.core.stiffness.model import TYRE_SHAPES, CurvatureFactor, ShapeFactor
 from tire_estimation.core.validation import (
     Checked,
     NonNegative,
@@ -59,8 +59,8 @@ class BaselineConfig(Checked):
     drag_n_s2_m2: NonNegative = 0.0
     friction_coefficient: float = 0.0
     tyre_shape: Annotated[str, one_of(TYRE_SHAPES)] = "tanh"
-    magic_formula_shape_c: Annotated[float, in_range(1.0, 1.9)] = 1.3
-    magic_formula_curvature_e: Annotated[float, in_range(-5.0, 0.99)] = 0.0
+    magic_formula_shape_c: ShapeFactor = 1.3
+    magic_formula_curvature_e: CurvatureFactor = 0.0
     cornering_stiffness_front_n_rad: Annotated[float, in_range(0.0, 1e7)] = 0.0
     cornering_stiffness_rear_n_rad: Annotated[float, in_range(0.0, 1e7)] = 0.0
 

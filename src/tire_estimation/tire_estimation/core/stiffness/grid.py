@@ -70,6 +70,7 @@ from tire_estimation.core.stiffness.model import (
     measurement_cov,
 )
 from tire_estimation.core.validation import (
+    Fraction,
     NonNegative,
     Positive,
     in_range,
@@ -125,7 +126,7 @@ class GridConfig(BaselineConfig):
     grid_points: Annotated[int, int_in_range(5, 201)] = 25
     grid_span_sigma: Annotated[float, in_range(1.0, 20.0)] = 4.0
     regrid_min_cells: Annotated[float, in_range(0.1, 100.0)] = 1.5
-    regrid_edge_mass: Annotated[float, in_range(0.0, 1.0)] = 1e-3
+    regrid_edge_mass: Fraction = 1e-3
     forgetting: Annotated[float, in_range(0.5, 1.0)] = 0.999
     state_jitter_vx_m_s_sqrt_s: NonNegative = 0.015
     state_jitter_vy_m_s_sqrt_s: NonNegative = 0.006

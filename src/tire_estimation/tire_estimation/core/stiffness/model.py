@@ -28,10 +28,12 @@ Sign conventions (documented deviations):
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Annotated
 
 import numpy as np
 
 from tire_estimation.core.arrays import F64
+from tire_estimation.core.validation import in_range
 from tire_estimation.core.vehicle import VehicleParams
 
 #: Standard gravity, m/s^2.
@@ -45,6 +47,10 @@ NAMES = ("cx_front", "cy_front", "cy_rear")
 REAR_DRIVE_NAMES = ("cx_rear", "cy_front", "cy_rear")
 #: Shapes of the saturating lateral tyre (:func:`lateral_slip_function`).
 TYRE_SHAPES = ("tanh", "magic_formula")
+#: The Magic Formula's shape factor C (Pacejka, Tyre and Vehicle Dynamics, 2012: about 1.3
+#: laterally, 1.65 longitudinally) and curvature factor E (below 1), as configurations take them.
+ShapeFactor = Annotated[float, in_range(1.0, 1.9)]
+CurvatureFactor = Annotated[float, in_range(-5.0, 0.99)]
 #: Projection bounds of every stiffness (Sec. V), fractions of nominal: wide enough for a
 #: tyre on ice (5 %) and a stiff race tyre (300 %), so that they only catch a diverging draw.
 MIN_STIFFNESS_FRACTION = 0.05
