@@ -41,3 +41,17 @@ def test_an_imu_turned_90_degrees_is_rotated_back_and_said(
     # left turned: yaw rate 57 deg/s, sideslip 33 deg off on a 5-min drive)
     lateral = turned["lateral_by_source"]["stiffness_mpf"]
     assert lateral["yaw_rate_rmse_deg_s"] < 0.5 and lateral["sideslip_rmse_deg"] < 1.0
+
+
+def test_an_imu_upside_down_is_turned_back_and_said(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    flipped = _replay(tmp_path, "flipped", ["imu_upside_down=true"])
+    printed = capsys.readouterr().out
+    assert flipped["imu_mounting"]["upside_down"]
+    assert not flipped["imu_mounting"]["corrected"]
+    assert "IMU AXES: the IMU is upside down" in printed
+    # the gyro was turned back with it: no reversed yaw rate left for the axle check
+    assert flipped["radii"]["gyro_reversed"] is False
+    lateral = flipped["lateral_by_source"]["stiffness_mpf"]
+    assert lateral["yaw_rate_rmse_deg_s"] < 0.5 and lateral["sideslip_rmse_deg"] < 1.0

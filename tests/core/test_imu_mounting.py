@@ -23,6 +23,7 @@ def _drive(
     manoeuvres: bool = True,
     mirror: bool = False,
     seed: int = 0,
+    upside_down: bool = False,
 ) -> list[tuple[np.ndarray, np.ndarray]]:
     """Feed ``seconds`` of a drive (speed and yaw rate varying, 100 Hz) whose IMU is turned by
     ``yaw_deg`` (its y axis mirrored with ``mirror``); return base_link's acceleration and what
@@ -43,10 +44,12 @@ def _drive(
         check.on_wheel_speeds(t_ns, ws)
         a = np.array([dv, v * r, 9.81])
         f_imu = np.array([c * a[0] + s * a[1], -s * a[0] + c * a[1], a[2]])
+        gyro = np.array([0.0, 0.0, r])
         if mirror:
             f_imu[1] = -f_imu[1]
+        if upside_down:
+            f_imu[1:], gyro[1:] = -f_imu[1:], -gyro[1:]
         f_imu = f_imu + bias + rng.normal(0.0, 0.05, 3)
-        gyro = np.array([0.0, 0.0, r])
         _, f_out = check.on_imu(t_ns + 5_000_000, gyro, f_imu)
         out.append((a, f_out))
     return out
@@ -106,3 +109,17 @@ def test_below_the_speed_floor_nothing_is_fitted() -> None:
         check.on_wheel_speeds(t_ns, np.full(4, 1.0 / RADIUS_M))  # 1 m/s
         check.on_imu(t_ns, np.zeros(3), np.array([0.5, 0.0, 9.81]))
     assert check.result.blocks == 0 and check.result.yaw_deg is None
+
+
+def test_an_imu_upside_down_is_turned_back_before_its_yaw_is_fitted() -> None:
+    check = ImuMountingCheck(RADIUS_M, TRACK_M)
+    rows = _drive(check, 0.0, upside_down=True)
+    res = check.result
+    assert res.upside_down and check.rotating
+    # once turned back it fits as mounted right: no yaw to correct
+    assert res.decided and not res.corrected and abs(res.yaw_deg or 99.0) < 1.0
+    a, f = np.array([r[0] for r in rows[-2000:]]), np.array([r[1] for r in rows[-2000:]])
+    assert np.sqrt(np.mean((f - a) ** 2)) < 0.15  # z up again, y to the left
+    upright = ImuMountingCheck(RADIUS_M, TRACK_M)
+    _drive(upright, 0.0)
+    assert not upright.result.upside_down and not upright.rotating

@@ -33,7 +33,7 @@ from tire_estimation.core import yamlio
 from tire_estimation.core.clock_check import ClockCheck, leading_check
 from tire_estimation.core.deflation.config import DeflationDetectorConfig
 from tire_estimation.core.geodesy import LocalTangentPlane
-from tire_estimation.core.imu_mounting import MountingResult
+from tire_estimation.core.imu_mounting import GRAVITY_SAMPLES, MountingResult
 from tire_estimation.core.input_checks import merged_counts
 from tire_estimation.core.lateral.linear_kf import LinearLateralKF, LinearLateralKFConfig
 from tire_estimation.core.lateral.tyre_force_kf import TyreForceKFConfig
@@ -116,6 +116,13 @@ class ReplayReport:
                 "and every estimate below assumes one clock"
             )
         mount = m.get("imu_mounting") or {}
+        if mount.get("upside_down"):
+            lines.append(
+                "  IMU AXES: the IMU is upside down (its specific force reads -g on z): its "
+                f"samples were turned by 180 deg about x after its first {GRAVITY_SAMPLES} and "
+                "the IMU-driven lateral estimators restarted then: publish the IMU in base_link "
+                "axes (REP-103)"
+            )
         if mount.get("corrected"):
             lines.append(
                 f"  IMU AXES: the IMU's horizontal axes are turned {mount['yaw_deg']:+.1f} deg "
@@ -947,6 +954,8 @@ def imu_mounting_metrics(result: MountingResult, start_ns: int) -> dict[str, Any
         "decided": result.decided,
         "corrected": result.corrected,
         "decided_s": decided_s,
+        "mirror_correlation": result.mirror_correlation,
+        "upside_down": result.upside_down,
     }
 
 

@@ -22,13 +22,18 @@ the angle is decided; a fit near a right angle (90, 180 or 270 degrees, the usua
 error) is decided as that angle after :data:`EARLY_BLOCKS`, so that little is learned from
 rotated axes. One of :data:`MIN_CORRECTED_DEG` or more is taken out of every later sample
 (accelerometer and gyro x, y), and the IMU-driven estimators restart (they learned from
-rotated axes). A smaller angle is reported, not corrected. A mirrored axis (an IMU upside
-down) is not a rotation: ``rho`` stays low, nothing is decided (a reversed yaw rate is the
-axle check's).
+rotated axes). A smaller angle is reported, not corrected.
+
+A mirrored pair of axes is not a rotation, but with little lateral excitation it fits as well
+as one; an angle is decided only while the rotation fits better than the mirror image
+(:data:`MIN_MIRROR_MARGIN`). An IMU upside down (z pointing down: its mean specific force
+reads about -g on z over its first :data:`GRAVITY_SAMPLES` samples) is turned back first, by
+180 degrees about x, before the yaw is fitted.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -63,6 +68,12 @@ MIN_CORRELATION = 0.7
 MIN_CORRECTED_DEG = 15.0
 #: a wheel-speed gap longer than this ends the block without using it, s
 MAX_GAP_S = 0.2
+#: how much better the rotation must fit than the mirror image for a decision, 1
+MIN_MIRROR_MARGIN = 0.1
+#: IMU samples whose mean vertical specific force tells an IMU upside down
+GRAVITY_SAMPLES = 200
+#: a mean vertical specific force below this is an IMU upside down, m/s^2 (-g / 2)
+UPSIDE_DOWN_BELOW_M_S2 = -4.9
 
 
 @dataclass(frozen=True)
@@ -78,6 +89,9 @@ class MountingResult:
         corrected: the IMU samples are rotated by ``yaw_deg`` since ``decided_t_ns``.
         decided_t_ns: stamp of the decision, ns (None: not decided).
         blocks: blocks used.
+        mirror_correlation: the same for the mirror image (None: nothing fitted yet).
+        upside_down: the IMU's z axis points down; its samples are turned by 180 degrees about
+            x (before the yaw) from the first :data:`GRAVITY_SAMPLES` on.
     """
 
     yaw_deg: float | None
@@ -86,6 +100,8 @@ class MountingResult:
     corrected: bool
     decided_t_ns: int | None
     blocks: int
+    mirror_correlation: float | None = None
+    upside_down: bool = False
 
 
 class ImuMountingCheck:
@@ -110,17 +126,21 @@ class ImuMountingCheck:
         self._n_wheel = 0
         self._f_sum = np.zeros(2)
         self._n_imu = 0
-        # sums over the used blocks: of f, a, f.f, a.a, f.a and f x a
-        self._sums = np.zeros(8)
+        # sums over the used blocks: of f, a, f.f, a.a, fx ax, fy ay, fx ay, fy ax
+        self._sums = np.zeros(10)
         self._blocks = 0
         self._cos = 1.0
         self._sin = 0.0
+        # the vertical specific force of the first samples (the gravity check)
+        self._fz_sum = 0.0
+        self._fz_n = 0
+        self._gravity_checked = False
         self.result = MountingResult(None, None, False, False, None, 0)
 
     @property
     def rotating(self) -> bool:
-        """The IMU samples are being rotated into ``base_link``."""
-        return self.result.corrected
+        """The IMU samples are being turned into ``base_link`` (a yaw, or upside down)."""
+        return self.result.corrected or self.result.upside_down
 
     def on_wheel_speeds(self, t_ns: int, wheel_speed_rad_s: F64) -> None:
         """Advance the block with the rear wheels' speed and yaw rate."""
@@ -148,8 +168,15 @@ class ImuMountingCheck:
             self._open(t_ns, v)
 
     def on_imu(self, t_ns: int, gyro_rad_s: F64, accel_m_s2: F64) -> tuple[F64, F64]:
-        """Take the sample into the open block; return it in ``base_link`` axes (rotated once a
-        large mounting yaw is decided, else as given)."""
+        """Take the sample into the open block; return it in ``base_link`` axes (turned once an
+        IMU upside down or a large mounting yaw is decided, else as given)."""
+        if not self._gravity_checked:
+            self._check_gravity(float(accel_m_s2[2]))
+            return gyro_rad_s, accel_m_s2
+        if self.result.upside_down:
+            # 180 degrees about x: y and z change sign
+            gyro_rad_s = np.array([gyro_rad_s[0], -gyro_rad_s[1], -gyro_rad_s[2]])
+            accel_m_s2 = np.array([accel_m_s2[0], -accel_m_s2[1], -accel_m_s2[2]])
         if self.result.corrected:
             return self._rotated(gyro_rad_s), self._rotated(accel_m_s2)
         if not self.result.decided and self._t0_ns is not None:
@@ -159,6 +186,16 @@ class ImuMountingCheck:
                 self._f_sum[1] += fy
                 self._n_imu += 1
         return gyro_rad_s, accel_m_s2
+
+    def _check_gravity(self, fz: float) -> None:
+        if not math.isfinite(fz):
+            return
+        self._fz_sum += fz
+        self._fz_n += 1
+        if self._fz_n >= GRAVITY_SAMPLES:
+            self._gravity_checked = True
+            upside_down = self._fz_sum / self._fz_n < UPSIDE_DOWN_BELOW_M_S2
+            self.result = dataclasses.replace(self.result, upside_down=upside_down)
 
     def _rotated(self, xyz: F64) -> F64:
         c, s = self._cos, self._sin
@@ -179,29 +216,34 @@ class ImuMountingCheck:
         ax, ay = (self._v - self._v0) / dt_s, self._vr_sum / self._n_wheel
         fx, fy = self._f_sum / self._n_imu
         self._sums += (fx, fy, ax, ay, fx * fx + fy * fy, ax * ax + ay * ay,
-                       fx * ax + fy * ay, fx * ay - fy * ax)  # fmt: skip
+                       fx * ax, fy * ay, fx * ay, fy * ax)  # fmt: skip
         self._blocks += 1
         self._fit(t_ns)
 
     def _fit(self, t_ns: int) -> None:
         n = self._blocks
-        sfx, sfy, sax, say, sff, saa, sdot, scross = self._sums
+        sfx, sfy, sax, say, sff, saa, sxx, syy, sxy, syx = self._sums
         # centred sums: the IMU's bias and the grade's share of gravity drop out
         cff = sff - (sfx * sfx + sfy * sfy) / n
         caa = saa - (sax * sax + say * say) / n
-        cdot = sdot - (sfx * sax + sfy * say) / n
-        ccross = scross - (sfx * say - sfy * sax) / n
+        cxx, cyy = sxx - sfx * sax / n, syy - sfy * say / n
+        cxy, cyx = sxy - sfx * say / n, syx - sfy * sax / n
         if cff <= 0.0 or caa <= 0.0:
             return
         # 2-D orthogonal Procrustes: the rotation carrying f onto a (module docstring)
+        cdot, ccross = cxx + cyy, cxy - cyx
         yaw = math.atan2(ccross, cdot)
         rho = math.hypot(cdot, ccross) / math.sqrt(cff * caa)
+        # the same for the mirror image (f_y negated): a decision needs the rotation to fit better
+        rho_mirror = math.hypot(cxx - cyy, cxy + cyx) / math.sqrt(cff * caa)
+        distinct = rho - rho_mirror >= MIN_MIRROR_MARGIN
         yaw_deg = math.degrees(yaw)
         quarter = round(yaw_deg / 90.0)
         right_angle = (
             quarter % 4 != 0
             and abs(yaw_deg - 90.0 * quarter) <= RIGHT_ANGLE_TOLERANCE_DEG
             and rho >= EARLY_CORRELATION
+            and distinct
         )
         early = n >= EARLY_BLOCKS and caa >= EARLY_EXCITATION_M2_S4 and n < MIN_BLOCKS
         if early and right_angle:
@@ -210,7 +252,12 @@ class ImuMountingCheck:
             yaw = math.radians(yaw_deg)
             decided = True
         else:
-            decided = n >= MIN_BLOCKS and caa >= MIN_EXCITATION_M2_S4 and rho >= MIN_CORRELATION
+            decided = (
+                n >= MIN_BLOCKS
+                and caa >= MIN_EXCITATION_M2_S4
+                and rho >= MIN_CORRELATION
+                and distinct
+            )
         corrected = decided and abs(yaw_deg) >= MIN_CORRECTED_DEG
         if corrected:
             self._cos, self._sin = math.cos(yaw), math.sin(yaw)
@@ -221,4 +268,6 @@ class ImuMountingCheck:
             corrected=corrected,
             decided_t_ns=t_ns if decided else None,
             blocks=n,
+            mirror_correlation=rho_mirror,
+            upside_down=self.result.upside_down,
         )

@@ -108,6 +108,7 @@ def statuses(
             f"{mount.yaw_deg:.1f}" if mount.decided and mount.yaw_deg is not None else "checking"
         )
         values["imu.rotated"] = str(mount.corrected).lower()
+        values["imu.upside_down"] = str(mount.upside_down).lower()
         # the GNSS stamps against the wheel speeds' clock (core/clock_check.py), decided over
         # the first minutes: an offset is reported, not taken out
         lag = None if clock is None else clock.get("lag_s")

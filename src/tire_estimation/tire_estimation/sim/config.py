@@ -92,6 +92,8 @@ class SensorConfig(Checked):
     #: Injected: the IMU turned by this angle about z on its mount (or published in its own
     #: axes): it reports base_link's horizontal vectors rotated by minus this angle, deg.
     imu_mounting_yaw_deg: Annotated[float, in_range(-180.0, 180.0)] = 0.0
+    #: Injected: the IMU upside down (turned 180 deg about x, before the yaw above).
+    imu_upside_down: Flag = False
 
     # --- GNSS (antenna at VehicleParams.gnss_antenna_position_m) ---
     gnss_rate_hz: Annotated[float, in_range(0.1, 100.0)] = 10.0

@@ -198,6 +198,9 @@ def imu(
     )
     gyro = w_true + gyro_bias + rng.standard_normal((m, 3)) * cfg.gyro_noise_std_rad_s
     accel = f_true + acc_bias + rng.standard_normal((m, 3)) * cfg.accel_noise_std_m_s2
+    if cfg.imu_upside_down:
+        # injected: turned by 180 degrees about x, y and z change sign
+        gyro, accel = gyro * [1.0, -1.0, -1.0], accel * [1.0, -1.0, -1.0]
     if cfg.imu_mounting_yaw_deg:
         # injected: the IMU turned by psi about z reports R(-psi) times the base_link vectors
         c, s = (
