@@ -50,7 +50,7 @@ def test_an_imu_upside_down_is_turned_back_and_said(
     printed = capsys.readouterr().out
     assert flipped["imu_mounting"]["upside_down"]
     assert not flipped["imu_mounting"]["corrected"]
-    assert "IMU AXES: the IMU is upside down" in printed
+    assert "IMU AXES: the IMU's z axis points down" in printed
     # the gyro was turned back with it: no reversed yaw rate left for the axle check
     assert flipped["radii"]["gyro_reversed"] is False
     lateral = flipped["lateral_by_source"]["stiffness_mpf"]

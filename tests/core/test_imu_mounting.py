@@ -123,3 +123,15 @@ def test_an_imu_upside_down_is_turned_back_before_its_yaw_is_fitted() -> None:
     upright = ImuMountingCheck(RADIUS_M, TRACK_M)
     _drive(upright, 0.0)
     assert not upright.result.upside_down and not upright.rotating
+
+
+def test_upside_down_and_turned_counts_two_changes_of_the_axes() -> None:
+    check = ImuMountingCheck(RADIUS_M, TRACK_M)
+    rows = _drive(check, 90.0, upside_down=True)
+    res = check.result
+    # the drive's IMU reads F R(-90 deg) a (F: 180 deg about x); turned back by F first, the
+    # yaw left is the drive's
+    assert res.upside_down and res.corrected and check.turns == 2
+    assert res.yaw_deg == pytest.approx(90.0)
+    a, f = np.array([r[0] for r in rows[-2000:]]), np.array([r[1] for r in rows[-2000:]])
+    assert np.sqrt(np.mean((f - a) ** 2)) < 0.15

@@ -118,10 +118,11 @@ class ReplayReport:
         mount = m.get("imu_mounting") or {}
         if mount.get("upside_down"):
             lines.append(
-                "  IMU AXES: the IMU is upside down (its specific force reads -g on z): its "
-                f"samples were turned by 180 deg about x after its first {GRAVITY_SAMPLES} and "
-                "the IMU-driven lateral estimators restarted then: publish the IMU in base_link "
-                "axes (REP-103)"
+                "  IMU AXES: the IMU's z axis points down (mounted upside down, or publishing "
+                "the aerospace axes x forward, y right, z down: its specific force reads -g on "
+                f"z): its samples were turned by 180 deg about x after the first {GRAVITY_SAMPLES}"
+                " samples, and the IMU-driven lateral estimators restarted then: publish the "
+                "IMU in base_link axes (REP-103)"
             )
         if mount.get("corrected"):
             lines.append(

@@ -26,9 +26,10 @@ rotated axes). A smaller angle is reported, not corrected.
 
 A mirrored pair of axes is not a rotation, but with little lateral excitation it fits as well
 as one; an angle is decided only while the rotation fits better than the mirror image
-(:data:`MIN_MIRROR_MARGIN`). An IMU upside down (z pointing down: its mean specific force
-reads about -g on z over its first :data:`GRAVITY_SAMPLES` samples) is turned back first, by
-180 degrees about x, before the yaw is fitted.
+(:data:`MIN_MIRROR_MARGIN`). An IMU upside down, or one publishing the aerospace axes (x
+forward, y right, z down), reads about -g on z over its first :data:`GRAVITY_SAMPLES` samples:
+its samples are turned by 180 degrees about x (into x forward, y left, z up) before the yaw is
+fitted.
 """
 
 from __future__ import annotations
@@ -141,6 +142,12 @@ class ImuMountingCheck:
     def rotating(self) -> bool:
         """The IMU samples are being turned into ``base_link`` (a yaw, or upside down)."""
         return self.result.corrected or self.result.upside_down
+
+    @property
+    def turns(self) -> int:
+        """How many times the turn applied to the samples changed (0, 1 or 2): a consumer that
+        learned from the samples before a change learned from other axes."""
+        return int(self.result.upside_down) + int(self.result.corrected)
 
     def on_wheel_speeds(self, t_ns: int, wheel_speed_rad_s: F64) -> None:
         """Advance the block with the rear wheels' speed and yaw rate."""

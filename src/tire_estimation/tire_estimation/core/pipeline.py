@@ -305,7 +305,7 @@ class EstimationPipeline:
         #: the IMU's mounting yaw, fitted against the wheels; rotates the IMU samples into
         #: base_link once a large one is decided
         self.imu_mounting = ImuMountingCheck(vehicle.nominal_tire_radius_m, vehicle.track_width_m)
-        self._imu_rotated = False
+        self._imu_turns = 0
         self._observers: tuple[Observer, ...] = ()
         self._sample_observers: dict[type, tuple[Observer, ...]] = {}
         self.add_observers(*observers)
@@ -432,9 +432,9 @@ class EstimationPipeline:
             gyro, acc = mounting.on_imu(
                 t, sample.angular_velocity_rad_s, sample.linear_acceleration_m_s2
             )
-            if mounting.rotating and not self._imu_rotated:
-                # the IMU-driven lateral estimators learned from rotated axes
-                self._imu_rotated = True
+            if mounting.turns != self._imu_turns:
+                # the IMU-driven lateral estimators learned from other axes
+                self._imu_turns = mounting.turns
                 for est in self._lateral_imu:
                     est.reset()
             for on_imu in self._to_imu:

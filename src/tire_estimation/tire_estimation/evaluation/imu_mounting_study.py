@@ -62,6 +62,7 @@ def run_one(
         "yaw_deg": mount.yaw_deg,
         "decided": mount.decided,
         "corrected": mount.corrected,
+        "upside_down": mount.upside_down,
         "decided_s": None
         if mount.decided_t_ns is None
         else (mount.decided_t_ns - int(truth.t_ns[0])) * 1e-9,
@@ -84,7 +85,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     clean = {r["seed"]: r for r in rows if r["angle_deg"] == 0.0}
     for angle in args.angles:
         sel = [r for r in rows if r["angle_deg"] == angle]
-        found = [r["yaw_deg"] - angle for r in sel if r["decided"]]
+        # upside down (turned about x before the yaw): turned back first, the yaw seen is -angle
+        found = [
+            r["yaw_deg"] - (-angle if r["upside_down"] else angle) for r in sel if r["decided"]
+        ]
         off = np.abs((np.array(found) + 180.0) % 360.0 - 180.0) if found else np.array([np.nan])
         diff = [
             np.abs(np.subtract(r["radius_error_mm"], clean[r["seed"]]["radius_error_mm"])).max()
@@ -93,7 +97,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         ]
         stiff = np.abs([v for r in sel for v in r["stiffness_error_pct"].values()])
         print(
-            f"{angle:+.0f} deg: decided on {len(found)}/{len(sel)} (angle off by at most "
+            f"{angle:+.0f} deg: upside down on {sum(r['upside_down'] for r in sel)}; decided on "
+            f"{len(found)}/{len(sel)} (angle off by at most "
             f"{off.max():.2f} deg), corrected on {sum(r['corrected'] for r in sel)}, at "
             f"{max((r['decided_s'] or 0.0) for r in sel):.0f} s at the latest; rear errors "
             f"RMS {np.sqrt(np.mean(np.square([r['radius_error_mm'] for r in sel]))):.3f} mm, "
