@@ -1,4 +1,5 @@
-"""The IMU's yaw mounting: the angle between its horizontal axes and ``base_link``'s.
+"""The IMU's mounting: the yaw between its horizontal axes and ``base_link``'s, and whether it is
+upside down.
 
 The contract asks for IMU samples in ``base_link`` axes; a driver that publishes in the
 sensor's own axes, or a board turned on its mount, rotates the horizontal specific force and
@@ -21,8 +22,9 @@ or turned enough (:data:`MIN_EXCITATION_M2_S4`) and ``rho`` is at least :data:`M
 the angle is decided; a fit near a right angle (90, 180 or 270 degrees, the usual mounting
 error) is decided as that angle after :data:`EARLY_BLOCKS`, so that little is learned from
 rotated axes. One of :data:`MIN_CORRECTED_DEG` or more is taken out of every later sample
-(accelerometer and gyro x, y), and the IMU-driven estimators restart (they learned from
-rotated axes). A smaller angle is reported, not corrected.
+(accelerometer and gyro x, y); the pipeline restarts the IMU-driven lateral estimators at each
+change of the axes (:attr:`ImuMountingCheck.turns`: they learned from other axes). A smaller
+angle is reported, not corrected.
 
 A mirrored pair of axes is not a rotation, but with little lateral excitation it fits as well
 as one; an angle is decided only while the rotation fits better than the mirror image
