@@ -132,11 +132,10 @@ class ImuMountingCheck:
         # sums over the used blocks: of f, a, f.f, a.a, fx ax, fy ay, fx ay, fy ax
         self._sums = np.zeros(10)
         self._blocks = 0
-        self._cos = 1.0
-        self._sin = 0.0
+        # the decided yaw's rotation
+        self._cos, self._sin = 1.0, 0.0
         # the vertical specific force of the first samples (the gravity check)
-        self._fz_sum = 0.0
-        self._fz_n = 0
+        self._fz_sum, self._fz_n = 0.0, 0
         self._gravity_checked = False
         self.result = MountingResult(None, None, False, False, None, 0)
 
