@@ -77,6 +77,7 @@ def test_the_summary_names_a_lost_wheel_a_reversing_car_and_a_failed_initializat
     assert "CLOCKS" not in plain and "RADII RESCALED" not in plain
     assert radii["rescales"] == []  # a clean drive's GNSS speed agrees with the wheels'
     assert radii["rescale_sources"] == []
+    assert radii["fix_covariance"] == {"scale": 1.0, "changes": []}
     assert radii["gyro_reversed"] is False and radii["axles"]["rear"]["swapped"] is False
     assert radii["wheels_reversed"] == []
     metrics["clock_check"] = {
@@ -92,6 +93,7 @@ def test_the_summary_names_a_lost_wheel_a_reversing_car_and_a_failed_initializat
     radii["wheels_reversed"] = ["wheel_fr", "wheel_rr"]
     radii["rescale_sources"] = ["fixes"]
     radii["rescales_refused"] = [3.226]
+    radii["fix_covariance"] = {"scale": 11.2, "changes": [11.2]}
     radii["failed_initializations"] = {"count": 7, "median_distance_ratio": 0.31}
     for learn in radii["learning"].values():
         learn["learned_s"], learn["paused_s"] = 0.0, {"reversing": 50.0}
@@ -113,6 +115,9 @@ def test_the_summary_names_a_lost_wheel_a_reversing_car_and_a_failed_initializat
     assert "RADII RESCALED 1 time(s) (+5.7 % from the fixes)" in text
     assert "RADII NOT RESCALED: the GNSS distance was 3.23 times the wheels'" in text
     assert "RADII NOT RESCALED" not in plain and radii["rescales_refused"] == [3.226]
+    assert "FIX COVARIANCE SCALED: the fixes' innovations showed their stated " in text
+    assert "position_covariance too small" in text and "times 11.2 (std times 3.3)" in text
+    assert "FIX COVARIANCE" not in plain and radii["fix_covariance"]["changes"] == [11.2]
     assert "WIRING: the rear wheels' left and right speeds arrived exchanged; the gyro's" in text
     assert "wheel_fr, wheel_rr turned backward while the GNSS moved forward" in text
     assert "WIRING" not in plain

@@ -479,6 +479,8 @@ def test_gnss_velocity_is_subscribed_used_and_bad_ones_are_counted(
     assert "drive_slip.source" not in values
     # the GNSS speed agrees with the wheels': no rescaling of the radii
     assert values["speed_scale.rescales"] == "0"
+    # 30 s of fixes as accurate as stated: their covariance is used as it is
+    assert values["gnss.covariance_scale"] == "1"
     # straight driving tells neither the axles nor the gyro's sign: nothing is rewired
     assert values["gyro.yaw_reversed"] == "false" and values["axle.rear.swapped"] == "false"
     assert values["wheels.sign_reversed"] == "none"

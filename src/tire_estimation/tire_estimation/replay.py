@@ -232,6 +232,15 @@ class ReplayReport:
                 "than 2 %; check vehicle.yaml's nominal_tire_radius_m, "
                 "or the tyres were changed since the radii were saved"
             )
+        fix_cov = r.get("fix_covariance") or {}
+        if fix_cov.get("changes"):
+            scale = float(fix_cov["scale"])
+            lines.append(
+                "  FIX COVARIANCE SCALED: the fixes' innovations showed their stated "
+                f"position_covariance too {'small' if scale > 1.0 else 'large'} (the median NIS "
+                f"of 30-s windows); the filter used it times {scale:.3g} (std times "
+                f"{math.sqrt(scale):.2g}): correct the GNSS driver's covariance at the source"
+            )
         refused = r.get("rescales_refused") or []
         if refused:
             lines.append(
@@ -1026,6 +1035,10 @@ def build_metrics(
     radii["rescales"] = list(trace.radius_rescales)
     radii["rescale_sources"] = list(trace.radius_rescale_sources)
     radii["rescales_refused"] = list(trace.radius_rescales_refused)
+    radii["fix_covariance"] = {
+        "scale": trace.fix_covariance_scale,
+        "changes": list(trace.fix_covariance_changes),
+    }
     radii["learning"] = ev.learning_metrics(
         arr["t_ns"], trace.wheel_names, arr["active"], trace.reason
     )
@@ -1054,11 +1067,9 @@ def build_metrics(
     ltp = LocalTangentPlane(*trace.origin_lla) if trace.origin_lla is not None else None
     ref_en, against = _reference_positions(bag, arr["t_ns"], ltp)
     pos_rmse = ev.position_rmse_m(arr["pose"][:, :2], ref_en) if ref_en is not None else None
-    if residual_report is not None:
-        pass
-    elif arr["innov_t_ns"].size:
+    if residual_report is None and arr["innov_t_ns"].size:
         residual_report = analyze_residuals(trace)
-    else:
+    elif residual_report is None:
         residual_report = {
             "consistent": None,
             "tests": {

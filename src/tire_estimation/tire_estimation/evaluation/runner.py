@@ -83,6 +83,9 @@ class RadiusTrace:
     radius_rescale_sources: list[str] = field(default_factory=list)
     #: scale factors shown but beyond a plausible radius error (not applied)
     radius_rescales_refused: list[float] = field(default_factory=list)
+    #: the fix covariance's scale and the factors applied to it, at the latest sample
+    fix_covariance_scale: float = 1.0
+    fix_covariance_changes: list[float] = field(default_factory=list)
     rear_brake_decel_m_s2: list[float] = field(default_factory=list)
     agreement_rows: list[NDArray[np.float64]] = field(default_factory=list)
     agreement_params: dict[str, float] = field(default_factory=dict)
@@ -315,6 +318,8 @@ def _record(trace: RadiusTrace, estimator: RadiusEstimator, upd: Any, t_ns: int)
     trace.radius_rescales = list(getattr(est, "radius_rescales", ()))
     trace.radius_rescale_sources = list(getattr(est, "radius_rescale_sources", ()))
     trace.radius_rescales_refused = list(getattr(est, "radius_rescales_refused", ()))
+    trace.fix_covariance_scale = float(getattr(est, "fix_covariance_scale", 1.0))
+    trace.fix_covariance_changes = list(getattr(est, "fix_covariance_changes", ()))
     trace.rear_brake_decel_m_s2.append(float(getattr(est, "rear_brake_decel_m_s2", 0.0)))
     trace.n_eff.append(float(est.n_eff))
     trace.state.append(str(est.state))

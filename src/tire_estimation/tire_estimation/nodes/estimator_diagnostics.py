@@ -89,6 +89,8 @@ def statuses(
         values["wheel_speeds.lag_ms"] = f"{1e3 * est.wheel_speed_lag_s:.1f}"
         # gross scale errors of the radii seen in the GNSS speed, corrected by rescaling
         values["speed_scale.rescales"] = str(len(est.radius_rescales))
+        # the fixes' stated covariance scaled as their innovations have shown it
+        values["gnss.covariance_scale"] = f"{est.fix_covariance_scale:.3g}"
         if est.drive_slip:
             values["drive_slip.source"] = str(est.drive_slip["source"])
             values["drive_slip.mean_pct"] = f"{100 * float(est.drive_slip['mean_slip']):.3f}"

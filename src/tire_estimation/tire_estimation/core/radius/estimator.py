@@ -37,6 +37,7 @@ from tire_estimation.core.radius.axle_check import AxleCheck
 from tire_estimation.core.radius.config import RadiusEstimatorConfig
 from tire_estimation.core.radius.drive_slip import DriveSlip
 from tire_estimation.core.radius.effects import EFFECTS, delay_s
+from tire_estimation.core.radius.fix_scale import FixCovarianceCheck
 from tire_estimation.core.radius.gates import Gates
 from tire_estimation.core.radius.gnss import (
     SPEED_HISTORY,
@@ -199,6 +200,8 @@ class RadiusEstimator(GnssHandling, Reporting, Gates):
         self.drive_slip = DriveSlip(self.vehicle)
         #: the GNSS speed against the wheels' with the learned radii: gross scale errors
         self.speed_scale = SpeedScaleCheck(self.vehicle.nominal_tire_radius_m)
+        #: the fixes' stated covariance against their innovations
+        self.fix_scale = FixCovarianceCheck()
         self._prev_ws: F64 | None = None
         self._prev_rear: tuple[float, float] = (0.0, 0.0)
         self._t_pose_ns: int | None = None
@@ -583,11 +586,6 @@ class RadiusEstimator(GnssHandling, Reporting, Gates):
         # the pose ran on the wrong scale, its fixes rejected: a heading error left in it
         # would be taken up by the restarted split (16 mm within a second on the simulator)
         self._reinit_pose("radii rescaled")
-
-    def _reinit_pose(self, why: str) -> None:
-        self._pose_ok = False
-        self._init = Init()
-        self._reason = f"waiting for GNSS ({why})"
 
 
 __all__ = [

@@ -21,6 +21,7 @@ if TYPE_CHECKING:
     from tire_estimation.core.radius.aug_kf import AugKf
     from tire_estimation.core.radius.axle_check import AxleCheck
     from tire_estimation.core.radius.config import RadiusEstimatorConfig
+    from tire_estimation.core.radius.fix_scale import FixCovarianceCheck
     from tire_estimation.core.radius.model import RadiusMotionModel
     from tire_estimation.core.radius.mpf import RadiusMPF
     from tire_estimation.core.radius.road_grade import RoadGradeFit
@@ -150,6 +151,7 @@ class GnssHandling:
     _last_alt_m: float
     _cache_version: int
     speed_scale: SpeedScaleCheck
+    fix_scale: FixCovarianceCheck
     axles: AxleCheck
 
     def _refresh_cache(self) -> None:
@@ -264,6 +266,8 @@ class GnssHandling:
         covariance. Called by :meth:`on_gnss_fix`; usable directly by tests and simulations."""
         zeros2 = np.zeros(2)
         self._track_fix_period(t_ns)
+        # the stated covariance as the innovations have shown it (fix_scale.py)
+        r_m2 = self.fix_scale.apply(r_m2)
         east_m, north_m, std_m = float(y_m[0]), float(y_m[1]), math.sqrt(0.5 * np.trace(r_m2))
         # the receiver's motion, against which the wheels' signs are told (wheel_signs.py)
         self.axles.signs.on_fix(t_ns, east_m, north_m, std_m)
@@ -295,6 +299,7 @@ class GnssHandling:
         # t - gnss_latency_s, the pose describes base_link at t_pose - wheel_speed_time_offset_s
         ext += self._fix_shift_s
         pred = self.mpf.predict_fix(y_m, r_m2, self.lever_arm_m, ext)
+        self.fix_scale.add(t_ns, pred.nis)
         if not math.isfinite(pred.nis) or pred.nis > self._gate:
             self._drop("gnss_fix", "outlier")
             self._rejections += 1
@@ -456,6 +461,11 @@ class GnssHandling:
         return GnssVelocityUpdate(
             t_ns, upd.innovation_m_s, upd.innovation_cov_m2_s2, upd.nis, True, "updated"
         )
+
+    def _reinit_pose(self, why: str) -> None:
+        self._pose_ok = False
+        self._init = Init()
+        self._reason = f"waiting for GNSS ({why})"
 
     def _initialize(self, t_ns: int, y_m: F64, r_m2: F64) -> GnssUpdate:
         """Two-fix pose initialization: heading from the GNSS displacement vs the odometry."""

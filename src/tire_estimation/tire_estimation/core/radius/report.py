@@ -84,6 +84,9 @@ class RadiusEstimate:
             ``fixes`` (the distance between the fixes of straight runs).
         radius_rescales_refused: scale factors the GNSS showed but beyond what a radius can be
             off (``MAX_RADIUS_ERROR_FRACTION`` of nominal): not applied.
+        fix_covariance_scale: the factor every fix covariance is multiplied by, as the fixes'
+            innovations have shown it (``core/radius/fix_scale.py``); 1 when never changed.
+        fix_covariance_changes: the factors applied to it, in order.
         rear_radius_error_cov_m2: (2, 2) posterior covariance of the rear radius errors
             (wheel_rl, wheel_rr; the diagonal is ``radius_error_std_m`` squared), m^2; None
             when not given.
@@ -114,6 +117,8 @@ class RadiusEstimate:
     radius_rescales: tuple[float, ...] = ()
     radius_rescale_sources: tuple[str, ...] = ()
     radius_rescales_refused: tuple[float, ...] = ()
+    fix_covariance_scale: float = 1.0
+    fix_covariance_changes: tuple[float, ...] = ()
 
 
 #: wheel samples kept to align a GNSS velocity with the wheel speeds (2.56 s at 100 Hz)
@@ -238,6 +243,8 @@ class Reporting:
             radius_rescales=tuple(self.speed_scale.rescales),
             radius_rescale_sources=tuple(self.speed_scale.rescale_sources),
             radius_rescales_refused=tuple(self.speed_scale.refused),
+            fix_covariance_scale=self.fix_scale.scale,
+            fix_covariance_changes=tuple(self.fix_scale.changes),
         )
         return out
 
