@@ -10,6 +10,7 @@ import pytest
 from tire_estimation.core.radius.fix_scale import (
     LIMIT,
     MAX_SCALE,
+    MIN_SHARE,
     WINDOW_MIN_FIXES,
     WINDOW_S,
     FixCovarianceCheck,
@@ -74,6 +75,19 @@ def test_a_window_needs_its_time_and_its_fixes_outliers_and_nan_do_not_move_it()
     nis[::10] = 1e4
     nis[5::10] = math.nan
     assert not any(_feed(check, nis)) and check.scale == 1.0
+
+
+def test_a_stated_covariance_that_is_a_small_part_of_the_innovations_is_not_scaled() -> None:
+    """When the cloud's spread or a Gauss-Markov error of a fixed size makes up most of the
+    innovation covariance, the NIS does not measure the stated covariance: scaling it would run
+    to the bound (a robot configuration with a 2-m Gauss-Markov error did)."""
+    check = FixCovarianceCheck()
+    rng = np.random.default_rng(5)
+    nis = _chi2_2(rng, 6000, 0.05)
+    assert not any(check.add(k * PERIOD_NS, float(v), 0.9 * MIN_SHARE) for k, v in enumerate(nis))
+    assert check.scale == 1.0 and check.last_ratio is not None and check.last_ratio < 0.1
+    later = 10**12  # past the open window
+    assert any(check.add(later + k * PERIOD_NS, float(v), MIN_SHARE) for k, v in enumerate(nis))
 
 
 def test_the_scale_is_bounded_and_a_disabled_check_does_nothing() -> None:

@@ -13,9 +13,12 @@ A window's median NIS over the median of a chi-square variable with 2 degrees of
 the outliers an understated covariance produces). When two windows in a row give ``q`` beyond
 :data:`LIMIT` on the same side, every later fix covariance is multiplied by the geometric mean
 of the two (the total scale bounded to ``1 / MAX_SCALE .. MAX_SCALE``), and the check goes on
-with the scaled fixes. The particle cloud's spread is part of the innovation covariance, so a
-window can overstate ``q`` for a filter that has followed its fixes; the next windows show what
-is left, and nothing within the band is changed.
+with the scaled fixes. A window acts only while the stated covariance makes up at least
+:data:`MIN_SHARE` of the innovation covariance (the rest: the particle cloud's spread, a
+Gauss-Markov error of a fixed size, ``radius.gnss_bias_std_m``): otherwise the NIS does not
+measure it. The cloud's spread also makes a window overstate ``q`` for a filter that has
+followed its fixes; the next windows show what is left, and nothing within the band is
+changed.
 
 On the simulator's drives ``q`` stays within 0.8-1.6 for the clean drives and for the
 unmodelled effects the residual analysis names at the sizes of ``docs/results.md`` (a fix or
@@ -42,6 +45,10 @@ LIMIT = 3.0
 #: the total scale of the fix covariance stays within ``1 / MAX_SCALE .. MAX_SCALE``
 MAX_SCALE = 100.0
 
+#: a window acts only when the stated covariance is at least this share of the innovation
+#: covariance (trace over trace, mean of the window)
+MIN_SHARE = 0.5
+
 #: median of a chi-square variable with 2 degrees of freedom
 CHI2_2_MEDIAN = 2.0 * math.log(2.0)
 
@@ -61,6 +68,7 @@ class FixCovarianceCheck:
         #: the variance factor ``q`` of the last complete window (None before one)
         self.last_ratio: float | None = None
         self._nis: list[float] = []
+        self._share: list[float] = []
         self._t0_ns: int | None = None
         self._pending: float | None = None
 
@@ -68,21 +76,25 @@ class FixCovarianceCheck:
         """The fix covariance ``r_m2`` (2, 2) with the scale applied."""
         return r_m2 if self.scale == 1.0 else r_m2 * self.scale
 
-    def add(self, t_ns: int, nis: float) -> bool:
-        """One fix's NIS (computed with the scaled covariance); return True when the scale
+    def add(self, t_ns: int, nis: float, share: float = 1.0) -> bool:
+        """One fix's NIS (computed with the scaled covariance) and the share of the stated
+        covariance in its innovation covariance (trace over trace); return True when the scale
         changed."""
-        if not self.enabled or not math.isfinite(nis):
+        if not self.enabled or not math.isfinite(nis) or not math.isfinite(share):
             return False
         if self._t0_ns is None:
             self._t0_ns = t_ns
         self._nis.append(nis)
+        self._share.append(share)
         if (t_ns - self._t0_ns) * 1e-9 < WINDOW_S or len(self._nis) < WINDOW_MIN_FIXES:
             return False
         q = statistics.median(self._nis) / CHI2_2_MEDIAN
+        share = statistics.fmean(self._share)
         self._nis.clear()
+        self._share.clear()
         self._t0_ns = None
         self.last_ratio = q
-        if 1.0 / LIMIT <= q <= LIMIT:
+        if 1.0 / LIMIT <= q <= LIMIT or share < MIN_SHARE:
             self._pending = None
             return False
         prev, self._pending = self._pending, q

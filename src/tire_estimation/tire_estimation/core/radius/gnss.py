@@ -299,7 +299,8 @@ class GnssHandling:
         # t - gnss_latency_s, the pose describes base_link at t_pose - wheel_speed_time_offset_s
         ext += self._fix_shift_s
         pred = self.mpf.predict_fix(y_m, r_m2, self.lever_arm_m, ext)
-        self.fix_scale.add(t_ns, pred.nis)
+        share = float(np.trace(r_m2)) / float(np.trace(pred.innovation_cov_m2))
+        self.fix_scale.add(t_ns, pred.nis, share)
         if not math.isfinite(pred.nis) or pred.nis > self._gate:
             self._drop("gnss_fix", "outlier")
             self._rejections += 1
