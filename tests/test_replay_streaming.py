@@ -74,3 +74,26 @@ def test_a_report_over_small_chunks_agrees_to_rounding(
     monkeypatch.setattr(replay, "CHUNK_ROWS", 500)
     chunked = _replay(bag, tmp_path / "chunked", cfg, window_s=4.0)
     assert not _close(chunked, whole)
+
+
+def test_what_the_estimator_did_once_is_reported_once_however_many_windows(
+    tmp_path: Path,
+) -> None:
+    """The radius trace's state lists (the fix covariance's changes, the radii's rescales) hold
+    the latest state, not rows: a replay in windows of 5 s reports them as the whole bag does
+    (they were once appended again for every window)."""
+    from tire_estimation.bag.writer import write_sim_bag
+    from tire_estimation.sim import SensorConfig, simulate
+
+    sensors = SensorConfig(gnss_velocity_enabled=False, gnss_covariance_scale=0.3)
+    bag = write_sim_bag(
+        simulate("robustness", seed=3, minutes=3.0, sensors=sensors), tmp_path / "b"
+    )
+    cfg = tmp_path / "cfg.yaml"
+    cfg.write_text("stiffness_enabled: false\nradius:\n  n_particles: 100\n")
+    whole = _replay(bag, tmp_path / "whole", cfg, window_s=math.inf)
+    changes = whole["radii"]["fix_covariance"]["changes"]
+    assert len(changes) == 1 and changes[0] > 3.0
+    windows = _replay(bag, tmp_path / "windows", cfg, window_s=5.0)
+    assert windows["radii"]["fix_covariance"] == whole["radii"]["fix_covariance"]
+    assert windows["radii"]["rescales"] == whole["radii"]["rescales"] == []

@@ -768,7 +768,7 @@ def _run(
     # what the report needs over the whole drive goes to disk block by block
     bag = ReportBag(meta, spill)
     held: list[tuple[Any, str, tuple[str, ...]]] = [
-        (radius_rec.trace, spill.prefix("radius"), ()),
+        (radius_rec.trace, spill.prefix("radius"), RadiusTrace.LATEST),
         (force_rec.trace, spill.prefix("tyre_force"), ()),
         (detect_rec, spill.prefix("detection"), ("alarms",)),
         *((rec.trace, spill.prefix(name), ()) for name, rec in imu_recs.items()),
@@ -862,12 +862,12 @@ def _radius_run(
 
     def samples() -> Iterator[Any]:
         for block in stream.blocks():
-            drain(recorder.trace, spill, prefix)
+            drain(recorder.trace, spill, prefix, RadiusTrace.LATEST)
             yield from bag_samples(block, radius_only=True)
 
     pipeline.push_ordered(samples())
     recorder.flush(pipeline)
-    drain(recorder.trace, spill, prefix)
+    drain(recorder.trace, spill, prefix, RadiusTrace.LATEST)
     recorder.trace = Spilled(recorder.trace, spill, prefix)  # type: ignore[assignment]
     return recorder.finish(pipeline)
 

@@ -25,14 +25,15 @@ def _feed(check: FixCovarianceCheck, nis: np.ndarray, t0_ns: int = 0) -> list[bo
     return [check.add(t0_ns + k * PERIOD_NS, float(v)) for k, v in enumerate(nis)]
 
 
-def _chi2_2(rng: np.random.Generator, n: int, factor: float) -> np.ndarray:
-    """NIS of fixes whose variance is ``factor`` times the stated one (2 dof)."""
-    return factor * rng.chisquare(2.0, n)
+def _chi2_1(rng: np.random.Generator, n: int, factor: float) -> np.ndarray:
+    """Squared innovations across the track over their stated variance, the fixes' variance
+    ``factor`` times the stated one (1 dof)."""
+    return factor * rng.chisquare(1.0, n)
 
 
 def test_stated_covariance_that_fits_is_left_alone() -> None:
     check = FixCovarianceCheck()
-    changed = _feed(check, _chi2_2(np.random.default_rng(0), 6000, 1.0))
+    changed = _feed(check, _chi2_1(np.random.default_rng(0), 6000, 1.0))
     assert not any(changed) and check.scale == 1.0 and check.changes == []
     assert check.last_ratio is not None and abs(check.last_ratio - 1.0) < 0.3
 
@@ -41,13 +42,13 @@ def test_stated_covariance_that_fits_is_left_alone() -> None:
 def test_two_windows_beyond_the_band_scale_the_covariance(factor: float) -> None:
     check = FixCovarianceCheck()
     n_window = int(WINDOW_S * 1e9 / PERIOD_NS) + 1
-    changed = _feed(check, _chi2_2(np.random.default_rng(1), 2 * n_window, factor))
+    changed = _feed(check, _chi2_1(np.random.default_rng(1), 2 * n_window, factor))
     # the first window only notes the ratio; the second, on the same side, scales
     assert changed.index(True) == 2 * n_window - 1 and changed.count(True) == 1
     assert check.scale == pytest.approx(factor, rel=0.25)
     assert check.changes == [check.scale] and check.change_t_ns == [(2 * n_window - 1) * PERIOD_NS]
     # with the scale applied the innovations fit: nothing more changes
-    more = _feed(check, _chi2_2(np.random.default_rng(2), 3 * n_window, 1.0), 10**12)
+    more = _feed(check, _chi2_1(np.random.default_rng(2), 3 * n_window, 1.0), 10**12)
     assert not any(more) and len(check.changes) == 1
     assert np.allclose(check.apply(np.eye(2)), check.scale * np.eye(2))
 
@@ -58,7 +59,7 @@ def test_one_window_off_opposite_sides_or_inside_the_band_change_nothing() -> No
     n_window = int(WINDOW_S * 1e9 / PERIOD_NS) + 1
     t0 = 0
     for factor in (10.0, 1.0, 10.0, 0.1, 0.9 * LIMIT, 0.9 * LIMIT, 1.1 / LIMIT, 1.1 / LIMIT):
-        assert not any(_feed(check, _chi2_2(rng, n_window, factor), t0))
+        assert not any(_feed(check, _chi2_1(rng, n_window, factor), t0))
         t0 += 10**12
     assert check.scale == 1.0
 
@@ -71,7 +72,7 @@ def test_a_window_needs_its_time_and_its_fixes_outliers_and_nan_do_not_move_it()
     # NaN is not counted; the median ignores a tenth of gross outliers
     check = FixCovarianceCheck()
     rng = np.random.default_rng(4)
-    nis = _chi2_2(rng, 6000, 1.0)
+    nis = _chi2_1(rng, 6000, 1.0)
     nis[::10] = 1e4
     nis[5::10] = math.nan
     assert not any(_feed(check, nis)) and check.scale == 1.0
@@ -83,7 +84,7 @@ def test_a_stated_covariance_that_is_a_small_part_of_the_innovations_is_not_scal
     to the bound (a robot configuration with a 2-m Gauss-Markov error did)."""
     check = FixCovarianceCheck()
     rng = np.random.default_rng(5)
-    nis = _chi2_2(rng, 6000, 0.05)
+    nis = _chi2_1(rng, 6000, 0.05)
     assert not any(check.add(k * PERIOD_NS, float(v), 0.9 * MIN_SHARE) for k, v in enumerate(nis))
     assert check.scale == 1.0 and check.last_ratio is not None and check.last_ratio < 0.1
     later = 10**12  # past the open window

@@ -45,6 +45,16 @@ class RadiusTrace:
     configuration values its analysis needs in ``agreement_params``.
     """
 
+    #: list attributes that hold the latest state, not one row per sample: a replay that moves
+    #: the rows to disk block by block keeps them in memory
+    LATEST: ClassVar[tuple[str, ...]] = (
+        "init_distance_ratios",
+        "radius_rescales",
+        "radius_rescale_sources",
+        "radius_rescales_refused",
+        "fix_covariance_changes",
+    )
+
     wheel_names: tuple[str, ...] = ()
     t_ns: list[int] = field(default_factory=list)
     radius_error_m: list[NDArray[np.float64]] = field(default_factory=list)

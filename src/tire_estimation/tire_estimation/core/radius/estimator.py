@@ -571,10 +571,11 @@ class RadiusEstimator(GnssHandling, Reporting, Gates):
         niw.time_update(self._front, self.config.forgetting_factor)
         niw.measurement_update(self._front, delta[None, :])
 
-    def _scale_radii(self, factor: float) -> None:
-        """A gross scale error seen in the GNSS speed (:mod:`.speed_scale`): the radii learn
-        again from the prior, centred on the common radius times ``factor`` (the front ones
-        likewise), and the pose is initialized again from the next two fixes."""
+    def _scale_radii(self, factor: float, why: str = "radii rescaled") -> None:
+        """A gross scale error in the GNSS speed (:mod:`.speed_scale`; fixes less accurate than
+        stated, :mod:`.fix_scale`, with ``factor`` 1): the radii learn again from the prior,
+        centred on the common radius times ``factor`` (the front ones likewise), and the pose is
+        initialized again from the next two fixes."""
         self.mpf.scale_radii(factor)
         if self.kf is not None:
             self.kf.scale_radii(factor)
@@ -585,7 +586,7 @@ class RadiusEstimator(GnssHandling, Reporting, Gates):
         self._set_cache(self.mpf.estimate())
         # the pose ran on the wrong scale, its fixes rejected: a heading error left in it
         # would be taken up by the restarted split (16 mm within a second on the simulator)
-        self._reinit_pose("radii rescaled")
+        self._reinit_pose(why)
 
 
 __all__ = [

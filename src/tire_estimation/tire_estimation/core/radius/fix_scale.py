@@ -49,8 +49,8 @@ MAX_SCALE = 100.0
 #: covariance (trace over trace, mean of the window)
 MIN_SHARE = 0.5
 
-#: median of a chi-square variable with 2 degrees of freedom
-CHI2_2_MEDIAN = 2.0 * math.log(2.0)
+#: median of a chi-square variable with 1 degree of freedom
+CHI2_1_MEDIAN = 0.45493642311957283
 
 
 class FixCovarianceCheck:
@@ -77,9 +77,9 @@ class FixCovarianceCheck:
         return r_m2 if self.scale == 1.0 else r_m2 * self.scale
 
     def add(self, t_ns: int, nis: float, share: float = 1.0) -> bool:
-        """One fix's NIS (computed with the scaled covariance) and the share of the stated
-        covariance in its innovation covariance (trace over trace); return True when the scale
-        changed."""
+        """One fix's innovation across the track, squared over its predicted variance (with the
+        scaled covariance), and the share of the stated covariance in that variance; return
+        True when the scale changed."""
         if not self.enabled or not math.isfinite(nis) or not math.isfinite(share):
             return False
         if self._t0_ns is None:
@@ -88,7 +88,7 @@ class FixCovarianceCheck:
         self._share.append(share)
         if (t_ns - self._t0_ns) * 1e-9 < WINDOW_S or len(self._nis) < WINDOW_MIN_FIXES:
             return False
-        q = statistics.median(self._nis) / CHI2_2_MEDIAN
+        q = statistics.median(self._nis) / CHI2_1_MEDIAN
         share = statistics.fmean(self._share)
         self._nis.clear()
         self._share.clear()

@@ -23,7 +23,7 @@ if TYPE_CHECKING:
     from tire_estimation.core.radius.config import RadiusEstimatorConfig
     from tire_estimation.core.radius.fix_scale import FixCovarianceCheck
     from tire_estimation.core.radius.model import RadiusMotionModel
-    from tire_estimation.core.radius.mpf import RadiusMPF
+    from tire_estimation.core.radius.mpf import MpfEstimate, RadiusMPF
     from tire_estimation.core.radius.road_grade import RoadGradeFit
     from tire_estimation.core.radius.speed_scale import SpeedScaleCheck
 
@@ -152,6 +152,7 @@ class GnssHandling:
     _cache_version: int
     speed_scale: SpeedScaleCheck
     fix_scale: FixCovarianceCheck
+    _cache: MpfEstimate
     axles: AxleCheck
 
     def _refresh_cache(self) -> None:
@@ -299,8 +300,18 @@ class GnssHandling:
         # t - gnss_latency_s, the pose describes base_link at t_pose - wheel_speed_time_offset_s
         ext += self._fix_shift_s
         pred = self.mpf.predict_fix(y_m, r_m2, self.lever_arm_m, ext)
-        share = float(np.trace(r_m2)) / float(np.trace(pred.innovation_cov_m2))
-        self.fix_scale.add(t_ns, pred.nis, share)
+        # the innovation across the track (fix_scale.py): along it a wrong radius scale, a
+        # latency or a wheel-speed offset move the fixes as well
+        yaw = float(self._cache.pose[2])
+        across = np.array([-math.sin(yaw), math.cos(yaw)])
+        s_across = float(across @ pred.innovation_cov_m2 @ across)
+        nis_across = float(across @ pred.innovation_m) ** 2 / s_across
+        share = float(across @ r_m2 @ across) / s_across
+        if self.fix_scale.add(t_ns, nis_across, share) and self.fix_scale.changes[-1] > 1.0:
+            # what was learned from fixes trusted beyond their accuracy (a split of 20 mm within
+            # 20 s on a simulated drive) is not kept: the radii and the pose start again
+            self._scale_radii(1.0, "fixes less accurate than stated")
+            return self._initialize(t_ns, y_m, r_m2 * self.fix_scale.changes[-1])
         if not math.isfinite(pred.nis) or pred.nis > self._gate:
             self._drop("gnss_fix", "outlier")
             self._rejections += 1
