@@ -115,7 +115,7 @@ def test_the_summary_names_a_lost_wheel_a_reversing_car_and_a_failed_initializat
     assert "RADII RESCALED 1 time(s) (+5.7 % from the fixes)" in text
     assert "RADII NOT RESCALED: the GNSS distance was 3.23 times the wheels'" in text
     assert "RADII NOT RESCALED" not in plain and radii["rescales_refused"] == [3.226]
-    assert "FIX COVARIANCE SCALED: the fixes' innovations showed their stated " in text
+    assert "FIX COVARIANCE SCALED: the fixes' innovations across the track showed" in text
     assert "position_covariance too small" in text and "times 11.2 (std times 3.3)" in text
     assert "FIX COVARIANCE" not in plain and radii["fix_covariance"]["changes"] == [11.2]
     assert "WIRING: the rear wheels' left and right speeds arrived exchanged; the gyro's" in text

@@ -236,9 +236,9 @@ class ReplayReport:
         if fix_cov.get("changes"):
             scale = float(fix_cov["scale"])
             lines.append(
-                "  FIX COVARIANCE SCALED: the fixes' innovations showed their stated "
-                f"position_covariance too {'small' if scale > 1.0 else 'large'} (the median NIS "
-                f"of 30-s windows); the filter used it times {scale:.3g} (std times "
+                "  FIX COVARIANCE SCALED: the fixes' innovations across the track showed their "
+                f"stated position_covariance too {'small' if scale > 1.0 else 'large'} (30-s "
+                f"windows); the filter used it times {scale:.3g} (std times "
                 f"{math.sqrt(scale):.2g}): correct the GNSS driver's covariance at the source"
             )
         refused = r.get("rescales_refused") or []
