@@ -14,6 +14,7 @@ from tire_estimation.core.radius.fix_scale import (
     WINDOW_MIN_FIXES,
     WINDOW_S,
     FixCovarianceCheck,
+    across_track,
 )
 from tire_estimation.evaluation.sim_runs import simulated_radius_run
 
@@ -29,6 +30,17 @@ def _chi2_1(rng: np.random.Generator, n: int, factor: float) -> np.ndarray:
     """Squared innovations across the track over their stated variance, the fixes' variance
     ``factor`` times the stated one (1 dof)."""
     return factor * rng.chisquare(1.0, n)
+
+
+def test_the_innovation_across_the_track() -> None:
+    """Heading north-east: across is north-west; a variance that is not positive gives NaN."""
+    yaw = math.pi / 4.0
+    across = np.array([-1.0, 1.0]) / math.sqrt(2.0)
+    innovation = 2.0 * across + np.array([5.0, 5.0])  # 2 m across, the rest along
+    s_m2, r_m2 = np.diag([4.0, 4.0]), np.diag([1.0, 3.0])
+    nis, share = across_track(yaw, innovation, s_m2, r_m2)
+    assert nis == pytest.approx(1.0) and share == pytest.approx(0.5)
+    assert all(math.isnan(v) for v in across_track(yaw, innovation, np.zeros((2, 2)), r_m2))
 
 
 def test_stated_covariance_that_fits_is_left_alone() -> None:

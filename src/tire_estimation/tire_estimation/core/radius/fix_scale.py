@@ -36,6 +36,8 @@ from __future__ import annotations
 import math
 import statistics
 
+import numpy as np
+
 from tire_estimation.core.arrays import F64
 
 #: a window's length, s
@@ -50,12 +52,25 @@ LIMIT = 3.0
 #: the total scale of the fix covariance stays within ``1 / MAX_SCALE .. MAX_SCALE``
 MAX_SCALE = 100.0
 
-#: a window acts only when the stated covariance is at least this share of the innovation
-#: covariance (trace over trace, mean of the window)
+#: a window acts only when the stated covariance is at least this share of the innovation's
+#: predicted variance (across the track, mean of the window)
 MIN_SHARE = 0.5
 
 #: median of a chi-square variable with 1 degree of freedom
 CHI2_1_MEDIAN = 0.45493642311957283
+
+
+def across_track(yaw_rad: float, innovation_m: F64, s_m2: F64, r_m2: F64) -> tuple[float, float]:
+    """The innovation across the track (heading ``yaw_rad`` turned left), squared over its
+    predicted variance from ``s_m2`` (2, 2), and the share of the stated covariance ``r_m2``
+    (2, 2) in that variance; NaN for both when the variance is not positive."""
+    across = np.array([-math.sin(yaw_rad), math.cos(yaw_rad)])
+    # c^T S c, c^T nu, c^T R c
+    s = float(across @ s_m2 @ across)
+    if not s > 0.0:
+        return math.nan, math.nan
+    nu = float(across @ innovation_m)
+    return nu * nu / s, float(across @ r_m2 @ across) / s
 
 
 class FixCovarianceCheck:

@@ -13,6 +13,7 @@ import numpy as np
 
 from tire_estimation.core.arrays import F64
 from tire_estimation.core.input_checks import checked_covariance
+from tire_estimation.core.radius.fix_scale import across_track
 from tire_estimation.core.radius.inputs import finite, is_int
 from tire_estimation.core.samples import MAX_ABS_ALTITUDE_M
 from tire_estimation.errors import InputError
@@ -302,11 +303,9 @@ class GnssHandling:
         pred = self.mpf.predict_fix(y_m, r_m2, self.lever_arm_m, ext)
         # the innovation across the track (fix_scale.py): along it a wrong radius scale, a
         # latency or a wheel-speed offset move the fixes as well
-        yaw = float(self._cache.pose[2])
-        across = np.array([-math.sin(yaw), math.cos(yaw)])
-        s_across = float(across @ pred.innovation_cov_m2 @ across)
-        nis_across = float(across @ pred.innovation_m) ** 2 / s_across
-        share = float(across @ r_m2 @ across) / s_across
+        nis_across, share = across_track(
+            float(self._cache.pose[2]), pred.innovation_m, pred.innovation_cov_m2, r_m2
+        )
         if self.fix_scale.add(t_ns, nis_across, share) and self.fix_scale.changes[-1] > 1.0:
             # what was learned from fixes trusted beyond their accuracy (a split of 20 mm within
             # 20 s on a simulated drive) is not kept: the radii and the pose start again
