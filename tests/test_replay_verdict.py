@@ -121,6 +121,14 @@ def test_the_summary_names_a_lost_wheel_a_reversing_car_and_a_failed_initializat
     assert "WIRING: the rear wheels' left and right speeds arrived exchanged; the gyro's" in text
     assert "wheel_fr, wheel_rr turned backward while the GNSS moved forward" in text
     assert "WIRING" not in plain
+    # the verdict of a run whose model the estimator changed judges the fixes after the change
+    assert "earlier left out" not in plain
+    metrics["residuals"]["consistent"] = True
+    metrics["residuals"].setdefault("tests", {})["fixes_before_model_change"] = 600
+    assert "after the estimator's latest change to its model (radii rescaled or fix " in (
+        ReplayReport(out, metrics).summary()
+    )
+    assert "fix covariance scaled): 600 earlier left out" in ReplayReport(out, metrics).summary()
     assert "POSE NOT INITIALIZED 7 times" in text and "covered 0.31 of the distance" in text
     assert text.count("NEVER LEARNED") == 2 and "REP-103" in text
 
@@ -154,6 +162,11 @@ def test_a_rear_driven_car_learns_its_slip_and_says_so(tmp_path: Path) -> None:
     errors = metrics["radii"]["final_error_vs_truth_m"]
     assert max(abs(errors["wheel_rl"]), abs(errors["wheel_rr"])) < 0.4e-3
     assert "DRIVEN REAR WHEELS" in ReplayReport(out, metrics).summary()
+    # a car said to be front-driven whose rear wheels slip: the yaml, or the wheel names
+    slip["detected"] = True
+    assert "set drive: rear, unless the front and rear wheel names are exchanged" in (
+        ReplayReport(out, metrics).summary()
+    )
 
 
 def test_a_gnss_on_another_clock_is_realigned_before_the_estimation(

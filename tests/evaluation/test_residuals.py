@@ -637,3 +637,29 @@ def test_mean_nis_fails_above_its_band_and_far_below_it(mean_nis: float, ok: boo
     else:
         assert "scatter far less than the filter predicts" in lines[0]
         assert f"1/{2.0 / mean_nis:.0f} of the predicted variance" in lines[0]
+
+
+def test_fixes_before_the_latest_model_change_are_not_judged() -> None:
+    """Fixes judged with a covariance ten times too small until the estimator scaled it at
+    60 s: with them the mean NIS is far above its band; from the change on the verdict judges
+    the model in use, and says how many fixes it left out."""
+    rng = np.random.default_rng(5)
+    t_s = np.arange(0.0, 300.0, 0.1)
+    t_ns = np.round(t_s * 1e9).astype(np.int64)
+    psi = 0.02 * t_s
+    innov = rng.normal(0.0, 1.0, (t_s.size, 2))
+    var = np.where(t_s < 60.0, 0.1, 1.0)
+    cov = var[:, None, None] * np.eye(2)[None]
+    nis = np.sum(innov**2, axis=1) / var
+    pose = np.column_stack([np.zeros_like(t_s), np.zeros_like(t_s), psi])
+    speed = np.full_like(t_s, 20.0)
+    args = (t_ns, innov, cov, nis, np.ones(t_s.size, dtype=bool), t_ns, pose, speed)
+    whole = rs.analyze(*args)
+    assert whole["tests"]["mean_nis"] > 5.0 and whole["consistent"] is False
+    change_ns = int(60e9)
+    later = rs.analyze(*args, since_t_ns=change_ns)
+    assert later["tests"]["fixes_before_model_change"] == 600
+    assert later["tests"]["n"] == t_s.size - 600
+    assert later["tests"]["mean_nis"] == pytest.approx(2.0, abs=0.1)
+    assert later["tests"]["mean_nis_ok"] is True
+    assert "fixes_before_model_change" not in whole["tests"]

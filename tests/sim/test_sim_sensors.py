@@ -183,6 +183,27 @@ def test_gnss_doppler_velocity_optional() -> None:
     np.testing.assert_array_equal(plain.gnss.lat_deg, res.gnss.lat_deg)
 
 
+def test_stated_accuracies_are_scaled_apart_from_the_errors() -> None:
+    """``gnss_covariance_scale`` and ``gnss_velocity_covariance_scale`` change what the
+    receiver states (the std times the factor), not its errors."""
+    res = simulate("asphalt_sine", seed=1, minutes=0.2)
+    scaled = simulate(
+        "asphalt_sine",
+        seed=1,
+        minutes=0.2,
+        sensors=SensorConfig(gnss_covariance_scale=3.0, gnss_velocity_covariance_scale=0.1),
+    )
+    np.testing.assert_array_equal(scaled.gnss.lat_deg, res.gnss.lat_deg)
+    np.testing.assert_array_equal(scaled.gnss.velocity_enu_m_s, res.gnss.velocity_enu_m_s)
+    np.testing.assert_allclose(
+        scaled.gnss.position_covariance_m2, 9.0 * res.gnss.position_covariance_m2
+    )
+    cov, scaled_cov = res.gnss.velocity_covariance_m2_s2, scaled.gnss.velocity_covariance_m2_s2
+    assert cov is not None and scaled_cov is not None
+    np.testing.assert_allclose(scaled_cov, 0.01 * cov)
+    assert cov[0, 0, 0] == pytest.approx(0.05**2)
+
+
 def test_gnss_velocity_latency_is_injected_apart_from_the_position_latency() -> None:
     """A velocity stamped t describes the antenna at t - gnss_velocity_latency_s, whatever the
     fix's latency; its noise draws are unchanged by the latency."""

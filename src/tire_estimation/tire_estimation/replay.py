@@ -210,7 +210,8 @@ class ReplayReport:
             )
             said = (
                 " (vehicle.yaml says drive: front, but the rear wheels slip with the "
-                "acceleration: set drive: rear)"
+                "acceleration: set drive: rear, unless the front and rear wheel names are "
+                "exchanged)"
                 if slip.get("detected")
                 else ""
             )
@@ -321,6 +322,12 @@ class ReplayReport:
                     "predicts: the reported std may be too large"
                 )
             lines.append(f"  innovations consistent: {res['consistent']} ({meaning})")
+            left_out = res.get("tests", {}).get("fixes_before_model_change")
+            if left_out:
+                lines.append(
+                    f"    judged on the fixes after the estimator's latest change to its model "
+                    f"(radii rescaled or fix covariance scaled): {left_out} earlier left out"
+                )
             lines.extend(f"    why: {why}" for why in res.get("why", []))
         elif res.get("tests", {}).get("note"):
             lines.append(f"  innovations not tested: {res['tests']['note']}")

@@ -16,6 +16,7 @@ from tire_estimation.core.radius.fix_scale import (
     FixCovarianceCheck,
     across_track,
 )
+from tire_estimation.evaluation.residuals import analyze_trace
 from tire_estimation.evaluation.sim_runs import simulated_radius_run
 
 #: fixes at 10 Hz
@@ -119,13 +120,21 @@ def test_a_receiver_that_misstates_its_accuracy_no_longer_misleads_the_radii(
     """Positions only, the fixes' covariance stated 3.3 times too small (std) or 3 times too
     large: without the check the rear radii ended 1.65 mm off at a 0.05 mm std (too small),
     0.27 mm at a 0.44 mm std (too large) on the 10-min version of this drive."""
-    sim, pipeline, _ = simulated_radius_run(
+    sim, pipeline, trace = simulated_radius_run(
         "robustness", 3, 5.0, {"n_particles": 200},
         {"gnss_velocity_enabled": False, "gnss_covariance_scale": stated_scale},
     )  # fmt: skip
     est = pipeline.radius.estimate()
     # the variance is off by 1 / stated_scale^2: found, within a factor of two
     assert low < est.fix_covariance_scale < high and len(est.fix_covariance_changes) >= 1
+    # the verdict judges the fixes from the latest change on
+    assert est.model_change_t_ns == pipeline.radius.fix_scale.change_t_ns[-1]
+    assert trace.model_change_t_ns == est.model_change_t_ns
+    judged = analyze_trace(trace)["tests"]
+    assert judged["fixes_before_model_change"] == np.count_nonzero(
+        np.asarray(trace.innov_t_ns) < est.model_change_t_ns
+    )
+    assert judged["fixes_before_model_change"] > 0
     true = sim.truth.wheel_radius_m[-1, 2:]
     error = 0.31 + np.asarray(est.radius_error_m) - true
     assert np.all(np.abs(error) < 3.0 * np.asarray(est.radius_error_std_m))
@@ -136,5 +145,6 @@ def test_clean_drives_are_not_scaled() -> None:
     _, pipeline, _ = simulated_radius_run("robustness", 3, 5.0, {"n_particles": 200}, {})
     est = pipeline.radius.estimate()
     assert est.fix_covariance_scale == 1.0 and est.fix_covariance_changes == ()
+    assert est.model_change_t_ns is None
     assert pipeline.radius.fix_scale.last_ratio is not None
     assert 1.0 / LIMIT < pipeline.radius.fix_scale.last_ratio < LIMIT

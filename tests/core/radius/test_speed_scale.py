@@ -74,6 +74,8 @@ def test_a_wrong_nominal_radius_is_found_in_seconds(stated_radius_m: float) -> N
     )
     est = pipeline.radius.estimate()
     assert len(est.radius_rescales) == 1
+    assert est.model_change_t_ns is not None
+    assert est.model_change_t_ns >= pipeline.radius.speed_scale.rescale_t_ns[0]
     # the factor takes the radii from where the first seconds of learning left them (about
     # 3.5 mm of the 20 mm) to the truth
     factor = est.radius_rescales[0]
@@ -209,6 +211,8 @@ def test_a_wrong_nominal_radius_is_found_from_positions_alone() -> None:
     )  # fmt: skip
     est = pipeline.radius.estimate()
     assert len(est.radius_rescales) == 1
+    assert est.model_change_t_ns is not None
+    assert est.model_change_t_ns >= pipeline.radius.speed_scale.rescale_t_ns[0]
     assert pipeline.radius.speed_scale.rescale_sources == ["fixes"]
     true = sim.truth.wheel_radius_m[-1, 2:]
     error = 0.29 + np.asarray(est.radius_error_m) - true

@@ -182,6 +182,7 @@ def analyze(
     road_grade_rad: F64 | None = None,
     rear_brake_decel_m_s2: F64 | None = None,
     sensor_agreement: Mapping[str, Any] | None = None,
+    since_t_ns: int | None = None,
 ) -> dict[str, Any]:
     """The ``residuals`` block of metrics.json: consistency tests, regressions, ranked effects.
 
@@ -195,10 +196,20 @@ def analyze(
     innovation signature of each effect it tested (wheel-speed time offset, velocity latency,
     speed- and load-dependent radius, brake slip, lateral lever arm) by its own: a size from
     the sensors, not attenuated by the filter, significant only when it also matters
-    (``tests.agreement``).
+    (``tests.agreement``). Fixes stamped before ``since_t_ns`` (the estimator's latest change
+    to its own model, ``RadiusEstimate.model_change_t_ns``) are left out: a model no longer in
+    use predicted them (``tests.fixes_before_model_change``).
     """
+    skipped = 0
+    if since_t_ns is not None:
+        later = innov_t_ns >= since_t_ns
+        skipped = int(np.count_nonzero(~later))
+        innov_t_ns, innov_m, innov_cov_m2 = innov_t_ns[later], innov_m[later], innov_cov_m2[later]
+        nis, accepted = nis[later], accepted[later]
     base = innovation_tests(innov_m, innov_cov_m2, nis, accepted)
     base.pop("consistent", None)
+    if since_t_ns is not None:
+        base["fixes_before_model_change"] = skipped
     if trace_t_ns.size < 3:
         return _untested(base)
     ok = accepted & np.isfinite(nis) & (innov_t_ns >= trace_t_ns[0]) & (nis > 0)
@@ -502,6 +513,7 @@ def analyze_trace(trace: Any) -> dict[str, Any]:
         road_grade_rad=a.get("road_grade_rad"),
         rear_brake_decel_m_s2=a.get("rear_brake_decel_m_s2"),
         sensor_agreement=agree,
+        since_t_ns=getattr(trace, "model_change_t_ns", None),
     )
 
 

@@ -96,6 +96,8 @@ class RadiusTrace:
     #: the fix covariance's scale and the factors applied to it, at the latest sample
     fix_covariance_scale: float = 1.0
     fix_covariance_changes: list[float] = field(default_factory=list)
+    #: the stamp of the estimator's latest change to its own model (None: none), ns
+    model_change_t_ns: int | None = None
     rear_brake_decel_m_s2: list[float] = field(default_factory=list)
     agreement_rows: list[NDArray[np.float64]] = field(default_factory=list)
     agreement_params: dict[str, float] = field(default_factory=dict)
@@ -330,6 +332,7 @@ def _record(trace: RadiusTrace, estimator: RadiusEstimator, upd: Any, t_ns: int)
     trace.radius_rescales_refused = list(getattr(est, "radius_rescales_refused", ()))
     trace.fix_covariance_scale = float(getattr(est, "fix_covariance_scale", 1.0))
     trace.fix_covariance_changes = list(getattr(est, "fix_covariance_changes", ()))
+    trace.model_change_t_ns = getattr(est, "model_change_t_ns", None)
     trace.rear_brake_decel_m_s2.append(float(getattr(est, "rear_brake_decel_m_s2", 0.0)))
     trace.n_eff.append(float(est.n_eff))
     trace.state.append(str(est.state))

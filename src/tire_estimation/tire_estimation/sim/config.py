@@ -18,7 +18,8 @@ Numbers behind the defaults (all per sample unless named ``_sqrt_s``):
 * GNSS: 10 Hz, white 1.0 m per horizontal axis (1.5 m vertical) plus first-order Gauss-Markov
   error with sigma 1.0 m horizontal (1.5 m vertical) and tau 120 s, so the total horizontal error
   per axis is sqrt(1.0^2 + 1.0^2) = 1.41 m. Reported covariance = the true total variance (times
-  ``gnss_covariance_scale``^2). Doppler velocity off by default (0.05 m/s when on).
+  ``gnss_covariance_scale``^2). Doppler velocity on by default (0.05 m/s; its reported
+  covariance times ``gnss_velocity_covariance_scale``^2).
 * Tyre forces: 100 Hz on wheel_fl and wheel_rr, noise 100 N (fx), 150 N (fy), 100 N (fz).
 """
 
@@ -108,6 +109,9 @@ class SensorConfig(Checked):
     gnss_velocity_enabled: Flag = True
     gnss_velocity_noise_std_m_s: Annotated[float, in_range(0.0, 10.0)] = 0.05
     gnss_velocity_vertical_noise_std_m_s: Annotated[float, in_range(0.0, 10.0)] = 0.1
+    #: Reported velocity covariance = (scale * true std)^2 (a receiver misstating its speed
+    #: accuracy); 1.0 reports the true noise variance.
+    gnss_velocity_covariance_scale: Annotated[float, in_range(0.01, 100.0)] = 1.0
     #: Injected: a fix stamped t describes the antenna at t - latency, s.
     gnss_latency_s: Annotated[float, in_range(0.0, 2.0)] = 0.0
     #: Injected: a Doppler velocity stamped t (the fix's stamp) describes the antenna at

@@ -281,7 +281,8 @@ def gnss(
             ]
         )
         vel_meas = vel + vel_noise * v_std[None, :]
-        vel_cov = np.broadcast_to(np.diag(v_std**2), (m, 3, 3)).copy()
+        stated = cfg.gnss_velocity_covariance_scale * v_std
+        vel_cov = np.broadcast_to(np.diag(stated**2), (m, 3, 3)).copy()
     out_from = cfg.gnss_outage_from_s
     keep = ~((t >= out_from) & (t < out_from + cfg.gnss_outage_duration_s))
     return GnssStream(

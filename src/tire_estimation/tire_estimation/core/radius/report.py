@@ -87,6 +87,10 @@ class RadiusEstimate:
         fix_covariance_scale: the factor every fix covariance is multiplied by, as the fixes'
             innovations have shown it (``core/radius/fix_scale.py``); 1 when never changed.
         fix_covariance_changes: the factors applied to it, in order.
+        model_change_t_ns: the stamp of the latest change the estimator made to its own model
+            from what the data showed (the rear radii rescaled, the fix covariance scaled), ns;
+            None when it made none. The innovations before it were judged by a model no longer
+            in use: the residual verdict leaves them out.
         rear_radius_error_cov_m2: (2, 2) posterior covariance of the rear radius errors
             (wheel_rl, wheel_rr; the diagonal is ``radius_error_std_m`` squared), m^2; None
             when not given.
@@ -119,6 +123,7 @@ class RadiusEstimate:
     radius_rescales_refused: tuple[float, ...] = ()
     fix_covariance_scale: float = 1.0
     fix_covariance_changes: tuple[float, ...] = ()
+    model_change_t_ns: int | None = None
 
 
 #: wheel samples kept to align a GNSS velocity with the wheel speeds (2.56 s at 100 Hz)
@@ -245,6 +250,9 @@ class Reporting:
             radius_rescales_refused=tuple(self.speed_scale.refused),
             fix_covariance_scale=self.fix_scale.scale,
             fix_covariance_changes=tuple(self.fix_scale.changes),
+            model_change_t_ns=max(
+                [*self.speed_scale.rescale_t_ns, *self.fix_scale.change_t_ns], default=None
+            ),
         )
         return out
 
