@@ -79,7 +79,7 @@ def test_the_summary_names_a_lost_wheel_a_reversing_car_and_a_failed_initializat
     assert radii["rescale_sources"] == []
     assert radii["fix_covariance"] == {"scale": 1.0, "changes": []}
     assert radii["gyro_reversed"] is False and radii["axles"]["rear"]["swapped"] is False
-    assert radii["wheels_reversed"] == []
+    assert radii["wheels_reversed"] == [] and radii["front_rear_exchanged"] is False
     metrics["clock_check"] = {
         "lag_s": 18.0, "correlation": 0.99, "correlation_at_zero": 0.6, "offset": True
     }  # fmt: skip
@@ -91,6 +91,7 @@ def test_the_summary_names_a_lost_wheel_a_reversing_car_and_a_failed_initializat
     radii["gyro_reversed"] = True
     radii["axles"]["rear"]["swapped"] = True
     radii["wheels_reversed"] = ["wheel_fr", "wheel_rr"]
+    radii["front_rear_exchanged"] = True
     radii["rescale_sources"] = ["fixes"]
     radii["rescales_refused"] = [3.226]
     radii["fix_covariance"] = {"scale": 11.2, "changes": [11.2]}
@@ -120,6 +121,7 @@ def test_the_summary_names_a_lost_wheel_a_reversing_car_and_a_failed_initializat
     assert "FIX COVARIANCE" not in plain and radii["fix_covariance"]["changes"] == [11.2]
     assert "WIRING: the rear wheels' left and right speeds arrived exchanged; the gyro's" in text
     assert "wheel_fr, wheel_rr turned backward while the GNSS moved forward" in text
+    assert "the front and rear wheels' names arrived exchanged (the wheels named rear" in text
     assert "WIRING" not in plain
     # the verdict of a run whose model the estimator changed judges the fixes after the change
     assert "earlier left out" not in plain

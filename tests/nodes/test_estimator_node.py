@@ -484,6 +484,7 @@ def test_gnss_velocity_is_subscribed_used_and_bad_ones_are_counted(
     # straight driving tells neither the axles nor the gyro's sign: nothing is rewired
     assert values["gyro.yaw_reversed"] == "false" and values["axle.rear.swapped"] == "false"
     assert values["wheels.sign_reversed"] == "none"
+    assert values["axle.front_rear_exchanged"] == "false"
     # constant speed, no IMU: the IMU's mounting is never decided
     assert values["imu.mounting_yaw_deg"] == "checking" and values["imu.rotated"] == "false"
     est = node.estimator.estimate()

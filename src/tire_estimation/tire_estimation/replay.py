@@ -182,7 +182,8 @@ class ReplayReport:
             )
         swapped = [a for a, st in (r.get("axles") or {}).items() if st.get("swapped")]
         reversed_wheels = r.get("wheels_reversed") or []
-        if swapped or r.get("gyro_reversed") or reversed_wheels:
+        exchanged = r.get("front_rear_exchanged")
+        if swapped or r.get("gyro_reversed") or reversed_wheels or exchanged:
             what = [f"the {a} wheels' left and right speeds arrived exchanged" for a in swapped]
             if r.get("gyro_reversed"):
                 what.append("the gyro's yaw rate turns against the GNSS course (REP-103: z up)")
@@ -191,9 +192,15 @@ class ReplayReport:
                     f"{', '.join(reversed_wheels)} turned backward while the GNSS moved forward "
                     "(a speed sign reversed)"
                 )
+            if exchanged:
+                what.append(
+                    "the front and rear wheels' names arrived exchanged (the wheels named rear "
+                    "ran faster in the turns, as front wheels do); the radii learned again"
+                )
             lines.append(
-                f"  WIRING: {'; '.join(what)}; corrected from then on (the GNSS told which "
-                "input was reversed): fix the driver's wheel order or signs, or the IMU frame"
+                f"  WIRING: {'; '.join(what)}; corrected from then on (the GNSS or the turns "
+                "told which input was wrong): fix the driver's wheel order or signs, or the IMU "
+                "frame"
             )
         slip = r.get("drive_slip") or {}
         if slip:
@@ -1025,6 +1032,7 @@ def build_metrics(
         # inputs whose sign convention was found reversed and corrected (axle_check.py)
         radii["gyro_reversed"] = axles.gyro_reversed
         radii["wheels_reversed"] = axles.signs.reversed_wheels
+        radii["front_rear_exchanged"] = axles.order.exchanged
     grade = arr["road_grade_rad"]
     # the grade the correction used: fixes per source (the GNSS altitude confirmed by the IMU,
     # the IMU's where they disagreed, none) and its size over the drive

@@ -8,7 +8,8 @@ each rear radius and of their mean (the common radius) against the truth, relati
 nominal radius, the rear axle's verdict and slope, and how many wheel-speed samples took
 their heading change from the gyro.
 
-``--rewire swap_rear`` (the rear wheels' speeds exchanged in the input), ``negate_right`` /
+``--rewire swap_rear`` (the rear wheels' speeds exchanged in the input), ``front_rear`` (the
+front and rear wheels' names exchanged, ``core/radius/axle_order.py``), ``negate_right`` /
 ``negate_all`` (the right / every wheel's speed negated) or ``flip_gyro`` (the gyro's yaw rate
 negated: an IMU frame with z down) runs each drive as it is and with that wiring instead of the
 spool: the rear errors of both, the largest difference between them, and what the axle check
@@ -18,6 +19,7 @@ sets the simulator's sensors (``gnss_velocity_enabled=false``: positions only).
     python -m tire_estimation.evaluation.axle_study --scenario robustness --minutes 10 --seeds 20
     python -m tire_estimation.evaluation.axle_study --rewire flip_gyro --minutes 5 --seeds 20
     python -m tire_estimation.evaluation.axle_study --rewire negate_right --minutes 5 --seeds 20
+    python -m tire_estimation.evaluation.axle_study --rewire front_rear --scenario city --seeds 20
 """
 
 from __future__ import annotations
@@ -39,13 +41,15 @@ from tire_estimation.evaluation.sim_runs import (
 
 
 def rewired(sim: Any, how: str) -> Any:
-    """The simulation with the rear wheels' speeds exchanged (``swap_rear``), the right
-    wheels' speeds negated (``negate_right``), every wheel's negated (``negate_all``) or the
-    gyro's yaw rate negated (``flip_gyro``)."""
+    """The simulation with the rear wheels' speeds exchanged (``swap_rear``), the front and
+    rear wheels' (``front_rear``), the right wheels' speeds negated (``negate_right``), every
+    wheel's negated (``negate_all``) or the gyro's yaw rate negated (``flip_gyro``)."""
     if how != "flip_gyro":
         ws = sim.wheel_speeds.wheel_speed_rad_s.copy()
         if how == "swap_rear":
             ws[:, [2, 3]] = ws[:, [3, 2]]
+        elif how == "front_rear":
+            ws = ws[:, [2, 3, 0, 1]]
         else:
             ws[:, [1, 3] if how == "negate_right" else slice(None)] *= -1.0
         return dataclasses.replace(
@@ -92,6 +96,8 @@ def run_one(
         "swapped": pipeline.axles.swapped["rear"],
         "gyro_reversed": pipeline.axles.gyro_reversed,
         "wheels_reversed": int(sum(pipeline.axles.signs.reversed)),
+        "front_rear_exchanged": pipeline.axles.order.exchanged,
+        "order_slope": pipeline.axles.order.slope,
         "final_radius_m": est.tolist(),
     }
 
@@ -102,7 +108,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     add_seed_args(parser, "robustness", 10.0)
     parser.add_argument(
         "--rewire",
-        choices=("swap_rear", "flip_gyro", "negate_right", "negate_all"),
+        choices=("swap_rear", "front_rear", "flip_gyro", "negate_right", "negate_all"),
         default=None,
     )
     args = parser.parse_args(argv)
@@ -126,7 +132,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(
             f"{args.rewire}: rear swapped back on {sum(r['swapped'] for r in wired)}, gyro "
             f"negated on {sum(r['gyro_reversed'] for r in wired)}, wheels negated "
-            f"{[r['wheels_reversed'] for r in wired]} of {len(wired)}; rear split "
+            f"{[r['wheels_reversed'] for r in wired]} of {len(wired)}; front and rear "
+            f"exchanged back on {sum(r['front_rear_exchanged'] for r in wired)} (wired right: "
+            f"{sum(r['front_rear_exchanged'] for r in plain)}; order decided on "
+            f"{sum(r['order_slope'] is not None for r in wired)} / "
+            f"{sum(r['order_slope'] is not None for r in plain)}); rear split "
             f"observable on {sum(r['split_observable'] is True for r in wired)}; rear errors "
             f"RMS {rms[1]:.3f} mm (the same drives wired right: {rms[0]:.3f} mm), largest "
             f"difference of a final radius from the drive wired right {diff:.3f} mm"

@@ -103,6 +103,8 @@ def statuses(
             # wheels whose speed turned backward while the GNSS moved forward, negated since
             reversed_wheels = pipeline.axles.signs.reversed_wheels
             values["wheels.sign_reversed"] = ",".join(reversed_wheels) or "none"
+            # the front and rear names found exchanged in the turns (axle_order.py)
+            values["axle.front_rear_exchanged"] = str(pipeline.axles.order.exchanged).lower()
         # the IMU's mounting yaw against the wheels (core/imu_mounting.py): "checking" until
         # decided; a large one is taken out of the IMU samples
         mount = pipeline.imu_mounting.result

@@ -40,6 +40,7 @@ from dataclasses import dataclass
 from typing import Annotated, Any
 
 from tire_estimation.core.arrays import F64
+from tire_estimation.core.radius.axle_order import AxleOrder
 from tire_estimation.core.radius.wheel_signs import WheelSigns
 from tire_estimation.core.validation import (
     Checked,
@@ -207,6 +208,7 @@ class AxleCheck:
         # information needed: min_turning_s seconds of x = min_yaw_rate l_T / r0
         self._min_info = c.min_turning_s * (c.min_yaw_rate_rad_s * self._gain_s) ** 2
         self._yaw_rate: float | None = None
+        self._accel_x = 0.0
         self._last_t_ns: int | None = None
         self._fits = {axle: _AxleFit(c.block_s, c.memory_s) for axle in AXLES}
         # per axle (name, left index, right index, fit), for the per-sample loop
@@ -225,6 +227,8 @@ class AxleCheck:
         self.swapped = dict.fromkeys(AXLES, False)
         #: the wheels whose speed arrives with its sign reversed; the estimator negates them
         self.signs = WheelSigns(vehicle.nominal_tire_radius_m)
+        #: whether the front and rear names arrive exchanged (the estimator exchanges them)
+        self.order = AxleOrder(vehicle.wheelbase_m, vehicle.nominal_tire_radius_m)
         #: the gyro's sign against the GNSS course: None until the turns tell, then the slope
         self.gyro_course_slope: float | None = None
         # the course fit: last (t_ns, course rad), forgotten sums of gyro^2 dt and gyro rate dt
@@ -272,10 +276,11 @@ class AxleCheck:
             if others * self._radius_m >= self._min_speed_m_s:
                 check.add(t_ns, dt_s, mag / others if math.isfinite(mag) else 0.0)
 
-    def on_imu(self, gyro_rad_s: Any) -> None:
+    def on_imu(self, gyro_rad_s: Any, accel_m_s2: Any = (0.0, 0.0, 0.0)) -> None:
         """The latest gyro yaw rate (z), rad/s (as the estimator uses it: negated once the gyro
-        is found reversed)."""
+        is found reversed), and specific force (x for :class:`AxleOrder`), m/s^2."""
         self._yaw_rate = float(gyro_rad_s[2])
+        self._accel_x = float(accel_m_s2[0])
 
     @property
     def rewired(self) -> bool:
@@ -285,12 +290,16 @@ class AxleCheck:
     @property
     def rewires_wheels(self) -> bool:
         """Whether the wheel speeds are corrected (:meth:`rewire_wheels`)."""
-        return self.signs.any_reversed or self.swapped["front"] or self.swapped["rear"]
+        swapped = self.swapped["front"] or self.swapped["rear"]
+        return self.signs.any_reversed or swapped or self.order.exchanged
 
     def rewire_wheels(self, wheel_speed_rad_s: F64) -> F64:
-        """The wheel speeds (4,) with the reversed wheels negated and the exchanged axles'
-        sides swapped back (a new array)."""
+        """The wheel speeds (4,) with the reversed wheels negated, the axles exchanged back
+        when their names arrive exchanged, and the exchanged sides swapped back (a new
+        array)."""
         ws = self.signs.correct(wheel_speed_rad_s)
+        if self.order.exchanged:
+            ws = ws[[2, 3, 0, 1]]
         for axle, (i, j) in AXLES.items():
             if self.swapped[axle]:
                 ws[i], ws[j] = ws[j], ws[i]
@@ -366,15 +375,23 @@ class AxleCheck:
         self._turning[axle] = 0
         self._decided.pop(axle, None)
 
-    def on_wheel_speeds(self, t_ns: int, wheel_speed_rad_s: Any) -> None:
-        """One wheel-speed sample (fl, fr, rl, rr), rad/s; NaN for a wheel not reported."""
+    def on_wheel_speeds(self, t_ns: int, wheel_speed_rad_s: Any) -> bool:
+        """One wheel-speed sample (fl, fr, rl, rr), rad/s; NaN for a wheel not reported. True
+        when it shows the front and rear names exchanged (:class:`AxleOrder`): from the next
+        sample on they are exchanged back, and the estimator learns again."""
         if type(wheel_speed_rad_s) is not list:
             wheel_speed_rad_s = [float(v) for v in wheel_speed_rad_s]
         self._watch_signals(t_ns, wheel_speed_rad_s)
         last, self._last_t_ns = self._last_t_ns, t_ns
         r = self._yaw_rate
         if r is None or last is None:
-            return
+            return False
+        if not self.order.decided and self.order.add(t_ns, wheel_speed_rad_s, r, self._accel_x):
+            # the side swaps follow their axles; both fits start again
+            self.swapped = {"front": self.swapped["rear"], "rear": self.swapped["front"]}
+            for axle in AXLES:
+                self._restart(axle)
+            return True
         dt_s = min(max((t_ns - last) * 1e-9, 0.0), _MAX_DT_S)
         x = r * self._gain_s
         turning = abs(r) >= self._min_yaw_rate_rad_s
@@ -390,6 +407,7 @@ class AxleCheck:
                 continue
             self._turning[axle] += turning
             fit.add(t_ns, dt_s, x, w, wr - wl)
+        return False
 
     def slope(self, axle: str) -> float:
         """Least-squares slope of the measured on the expected difference (split fitted per

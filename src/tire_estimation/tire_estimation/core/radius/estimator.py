@@ -172,7 +172,6 @@ class RadiusEstimator(GnssHandling, Reporting, Gates):
         self.gyro_heading_samples = 0
         self.reset()
 
-    # ------------------------------------------------------------------ housekeeping
     def reset(self) -> None:
         """Forget everything: radii, pose, origin, counters of the gates (not ``stats``)."""
         self.mpf.reset_radii()
@@ -306,8 +305,7 @@ class RadiusEstimator(GnssHandling, Reporting, Gates):
         return niw.init_stats(1, np.zeros(d), gamma0, PRIOR_DOF, scale0)
 
     def _drop(self, stream: str, kind: str) -> None:
-        key = drop_key(stream, kind)
-        self.stats[key] = self.stats.get(key, 0) + 1
+        self.stats[key] = self.stats.get(key := drop_key(stream, kind), 0) + 1
 
     def _check_order(self, stream: str, t_ns: int) -> None:
         stamp_after(stream, t_ns, self._streams[stream].last_t_ns)
@@ -363,7 +361,7 @@ class RadiusEstimator(GnssHandling, Reporting, Gates):
                 if self.axles.gyro_reversed:
                     gyro[2] = -gyro[2]  # found turning against the GNSS course (axle_check.py)
                 self._imu = (t_ns, gyro, acc)
-                self.axles.on_imu(gyro)
+                self.axles.on_imu(gyro, acc)
                 return
         try:
             self._check_order("imu", t_ns)
@@ -379,7 +377,7 @@ class RadiusEstimator(GnssHandling, Reporting, Gates):
         if self.axles.gyro_reversed:
             gyro[2] = -gyro[2]
         self._imu = (int(t_ns), gyro, acc)
-        self.axles.on_imu(gyro)
+        self.axles.on_imu(gyro, acc)
 
     def on_wheel_speeds(self, t_ns: int, wheel_speed_rad_s: Any) -> None:
         """Wheel speeds (fl, fr, rl, rr) in rad/s; drives the prediction of the filters."""
@@ -422,7 +420,9 @@ class RadiusEstimator(GnssHandling, Reporting, Gates):
             ws = axles.rewire_wheels(ws)
             vals = None if vals is None else ws.tolist()
         checked = ws
-        self.axles.on_wheel_speeds(t_ns, ws if vals is None else vals)
+        if self.axles.on_wheel_speeds(t_ns, ws if vals is None else vals):
+            self.reset()  # front and rear names exchanged (axle_order.py): learn again
+            return
         self._lost_wheel = None
         front_measured = True
         if vals is None and math.isnan(sum(ws.tolist())):
