@@ -105,13 +105,12 @@ class SensorConfig(Checked):
     gnss_gm_tau_s: Annotated[float, in_range(0.01, 1e5)] = 120.0
     #: Reported covariance = (scale * true std)^2; 1.0 reports the true total error variance.
     gnss_covariance_scale: Annotated[float, in_range(0.01, 100.0)] = 1.0
+    #: The same for the Doppler velocity's reported covariance.
+    gnss_velocity_covariance_scale: Annotated[float, in_range(0.01, 100.0)] = 1.0
     #: Publish the receiver's Doppler velocity (``/gnss/velocity``), as receivers do.
     gnss_velocity_enabled: Flag = True
     gnss_velocity_noise_std_m_s: Annotated[float, in_range(0.0, 10.0)] = 0.05
     gnss_velocity_vertical_noise_std_m_s: Annotated[float, in_range(0.0, 10.0)] = 0.1
-    #: Reported velocity covariance = (scale * true std)^2 (a receiver misstating its speed
-    #: accuracy); 1.0 reports the true noise variance.
-    gnss_velocity_covariance_scale: Annotated[float, in_range(0.01, 100.0)] = 1.0
     #: Injected: a fix stamped t describes the antenna at t - latency, s.
     gnss_latency_s: Annotated[float, in_range(0.0, 2.0)] = 0.0
     #: Injected: a Doppler velocity stamped t (the fix's stamp) describes the antenna at
