@@ -14,7 +14,8 @@ front and rear wheels' names exchanged, ``core/radius/axle_order.py``), ``negate
 negated: an IMU frame with z down) runs each drive as it is and with that wiring instead of the
 spool: the rear errors of both, the largest difference between them, and what the axle check
 decided (``core/radius/axle_check.py``, ``core/radius/wheel_signs.py``). ``--sensor KEY=VALUE``
-sets the simulator's sensors (``gnss_velocity_enabled=false``: positions only).
+sets the simulator's sensors (``gnss_velocity_enabled=false``: positions only); ``--vehicle
+YAML`` simulates another vehicle.
 
     python -m tire_estimation.evaluation.axle_study --scenario robustness --minutes 10 --seeds 20
     python -m tire_estimation.evaluation.axle_study --rewire flip_gyro --minutes 5 --seeds 20
@@ -31,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from tire_estimation.evaluation import sim_runs
 from tire_estimation.evaluation.sim_runs import (
     add_seed_args,
     key_values,
@@ -67,10 +69,11 @@ def run_one(
     locked: bool,
     rewire: str | None = None,
     sensors: dict[str, Any] | None = None,
+    vehicle: Any = None,
 ) -> dict[str, Any]:
     """One drive: final errors, the rear axle's verdict, the gyro-heading samples; with
     ``rewire``, the drive rewired (:func:`rewired`) instead of a spool when ``locked``;
-    ``sensors``: simulator settings."""
+    ``sensors``: simulator settings; ``vehicle``: a ``VehicleParams`` (None: the default car)."""
     sim, pipeline, run = simulated_radius_run(
         scenario,
         seed,
@@ -78,6 +81,7 @@ def run_one(
         {},
         {**(sensors or {}), "wheel_speed_rear_locked": locked and rewire is None},
         rewrite=(lambda s: rewired(s, rewire)) if locked and rewire else None,
+        vehicle=vehicle,
     )
     nominal = sim.vehicle.nominal_tire_radius_m
     trace = run.arrays()
@@ -111,12 +115,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         choices=("swap_rear", "front_rear", "flip_gyro", "negate_right", "negate_all"),
         default=None,
     )
+    sim_runs.add_vehicle_arg(parser)
     args = parser.parse_args(argv)
-    sensors = key_values(args.sensor)
+    sensors, vehicle = key_values(args.sensor), sim_runs.vehicle_arg(args)
     rows = run_seeds(
         args,
         lambda seed: [
-            run_one(args.scenario, seed, args.minutes, lk, args.rewire, sensors)
+            run_one(args.scenario, seed, args.minutes, lk, args.rewire, sensors, vehicle)
             for lk in (False, True)
         ],
     )

@@ -27,9 +27,11 @@ import numpy as np
 from tire_estimation.evaluation.sim_runs import (
     add_key_value_arg,
     add_seed_args,
+    add_vehicle_arg,
     key_values,
     run_seeds,
     simulated_radius_run,
+    vehicle_arg,
 )
 
 
@@ -85,16 +87,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     add_seed_args(parser, "robustness", 10.0)
     parser.add_argument("--skip-min", type=float, default=3.0)
     add_key_value_arg(parser, "--set", "radius estimator setting (JSON value)")
-    parser.add_argument(
-        "--vehicle", default=None, metavar="YAML", help="vehicle.yaml of the simulated vehicle"
-    )
+    add_vehicle_arg(parser)
     args = parser.parse_args(argv)
     overrides, sensors = key_values(args.set), key_values(args.sensor)
-    vehicle = None
-    if args.vehicle is not None:
-        from tire_estimation.core.vehicle import load_vehicle_yaml
-
-        vehicle = load_vehicle_yaml(args.vehicle)
+    vehicle = vehicle_arg(args)
     rows = run_seeds(
         args,
         lambda seed: [

@@ -79,6 +79,22 @@ def add_seed_args(parser: argparse.ArgumentParser, scenario: str, minutes: float
     parser.add_argument("--out", type=Path, default=None, help="JSON file for every run")
 
 
+def add_vehicle_arg(parser: argparse.ArgumentParser) -> None:
+    """``--vehicle YAML``: the simulated vehicle (:func:`vehicle_arg` loads it)."""
+    parser.add_argument(
+        "--vehicle", default=None, metavar="YAML", help="vehicle.yaml of the simulated vehicle"
+    )
+
+
+def vehicle_arg(args: argparse.Namespace) -> Any:
+    """The ``VehicleParams`` of ``--vehicle``, or None (the simulator's default car)."""
+    if args.vehicle is None:
+        return None
+    from tire_estimation.core.vehicle import load_vehicle_yaml
+
+    return load_vehicle_yaml(args.vehicle)
+
+
 def add_key_value_arg(parser: argparse.ArgumentParser, flag: str, help_text: str) -> None:
     """A repeatable ``flag KEY=VALUE`` option (read with :func:`key_values`)."""
     parser.add_argument(flag, action="append", default=[], metavar="KEY=VALUE", help=help_text)
