@@ -241,6 +241,21 @@ def test_imu_at_rest_shows_gravity_and_configured_bias(city_short: SimResult) ->
     assert np.all(np.diff(imu.t_ns) == 10_000_000)
 
 
+def test_an_imu_pitched_nose_up_reads_part_of_gravity_along_x() -> None:
+    """``imu_mounting_pitch_deg``: the vectors turned about y; at rest f_x = g sin(pitch),
+    f_z = g cos(pitch), the same draws as unpitched."""
+    plain = simulate("city", seed=1, minutes=0.05)
+    pitched = simulate(
+        "city", seed=1, minutes=0.05, sensors=SensorConfig(imu_mounting_pitch_deg=3.0)
+    )
+    th = math.radians(3.0)
+    f, f0 = pitched.imu.linear_acceleration_m_s2, plain.imu.linear_acceleration_m_s2
+    np.testing.assert_allclose(f[:, 0], math.cos(th) * f0[:, 0] + math.sin(th) * f0[:, 2])
+    np.testing.assert_allclose(f[:, 2], -math.sin(th) * f0[:, 0] + math.cos(th) * f0[:, 2])
+    rest = rel_s(pitched.imu.t_ns) < 1.0
+    assert np.mean(f[rest, 0]) == pytest.approx(9.81 * math.sin(th), abs=0.35)
+
+
 def test_imu_straight_constant_speed() -> None:
     res = simulate(
         "asphalt_sine",

@@ -140,3 +140,49 @@ def test_the_imu_grade_holds_in_reverse() -> None:
     assert fit.imu_grade_rad == pytest.approx(-0.05, abs=2e-3)
     assert fit.source == "altitude"
     assert fit.counts["imu"] == 0
+
+
+def _flat_drive(fit: RoadGradeFit, seconds: float, bias_m_s2: float, altitude, seed: int = 0):
+    """``seconds`` at 15 m/s on a flat road, the IMU's specific force offset by ``bias_m_s2``
+    (an accelerometer bias, or g sin of a mounting pitch), the fixes' altitude ``altitude(s)``
+    plus 1 m of white noise."""
+    rng = np.random.default_rng(seed)
+    for k in range(int(seconds / DT_S)):
+        fit.roll(DT_S, 15.0, bias_m_s2 + rng.normal(0.0, 0.3))
+        if k % 10 == 9:
+            fit.fix(200.0 + altitude(fit.distance_m) + rng.normal(0.0, 1.0))
+
+
+def test_an_imu_pitched_on_its_mount_is_found_against_the_altitude() -> None:
+    """An IMU pitched 3 degrees nose-down (f_x offset by -g sin 3 deg) reads a -5.2 % grade on a
+    flat road and overrules the altitude; over kilometres the offset is found and taken out,
+    and the altitude is used again (a 5-min replay pitched 2 degrees nose-up: rear radii
+    +0.34 mm off without it)."""
+    from tire_estimation.core.radius.road_grade import OFFSET_MAX_SE
+
+    fit = RoadGradeFit()
+    bias = -G_M_S2 * math.sin(math.radians(3.0))
+    _flat_drive(fit, 60.0, bias, lambda s: 0.0)
+    assert fit.imu_offset == 0.0 and fit.source == "imu"  # 900 m: not yet
+    _flat_drive(fit, 240.0, bias, lambda s: 0.0, seed=1)
+    assert fit.imu_offset == pytest.approx(bias / G_M_S2, abs=OFFSET_MAX_SE)
+    assert fit.imu_grade_rad == pytest.approx(0.0, abs=3e-3)
+    assert fit.source == "altitude" and fit.grade_rad == fit.altitude_grade_rad
+
+
+def test_a_wandering_altitude_is_not_taken_for_an_imu_offset() -> None:
+    """An altitude wandering by 20 m (the Husky's receiver: tens of metres) over a 4.5-km drive
+    keeps the offset at 0, and so does one within what the check allows for; an IMU gap
+    restarts its fit."""
+    fit = RoadGradeFit()
+    _flat_drive(fit, 300.0, 0.4, lambda s: 20.0 * math.sin(s / 300.0))
+    assert fit.imu_offset == 0.0
+    fit = RoadGradeFit()
+    _flat_drive(fit, 300.0, 0.1, lambda s: 0.0)
+    assert fit.imu_offset == 0.0  # 1 % of grade: within what the check allows for
+    fit = RoadGradeFit()
+    _flat_drive(fit, 300.0, 0.4, lambda s: 0.0)
+    assert fit.imu_offset == pytest.approx(0.4 / G_M_S2, abs=3e-3)
+    offset = fit.imu_offset
+    fit.restart_imu()
+    assert fit.imu_offset == offset and len(fit._offset_fit.pts) == 0

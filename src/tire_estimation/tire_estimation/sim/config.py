@@ -95,6 +95,9 @@ class SensorConfig(Checked):
     imu_mounting_yaw_deg: Annotated[float, in_range(-180.0, 180.0)] = 0.0
     #: Injected: the IMU upside down (turned 180 deg about x, before the yaw above).
     imu_upside_down: Flag = False
+    #: Injected: the IMU pitched nose-up by this angle on its mount (about y, after the yaw),
+    #: deg: its x axis sees g sin of it on a level road.
+    imu_mounting_pitch_deg: Annotated[float, in_range(-30.0, 30.0)] = 0.0
 
     # --- GNSS (antenna at VehicleParams.gnss_antenna_position_m) ---
     gnss_rate_hz: Annotated[float, in_range(0.1, 100.0)] = 10.0

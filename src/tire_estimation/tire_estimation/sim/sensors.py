@@ -209,6 +209,15 @@ def imu(
         )
         to_imu = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
         gyro, accel = gyro @ to_imu.T, accel @ to_imu.T
+    if cfg.imu_mounting_pitch_deg:
+        # injected: pitched nose-up by th, the IMU's x axis is (cos th, 0, sin th) and its z
+        # axis (-sin th, 0, cos th) in base_link: at rest it reads f_x = g sin th
+        c, s = (
+            math.cos(math.radians(cfg.imu_mounting_pitch_deg)),
+            math.sin(math.radians(cfg.imu_mounting_pitch_deg)),
+        )
+        to_imu = np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+        gyro, accel = gyro @ to_imu.T, accel @ to_imu.T
     return ImuStream(
         t_ns=start_ns + rel_ns,
         angular_velocity_rad_s=gyro,

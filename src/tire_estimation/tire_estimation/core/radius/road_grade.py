@@ -11,7 +11,15 @@ A consumer receiver's altitude can wander by tens of metres within minutes, whic
 integrated over time it is an altitude: ``integral f_x v dt - v^2 / 2 = g z + const``, since
 ``g sin(theta) v dt = g dz``. The least-squares slope of that IMU altitude over the same
 fixes' travelled distances is the IMU grade, free of the altitude error but offset by the
-accelerometer's bias and mounting pitch (:data:`IMU_GRADE_STD_RAD`). The altitude grade is
+accelerometer's bias and mounting pitch. That offset is constant, and the altitude has none
+over long distances: the slope of the IMU altitude minus the GNSS altitude over the distance
+since the IMU stream became continuous is the offset. The check allows for an offset of the
+size of :data:`IMU_GRADE_STD_RAD`; one beyond :data:`OFFSET_MIN_RAD` (an IMU pitched on its
+mount by 2 degrees reads 3.5 %) is taken out of the IMU grade once its standard error (twice
+the residual scatter plus :data:`ALTITUDE_WANDER_M`, over the span) is at most
+:data:`OFFSET_MAX_SE`.
+An altitude that drifts steadily over kilometres is read as an offset of the IMU. The
+altitude grade is
 used where a chi-square test finds the two consistent; elsewhere the grade is the IMU's
 (``road_grade_source: checked``, the default) or the altitude's alone (``altitude``). The IMU's
 rather than none: its offset ``b`` costs ``b^2 / 2`` of the distance where the road is flat
@@ -49,6 +57,27 @@ G_M_S2 = 9.80665
 #: on its suspension under the window's mean acceleration (about 0.05 m/s^2): sqrt(0.1^2 +
 #: 0.086^2 + 0.05^2) = 0.14, rounded up
 IMU_GRADE_STD_RAD = 0.15 / G_M_S2
+
+#: shortest span of the IMU grade's offset fit, m
+OFFSET_MIN_SPAN_M = 500.0
+
+#: the GNSS altitude's slow error that the scatter about a line may not show (a wander as
+#: long as the span), m
+ALTITUDE_WANDER_M = 5.0
+
+#: largest standard error of an offset estimate used, rad: a third of
+#: :data:`IMU_GRADE_STD_RAD` (with the simulator's 1.5-m altitude error, about 2 km of travel)
+OFFSET_MAX_SE = IMU_GRADE_STD_RAD / 3.0
+
+#: an offset is taken out of the IMU grade from this size on, rad: twice the one the check
+#: allows for (3 % of grade, 0.3 m/s^2 of specific force, a mounting pitch of 1.75 degrees)
+OFFSET_MIN_RAD = 2.0 * IMU_GRADE_STD_RAD
+
+#: the offset is bounded to this, rad (a 5-degree mounting pitch and a bias of 0.15 m/s^2)
+OFFSET_MAX_RAD = 0.1
+
+#: a point of the offset's line every this much travel, m (4000 points: 20 km)
+OFFSET_STEP_M = 5.0
 
 #: chi-square (1 dof) probability of the altitude-against-IMU test: the altitude grade is
 #: rejected when ``(theta_alt - theta_imu)^2 / (var_alt + var_imu)`` exceeds its quantile
@@ -132,6 +161,12 @@ class SlidingLine:
             return math.nan
         return max(szz - sxz * sxz / sxx, 0.0) / (n - 2) / sxx
 
+    def scatter_std(self) -> float:
+        """Std of the points about their line (n - 2 dof); NaN if degenerate."""
+        var = self.slope_var()
+        n = len(self.pts)
+        return math.sqrt(var * (self._n_ss - self._n_s * self._n_s / n)) if var >= 0 else var
+
     def slope(self) -> float:
         """``sum (s - s_mean)(z - z_mean) / sum (s - s_mean)^2`` (NaN if degenerate)."""
         n = len(self.pts)
@@ -171,6 +206,12 @@ class RoadGradeFit:
         self.imu_grade_rad = math.nan
         self.check_nis = math.nan
         self._gate = float(chdtri(1, 1.0 - GRADE_CHECK_PROBABILITY))
+        #: (IMU altitude - GNSS altitude) at the fixes' distances, for the IMU grade's offset
+        self._offset_fit = SlidingLine(4000)
+        #: the IMU grade's offset (accelerometer bias and mounting pitch; sin of the grade),
+        #: taken out of the IMU grade; 0 until estimated beyond OFFSET_MIN_RAD
+        self.imu_offset = 0.0
+        self._offset_se = OFFSET_MAX_SE
 
     def roll(
         self,
@@ -200,6 +241,7 @@ class RoadGradeFit:
         if self._imu_continuous:
             self._imu_continuous = False
             self._imu_fit.clear()
+            self._offset_fit.clear()
             self._work_m2_s2 = 0.0
 
     def fix(self, up_m: float) -> None:
@@ -212,7 +254,8 @@ class RoadGradeFit:
         fit.append(s, up_m)
         if self._imu_continuous:
             # IMU altitude: g z = integral f_x v dt - v^2 / 2 (+ const)
-            imu.append(s, (self._work_m2_s2 - 0.5 * self._speed_m_s**2) / G_M_S2)
+            imu.append(s, z_imu := (self._work_m2_s2 - 0.5 * self._speed_m_s**2) / G_M_S2)
+            self._track_offset(s, z_imu - up_m)
         for line in (fit, imu):
             while line.pts and line.pts[0][0] < s - window:
                 line.popleft()
@@ -225,7 +268,7 @@ class RoadGradeFit:
         self.altitude_grade_rad = math.asin(min(0.5, max(-0.5, sin_alt)))
         self.imu_grade_rad = self.check_nis = math.nan
         if len(imu.pts) >= 5 and imu.span() >= IMU_GRADE_MIN_SPAN_M:
-            sin_imu = imu.slope()
+            sin_imu = imu.slope() - self.imu_offset
             if math.isfinite(sin_imu):
                 self.imu_grade_rad = math.asin(min(0.5, max(-0.5, sin_imu)))
                 var = fit.slope_var() + imu.slope_var() + IMU_GRADE_STD_RAD**2
@@ -246,3 +289,23 @@ class RoadGradeFit:
             self.grade_rad = self.imu_grade_rad
         else:
             self.grade_rad = 0.0
+
+    def _track_offset(self, s: float, dz_m: float) -> None:
+        """A point of the IMU altitude minus the GNSS altitude; the offset (their slope over the
+        distance) taken when its standard error is below :data:`OFFSET_MAX_SE` and below that
+        of the offset in use (0 while it is below :data:`OFFSET_MIN_RAD`)."""
+        line = self._offset_fit
+        if line.pts and s - line.pts[-1][0] < OFFSET_STEP_M:
+            return
+        line.append(s, dz_m)
+        span = line.span()
+        if span < OFFSET_MIN_SPAN_M or len(line.pts) < 10:
+            return
+        # the scatter is mostly the altitude's slow wander: twice it (plus a wander it may
+        # not show) over the span bounds the slope's error better than the white-noise formula
+        se = (2.0 * line.scatter_std() + ALTITUDE_WANDER_M) / span
+        slope = line.slope()
+        if se < self._offset_se and math.isfinite(slope):
+            self._offset_se = se
+            slope = min(OFFSET_MAX_RAD, max(-OFFSET_MAX_RAD, slope))
+            self.imu_offset = slope if abs(slope) >= OFFSET_MIN_RAD else 0.0
