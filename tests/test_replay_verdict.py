@@ -80,6 +80,7 @@ def test_the_summary_names_a_lost_wheel_a_reversing_car_and_a_failed_initializat
     assert radii["fix_covariance"] == {"scale": 1.0, "changes": []}
     assert radii["gyro_reversed"] is False and radii["axles"]["rear"]["swapped"] is False
     assert radii["wheels_reversed"] == [] and radii["front_rear_exchanged"] is False
+    assert radii["road_grade"]["imu_offset_deg"] == 0.0  # within what the grade check allows
     metrics["clock_check"] = {
         "lag_s": 18.0, "correlation": 0.99, "correlation_at_zero": 0.6, "offset": True
     }  # fmt: skip

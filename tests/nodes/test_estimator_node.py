@@ -485,6 +485,7 @@ def test_gnss_velocity_is_subscribed_used_and_bad_ones_are_counted(
     assert values["gyro.yaw_reversed"] == "false" and values["axle.rear.swapped"] == "false"
     assert values["wheels.sign_reversed"] == "none"
     assert values["axle.front_rear_exchanged"] == "false"
+    assert values["road_grade.imu_offset_deg"] == "0.00"
     # constant speed, no IMU: the IMU's mounting is never decided
     assert values["imu.mounting_yaw_deg"] == "checking" and values["imu.rotated"] == "false"
     est = node.estimator.estimate()

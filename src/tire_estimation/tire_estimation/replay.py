@@ -1038,6 +1038,8 @@ def build_metrics(
     # the IMU's where they disagreed, none) and its size over the drive
     radii["road_grade"] = {
         "source_counts": dict(trace.road_grade_counts),
+        # the IMU grade's offset (bias, mounting pitch) taken out (0: none beyond the check's)
+        "imu_offset_deg": math.degrees(trace.road_grade_imu_offset_rad),
         "rms_deg": float(np.degrees(np.sqrt(np.mean(grade**2)))) if grade.size else 0.0,
         "max_abs_deg": float(np.degrees(np.abs(grade).max())) if grade.size else 0.0,
     }

@@ -170,6 +170,18 @@ def test_an_imu_pitched_on_its_mount_is_found_against_the_altitude() -> None:
     assert fit.source == "altitude" and fit.grade_rad == fit.altitude_grade_rad
 
 
+def test_the_estimate_reports_the_imu_offset_taken_out() -> None:
+    """``RadiusEstimate.road_grade_imu_offset_rad`` is the road grade's offset, in rad."""
+    from tire_estimation.core.radius.config import RadiusEstimatorConfig
+    from tire_estimation.core.radius.estimator import RadiusEstimator
+    from tire_estimation.core.vehicle import VehicleParams
+
+    est = RadiusEstimator(RadiusEstimatorConfig(), VehicleParams(), np.random.default_rng(0))
+    assert est.estimate().road_grade_imu_offset_rad == 0.0
+    est.grade.imu_offset = 0.05
+    assert est.estimate().road_grade_imu_offset_rad == pytest.approx(math.asin(0.05))
+
+
 def test_a_wandering_altitude_is_not_taken_for_an_imu_offset() -> None:
     """An altitude wandering by 20 m (the Husky's receiver: tens of metres) over a 4.5-km drive
     keeps the offset at 0, and so does one within what the check allows for; an IMU gap

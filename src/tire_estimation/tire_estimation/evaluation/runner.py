@@ -83,6 +83,8 @@ class RadiusTrace:
     road_grade_rad: list[float] = field(default_factory=list)
     #: fixes per source of the road grade (``road_grade.GRADE_SOURCES``), at the latest sample
     road_grade_counts: dict[str, int] = field(default_factory=dict)
+    #: the IMU grade's offset taken out, at the latest sample, rad
+    road_grade_imu_offset_rad: float = 0.0
     #: the wheel speeds' compensated lag at the latest sample, s
     wheel_speed_lag_s: float = 0.0
     #: the traction-slip correction of driven rear wheels, at the latest sample (empty: none)
@@ -325,6 +327,7 @@ def _record(trace: RadiusTrace, estimator: RadiusEstimator, upd: Any, t_ns: int)
     trace.speed_m_s.append(float(est.speed_m_s))
     trace.road_grade_rad.append(float(getattr(est, "road_grade_rad", 0.0)))
     trace.road_grade_counts = dict(getattr(est, "road_grade_counts", {}))
+    trace.road_grade_imu_offset_rad = float(getattr(est, "road_grade_imu_offset_rad", 0.0))
     trace.wheel_speed_lag_s = float(getattr(est, "wheel_speed_lag_s", 0.0))
     trace.drive_slip = dict(getattr(est, "drive_slip", {}))
     trace.radius_rescales = list(getattr(est, "radius_rescales", ()))

@@ -83,6 +83,7 @@ def statuses(
         # the road grade of the slope-distance correction and where it came from
         values["road_grade_deg"] = f"{math.degrees(est.road_grade_rad):.2f}"
         values["road_grade.source"] = est.road_grade_source
+        values["road_grade.imu_offset_deg"] = f"{math.degrees(est.road_grade_imu_offset_rad):.2f}"
         for source, count in sorted(est.road_grade_counts.items()):
             values[f"road_grade.fixes.{source}"] = str(count)
         # the wheel speeds' lag brought back before the prediction (half their sample period)

@@ -15,7 +15,7 @@ wheels' mean speed over the rear wheels' minus one, ``y``, is fitted by least sq
 (``a_y = v_r r``) what the tyres' slip angles change at speed, ``a_x`` (the IMU's) a driven
 axle's traction slip. ``s`` is about +1 wired right and about -1 with the names exchanged (``y``
 is then ``v_r / v_f - 1``). A highway's curves keep ``x`` below 1e-3, where ``s`` is not resolved
-(standard error 2-3 on 5-min simulated drives) and nothing is decided; in town, with turns of
+(standard error 1.7-3.4 on 5-min simulated drives) and nothing is decided; in town, with turns of
 10-20 m, a few minutes resolve it (simulated `city` and `slow` drives: ``s`` 0.95-0.98 wired
 right, -0.89 to -0.92 exchanged, standard error 0.01-0.03 in 5 min).
 

@@ -68,6 +68,9 @@ class RadiusEstimate:
         road_grade_source: where ``road_grade_rad`` came from at the latest fix: ``altitude``
             (the GNSS altitude, confirmed by the IMU unless ``road_grade_source: altitude``),
             ``imu`` (the IMU's specific force: the altitude disagreed) or ``none``.
+        road_grade_imu_offset_rad: the IMU grade's offset (accelerometer bias and mounting
+            pitch) found against the GNSS altitude and taken out, rad; 0 until found beyond
+            what the check allows for (``core/radius/road_grade.py``).
         road_grade_counts: fixes (with a full grade window) per source, the keys of
             ``road_grade.GRADE_SOURCES``.
         rear_brake_decel_m_s2: braking deceleration ``b = max(0, -f_x - a_0)``: the one of the
@@ -116,6 +119,7 @@ class RadiusEstimate:
     rear_radius_error_cov_m2: F64 | None = None
     road_grade_source: str = "none"
     road_grade_counts: Mapping[str, int] = field(default_factory=dict)
+    road_grade_imu_offset_rad: float = 0.0
     wheel_speed_lag_s: float = 0.0
     drive_slip: Mapping[str, Any] = field(default_factory=dict)
     radius_rescales: tuple[float, ...] = ()
@@ -243,6 +247,7 @@ class Reporting:
             ),
             road_grade_source=self.grade.source,
             road_grade_counts=dict(self.grade.counts),
+            road_grade_imu_offset_rad=math.asin(self.grade.imu_offset),
             wheel_speed_lag_s=self.timing.lag_s,
             drive_slip=self.drive_slip.summary() if self.drive_slip.enabled else {},
             radius_rescales=tuple(self.speed_scale.rescales),

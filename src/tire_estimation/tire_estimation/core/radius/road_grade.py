@@ -17,14 +17,12 @@ since the IMU stream became continuous is the offset. The check allows for an of
 size of :data:`IMU_GRADE_STD_RAD`; one beyond :data:`OFFSET_MIN_RAD` (an IMU pitched on its
 mount by 2 degrees reads 3.5 %) is taken out of the IMU grade once its standard error (twice
 the residual scatter plus :data:`ALTITUDE_WANDER_M`, over the span) is at most
-:data:`OFFSET_MAX_SE`.
-An altitude that drifts steadily over kilometres is read as an offset of the IMU. The
-altitude grade is
-used where a chi-square test finds the two consistent; elsewhere the grade is the IMU's
-(``road_grade_source: checked``, the default) or the altitude's alone (``altitude``). The IMU's
-rather than none: its offset ``b`` costs ``b^2 / 2`` of the distance where the road is flat
-(1.2e-4 at one std, 0.04 mm on a 0.3 m tyre), no grade costs ``theta^2 / 2`` on a slope
-(1.8e-3 at 6 %).
+:data:`OFFSET_MAX_SE` (an altitude that drifts steadily over kilometres is read as an offset
+of the IMU). The altitude grade is used where a chi-square test finds the two consistent;
+elsewhere the grade is the IMU's (``road_grade_source: checked``, the default) or the
+altitude's alone (``altitude``). The IMU's rather than none: its offset ``b`` costs ``b^2 / 2``
+of the distance where the road is flat (1.2e-4 at one std, 0.04 mm on a 0.3 m tyre), no grade
+costs ``theta^2 / 2`` on a slope (1.8e-3 at 6 %).
 """
 
 from __future__ import annotations
