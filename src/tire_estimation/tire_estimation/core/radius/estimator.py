@@ -305,7 +305,8 @@ class RadiusEstimator(GnssHandling, Reporting, Gates):
         return niw.init_stats(1, np.zeros(d), gamma0, PRIOR_DOF, scale0)
 
     def _drop(self, stream: str, kind: str) -> None:
-        self.stats[key] = self.stats.get(key := drop_key(stream, kind), 0) + 1
+        key = drop_key(stream, kind)
+        self.stats[key] = self.stats.get(key, 0) + 1
 
     def _check_order(self, stream: str, t_ns: int) -> None:
         stamp_after(stream, t_ns, self._streams[stream].last_t_ns)

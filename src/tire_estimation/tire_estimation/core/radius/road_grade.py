@@ -144,26 +144,30 @@ class SlidingLine:
         """Distance between the first and the last point (0 when fewer than two)."""
         return self.pts[-1][0] - self.pts[0][0] if len(self.pts) > 1 else 0.0
 
+    def _scatter(self) -> tuple[float, float]:
+        """Residual variance about the line (n - 2 dof) and ``sum (s - s_mean)^2``; NaN for
+        both if degenerate."""
+        n = len(self.pts)
+        if n < 3:
+            return math.nan, math.nan
+        sxx = self._n_ss - self._n_s * self._n_s / n
+        sxz = self._n_sz - self._n_s * self._n_z / n
+        szz = self._n_zz - self._n_z * self._n_z / n
+        if sxx <= 0.0:
+            return math.nan, math.nan
+        return max(szz - sxz * sxz / sxx, 0.0) / (n - 2), sxx
+
     def slope_var(self) -> float:
         """Variance of :meth:`slope` from the points' own scatter about the line,
         ``s^2 / sum (s - s_mean)^2`` with ``s^2`` the residual variance (n - 2 dof); NaN if
         degenerate. Errors correlated over the window (a wandering altitude) do not show in
         it."""
-        n = len(self.pts)
-        if n < 3:
-            return math.nan
-        sxx = self._n_ss - self._n_s * self._n_s / n
-        sxz = self._n_sz - self._n_s * self._n_z / n
-        szz = self._n_zz - self._n_z * self._n_z / n
-        if sxx <= 0.0:
-            return math.nan
-        return max(szz - sxz * sxz / sxx, 0.0) / (n - 2) / sxx
+        var, sxx = self._scatter()
+        return var / sxx
 
     def scatter_std(self) -> float:
         """Std of the points about their line (n - 2 dof); NaN if degenerate."""
-        var = self.slope_var()
-        n = len(self.pts)
-        return math.sqrt(var * (self._n_ss - self._n_s * self._n_s / n)) if var >= 0 else var
+        return math.sqrt(self._scatter()[0])
 
     def slope(self) -> float:
         """``sum (s - s_mean)(z - z_mean) / sum (s - s_mean)^2`` (NaN if degenerate)."""
