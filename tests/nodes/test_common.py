@@ -153,6 +153,7 @@ def _spin_until(executor: Any, cond: Callable[[], bool], proc: Any, timeout_s: f
         executor.spin_once(timeout_sec=0.05)
 
 
+@pytest.mark.serial  # fed over DDS in real time
 @pytest.mark.parametrize(
     ("node", "sig"),
     [("estimator_node", signal.SIGINT), ("detector_node", signal.SIGTERM)],
@@ -195,33 +196,50 @@ def _subscribed(*publishers: Any, subscription: Any = None) -> bool:
 
 
 def _estimator_feed(feeder: Any, executor: Any, qos_mod: Any, proc: Any) -> None:
-    """2.5 s of straight driving (wheel speeds 100 Hz, GNSS 10 Hz); waits for the odometry the
-    node publishes up to the last stamp."""
+    """2.5 s of straight driving (wheel speeds 100 Hz, GNSS 10 Hz), paced by the radii the node
+    publishes (its queue holds 100 samples: a node slowed by a loaded machine would lose the
+    overflow, fixes among them, without a word); waits for the odometry the node publishes up
+    to the last stamp."""
     from nav_msgs.msg import Odometry
     from sensor_msgs.msg import JointState, NavSatFix
 
     from tests.nodes.test_estimator_node import _fix, _wheels
+    from tire_estimation_msgs.msg import TireRadii
 
     qos = qos_mod.QoSProfile(depth=1000, reliability=qos_mod.ReliabilityPolicy.RELIABLE)
     wheels = feeder.create_publisher(JointState, "/vehicle/wheel_speeds", qos)
     fixes = feeder.create_publisher(NavSatFix, "/gnss/fix", qos)
-    stamps: list[int] = []
+    odometry_ns: list[int] = []
+    radii_ns: list[int] = []
+
+    def stamp_into(stamps: list[int]) -> Callable[[Any], None]:
+        return lambda m: stamps.append(m.header.stamp.sec * 10**9 + m.header.stamp.nanosec)
+
     odometry = feeder.create_subscription(
-        Odometry,
-        "/tire_estimation/odometry",
-        lambda m: stamps.append(m.header.stamp.sec * 10**9 + m.header.stamp.nanosec),
-        100,
+        Odometry, "/tire_estimation/odometry", stamp_into(odometry_ns), 100
+    )
+    radii = feeder.create_subscription(
+        TireRadii, "/tire_estimation/tire_radii", stamp_into(radii_ns), 100
     )
     _spin_until(executor, lambda: _subscribed(wheels, fixes, subscription=odometry), proc, 15.0)
+    _spin_until(executor, lambda: radii.get_publisher_count() > 0, proc, 15.0)
     t0_ns, t_ns = 1_000_000_000_000, 1_000_000_000_000
     for k in range(250):
         t_ns = t0_ns + k * 10_000_000
         wheels.publish(_wheels(t_ns, [20.0 / 0.31] * 4))
         if k % 10 == 0:
             fixes.publish(_fix(t_ns, 20.0 * (t_ns - t0_ns) * 1e-9, 0.0))
-            executor.spin_once(timeout_sec=0.005)  # paced: the node's queue holds 100
-    last_odometry_ns = t_ns - 60_000_000  # the node holds the last 50 ms for ordering
-    _spin_until(executor, lambda: bool(stamps) and stamps[-1] >= last_odometry_ns, proc, 15.0)
+            executor.spin_once(timeout_sec=0.005)
+        if k % 50 == 49:
+            # radii every 0.1 s, up to the 50 ms the node holds for ordering
+            behind_ns = t_ns - 160_000_000
+            _spin_until(executor, lambda b=behind_ns: _newest(radii_ns) >= b, proc, 15.0)
+    last_odometry_ns = t_ns - 60_000_000
+    _spin_until(executor, lambda: _newest(odometry_ns) >= last_odometry_ns, proc, 15.0)
+
+
+def _newest(stamps_ns: list[int]) -> int:
+    return stamps_ns[-1] if stamps_ns else -1
 
 
 def _detector_feed(feeder: Any, executor: Any, qos_mod: Any, proc: Any) -> None:
