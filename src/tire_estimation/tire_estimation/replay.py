@@ -870,7 +870,10 @@ def _radius_run(
     kept on disk as the replay's."""
     recorder = RadiusRecorder()
     pipeline = EstimationPipeline(
-        PipelineConfig(seed=config.seed, radius=config), vehicle, observers=[recorder]
+        PipelineConfig(seed=config.seed, radius=config),
+        vehicle,
+        observers=[recorder],
+        outputs=False,
     )
     prefix = spill.prefix("rerun")
 

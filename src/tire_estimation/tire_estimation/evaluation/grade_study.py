@@ -60,7 +60,7 @@ def run_seed(
         cfg = RadiusEstimatorConfig.from_dict({**overrides, "seed": seed})
         recorder = RadiusRecorder()
         pipeline = EstimationPipeline(
-            PipelineConfig(seed=seed, radius=cfg), sim.vehicle, observers=[recorder]
+            PipelineConfig(seed=seed, radius=cfg), sim.vehicle, observers=[recorder], outputs=False
         )
         pipeline.push_ordered(sim_samples(sim, tire_forces=False))
         trace = recorder.finish(pipeline).arrays()

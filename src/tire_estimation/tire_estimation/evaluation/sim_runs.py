@@ -47,6 +47,7 @@ def simulated_radius_run(
         PipelineConfig(seed=seed, radius=cfg),
         sim.vehicle if stated_vehicle is None else stated_vehicle,
         observers=[rec],
+        outputs=False,
     )
     if before_push is not None:
         before_push(pipeline)
