@@ -663,3 +663,37 @@ def test_fixes_before_the_latest_model_change_are_not_judged() -> None:
     assert later["tests"]["mean_nis"] == pytest.approx(2.0, abs=0.1)
     assert later["tests"]["mean_nis_ok"] is True
     assert "fixes_before_model_change" not in whole["tests"]
+
+
+@pytest.mark.parametrize(
+    ("rate_hz", "spacing_s"), [(10.0, 1.0), (5.0, 1.0), (2.0, 2.5), (1.0, 5.0)]
+)
+def test_the_innovations_are_spaced_a_second_or_five_fix_periods_apart(
+    rate_hz: float, spacing_s: float
+) -> None:
+    assert rs.decimation_s(np.arange(0, 600 * 10**9, round(1e9 / rate_hz))) == spacing_s
+    assert rs.decimation_s(np.zeros(1, dtype=np.int64)) == rs.DECIMATION_S
+
+
+def test_innovations_correlated_over_a_few_1_hz_fixes_are_judged_five_fixes_apart(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """1-Hz fixes whose innovations a filter leaves correlated over two fixes (a moving average
+    of the last three draws: the pose is corrected over a few fixes): 1 s apart they fail the
+    whiteness test, five fix periods apart they pass."""
+    rng = np.random.default_rng(3)
+    t_s = np.arange(0.0, 600.0, 1.0)
+    t_ns = np.round(t_s * 1e9).astype(np.int64)
+    draws = rng.normal(0.0, 1.0, (t_s.size + 2, 2))
+    innov = (draws[2:] + draws[1:-1] + draws[:-2]) / np.sqrt(3.0)
+    cov = np.repeat(np.eye(2)[None], t_s.size, axis=0)
+    nis = np.sum(innov**2, axis=1)
+    pose = np.column_stack([20.0 * t_s, np.zeros_like(t_s), 0.01 * t_s])
+    speed = np.full_like(t_s, 20.0)
+    args = (t_ns, innov, cov, nis, np.ones(t_s.size, dtype=bool), t_ns, pose, speed)
+    res = rs.analyze(*args)
+    lb = res["tests"]["ljung_box_decimated"]
+    assert res["tests"]["decimation_s"] == 5.0 and lb["n"] == 120
+    assert min(lb["p_along"], lb["p_cross"]) > 0.01 and res["tests"]["white_decimated"]
+    monkeypatch.setattr(rs, "DECIMATION_FIXES", 1)
+    assert rs.analyze(*args)["tests"]["white_decimated"] is False
