@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 from tire_estimation.evaluation import consistency_study, slow_study
 from tire_estimation.evaluation.sim_runs import key_values
 
@@ -36,3 +38,23 @@ def test_the_consistency_run_reports_its_tests() -> None:
     assert row["consistent"] in (True, False)
     assert 0.5 < row["mean_nis"] < 5.0
     assert row["nees"] is not None and 0.0 < row["nees"] < 10.0
+
+
+def test_the_consistency_summary_counts_a_drive_with_nothing_to_test_apart() -> None:
+    def row(consistent: bool | None, suspected: list[str]) -> dict[str, Any]:
+        tested = consistent is not None
+        return {
+            "consistent": consistent,
+            "suspected": suspected,
+            "first_estimate": 0.5 if suspected else None,
+            "nees": 1.0 if tested else None,
+            "mean_nis": 2.0 if tested else None,
+            "nis_ok": tested,
+            "white": tested,
+        }
+
+    lines = consistency_study.summary(
+        [row(True, []), row(False, ["gnss_lever_arm"]), row(None, [])]
+    )
+    assert lines[0].startswith("consistent on 1/3 (1 with nothing to test) (mean NIS ok on 2,")
+    assert lines[1] == "first suspected effect: gnss_lever_arm 1; its size median 0.5"

@@ -81,6 +81,28 @@ def run_one(
     }
 
 
+def summary(rows: Sequence[Mapping[str, Any]]) -> list[str]:
+    """The study's two summary lines over the drives' :func:`run_one` rows (a drive with
+    nothing to test, ``consistent`` None, is counted apart)."""
+    nees = np.array([r["nees"] for r in rows if r["nees"] is not None])
+    nis = np.array([r["mean_nis"] for r in rows if r["mean_nis"] is not None])
+    untested = sum(r["consistent"] is None for r in rows)
+    firsts = Counter(
+        r["suspected"][0] for r in rows if r["consistent"] is False and r["suspected"]
+    )
+    sizes = [r["first_estimate"] for r in rows if r["first_estimate"] is not None]
+    return [
+        f"consistent on {sum(r['consistent'] is True for r in rows)}/{len(rows)}"
+        + (f" ({untested} with nothing to test)" if untested else "")
+        + f" (mean NIS ok on {sum(bool(r['nis_ok']) for r in rows)}, white on "
+        f"{sum(bool(r['white']) for r in rows)}); NEES median {np.median(nees):.2f} (range "
+        f"{nees.min():.2f}-{nees.max():.2f}); mean NIS median {np.median(nis):.2f}",
+        "first suspected effect: "
+        + (", ".join(f"{name} {k}" for name, k in firsts.most_common()) or "none")
+        + (f"; its size median {np.median(sizes):.3g}" if sizes else ""),
+    ]
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Command line: run the seeds, print each run and a summary."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -97,21 +119,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             run_one(seed, args.minutes, overrides, sensors, args.scenario, args.skip_min, vehicle)
         ],
     )
-    nees = np.array([r["nees"] for r in rows if r["nees"] is not None])
-    nis = np.array([r["mean_nis"] for r in rows if r["mean_nis"] is not None])
-    print(
-        f"consistent on {sum(r['consistent'] for r in rows)}/{len(rows)} (mean NIS ok on "
-        f"{sum(bool(r['nis_ok']) for r in rows)}, white on {sum(bool(r['white']) for r in rows)}"
-        f"); NEES median {np.median(nees):.2f} (range {nees.min():.2f}-{nees.max():.2f}); "
-        f"mean NIS median {np.median(nis):.2f}"
-    )
-    firsts = Counter(r["suspected"][0] for r in rows if not r["consistent"] and r["suspected"])
-    sizes = [r["first_estimate"] for r in rows if r["first_estimate"] is not None]
-    print(
-        "first suspected effect: "
-        + (", ".join(f"{name} {k}" for name, k in firsts.most_common()) or "none")
-        + (f"; its size median {np.median(sizes):.3g}" if sizes else "")
-    )
+    print("\n".join(summary(rows)))
     return 0
 
 
