@@ -270,11 +270,12 @@ def test_speed_dependence_fit_on_synthetic_odometry(k: float) -> None:
 
 
 class _FakeTrace:
-    """A re-run stand-in for :func:`residuals.rank_effects`: fixes over 120 s, one value."""
+    """A re-run stand-in for :func:`residuals.rank_effects`: 10-Hz fixes over 120 s, one
+    value."""
 
     def __init__(self, value: float) -> None:
         self.value = value
-        self.innov_t_ns = [0, 120 * 10**9]
+        self.innov_t_ns = list(range(0, 120 * 10**9 + 1, 10**8))
 
 
 def test_assess_adds_the_likelihood_ratio_to_the_consistency_verdict(
