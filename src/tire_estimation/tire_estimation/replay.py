@@ -55,6 +55,7 @@ from tire_estimation.evaluation.runner import (
     RadiusRecorder,
     RadiusTrace,
     TyreForceRecorder,
+    radius_pipeline,
 )
 from tire_estimation.node_config import EstimatorNodeOptions, periods_of
 from tire_estimation.paths import REPLAY_REPORT_FILES, check_new_path, prepare_out_dir
@@ -869,12 +870,7 @@ def _radius_run(
     """The radius MPF alone (seed ``config.seed``) over the bag of ``stream``: its trace,
     kept on disk as the replay's."""
     recorder = RadiusRecorder()
-    pipeline = EstimationPipeline(
-        PipelineConfig(seed=config.seed, radius=config),
-        vehicle,
-        observers=[recorder],
-        outputs=False,
-    )
+    pipeline = radius_pipeline(config, vehicle, recorder)
     prefix = spill.prefix("rerun")
 
     def samples() -> Iterator[Any]:

@@ -273,18 +273,25 @@ class RadiusRecorder:
         return trace
 
 
-def run_radius(
-    config: RadiusEstimatorConfig, vehicle: VehicleParams, samples: Iterable[Sample]
-) -> RadiusTrace:
-    """The radius MPF alone (seed ``config.seed``) over ``samples``: its trace."""
-    recorder = RadiusRecorder()
-    # no outputs: the trace is recorded from the samples (the same values, about half the time)
-    pipeline = EstimationPipeline(
+def radius_pipeline(
+    config: RadiusEstimatorConfig, vehicle: VehicleParams, recorder: RadiusRecorder
+) -> EstimationPipeline:
+    """The radius MPF alone (seed ``config.seed``) recorded by ``recorder``; no outputs: the
+    trace is recorded from the samples (the same values, in about half the time)."""
+    return EstimationPipeline(
         PipelineConfig(seed=config.seed, radius=config),
         vehicle,
         observers=[recorder],
         outputs=False,
     )
+
+
+def run_radius(
+    config: RadiusEstimatorConfig, vehicle: VehicleParams, samples: Iterable[Sample]
+) -> RadiusTrace:
+    """The radius MPF alone (seed ``config.seed``) over ``samples``: its trace."""
+    recorder = RadiusRecorder()
+    pipeline = radius_pipeline(config, vehicle, recorder)
     pipeline.push_ordered(samples)
     return recorder.finish(pipeline)
 
