@@ -92,7 +92,7 @@ DECIMATION_S = 1.0
 #: ... and to at least this many fix periods (the median interval of the fixes): the filter
 #: corrects its pose over a few fixes at any rate. 1-Hz fixes without the Doppler velocity,
 #: 3 clean drives: cross-track innovations 1 s apart correlated (Ljung-Box p 7e-6 to 1.5e-4),
-#: 5 s apart white (p 0.29-0.70)
+#: 5 s apart white (p 0.29-0.87)
 DECIMATION_FIXES = 5
 #: A mean NIS below its 95 % band fails the verdict only when it is also below this share of
 #: its expectation (the dimension, 2): the fixes' stated covariance (with the modelled GNSS
