@@ -44,9 +44,8 @@ def run_seed(
 ) -> list[dict[str, Any]]:
     """The configurations ``names`` on one simulated drive (``SensorConfig`` overrides
     ``sensors`` besides the grade)."""
-    from tire_estimation.core.pipeline import EstimationPipeline, PipelineConfig
     from tire_estimation.core.radius.config import RadiusEstimatorConfig
-    from tire_estimation.evaluation.runner import RadiusRecorder
+    from tire_estimation.evaluation.runner import RadiusRecorder, radius_pipeline
     from tire_estimation.sim import SensorConfig, simulate
     from tire_estimation.sources import sim_samples
 
@@ -59,9 +58,7 @@ def run_seed(
         overrides = CONFIGS[name]
         cfg = RadiusEstimatorConfig.from_dict({**overrides, "seed": seed})
         recorder = RadiusRecorder()
-        pipeline = EstimationPipeline(
-            PipelineConfig(seed=seed, radius=cfg), sim.vehicle, observers=[recorder], outputs=False
-        )
+        pipeline = radius_pipeline(cfg, sim.vehicle, recorder)
         pipeline.push_ordered(sim_samples(sim, tire_forces=False))
         trace = recorder.finish(pipeline).arrays()
         counts = pipeline.radius.estimate().road_grade_counts if pipeline.radius else {}
