@@ -503,6 +503,12 @@ def test_no_injection_no_false_attribution() -> None:
     for eff in res["ranked_effects"]:
         assert eff["score"] < rs.SCORE_THRESHOLD, eff
     assert {e["effect"] for e in res["ranked_effects"]} == set(GRIDS)
+    # the trace's yaw rate (the turn regressors') is the wheel speeds': it follows the truth
+    a = _run("").arrays()
+    sim = _sim("")
+    truth = np.interp(a["t_ns"], sim.truth.t_ns, sim.truth.yaw_rate_rad_s)
+    assert a["yaw_rate_rad_s"].shape == a["t_ns"].shape
+    assert float(np.sqrt(np.mean((a["yaw_rate_rad_s"] - truth) ** 2))) < 0.01
 
 
 @pytest.mark.slow
@@ -698,3 +704,37 @@ def test_innovations_correlated_over_a_few_1_hz_fixes_are_judged_five_fixes_apar
     assert min(lb["p_along"], lb["p_cross"]) > 0.01 and res["tests"]["white_decimated"]
     monkeypatch.setattr(rs, "DECIMATION_FIXES", 1)
     assert rs.analyze(*args)["tests"]["white_decimated"] is False
+
+
+def test_the_turn_regressors_take_the_wheel_yaw_rate_not_the_corrected_heading() -> None:
+    """White innovations and a heading that each fix corrects by 0.015 rad per metre of its
+    cross-track innovation: the heading's derivative then follows the innovations, and
+    regressed on it they read as a load-dependent radius; on the wheel speeds' yaw rate (the
+    trace's ``yaw_rate_rad_s``) they are consistent."""
+    rng = np.random.default_rng(0)
+    t_s = np.arange(0.0, 600.0, 0.1)
+    t_ns = np.round(t_s * 1e9).astype(np.int64)
+    yaw_rate = 0.05 * np.sin(2.0 * np.pi * t_s / 30.0)
+    along = rng.normal(0.0, 1.0, t_s.size)
+    cross = rng.normal(0.0, 1.0, t_s.size)
+    turned = np.concatenate([[0.0], np.cumsum(0.5 * (yaw_rate[1:] + yaw_rate[:-1]) * 0.1)])
+    psi = turned + 0.015 * np.cumsum(cross)
+    innov = np.column_stack(
+        [np.cos(psi) * along - np.sin(psi) * cross, np.sin(psi) * along + np.cos(psi) * cross]
+    )
+    cov = np.repeat(np.eye(2)[None], t_s.size, axis=0)
+    nis = np.sum(innov**2, axis=1)
+    pose = np.column_stack([np.zeros_like(t_s), np.zeros_like(t_s), psi])
+    speed = np.full_like(t_s, 20.0)
+    args = (t_ns, innov, cov, nis, np.ones(t_s.size, dtype=bool), t_ns, pose, speed)
+    on_heading = rs.analyze(*args)
+    assert not on_heading["consistent"]
+    assert on_heading["suspected_effects"][0]["effect"] == "radius_load_dependence"
+    assert on_heading["tests"]["cross_track_on_time_and_v_ay"]["t"] > rs.SCORE_THRESHOLD
+    on_wheels = rs.analyze(*args, yaw_rate_rad_s=yaw_rate)
+    assert on_wheels["consistent"], on_wheels["suspected_effects"]
+    assert abs(on_wheels["tests"]["cross_track_on_time_and_v_ay"]["t"]) < 2.0
+    # the regressor is the wheel yaw rate averaged over a second (a sine of period 30 s: 0.2 %)
+    reg = rs.regressors_at(t_ns, t_ns, pose, speed, yaw_rate)
+    inner = slice(10, -10)
+    assert np.allclose(reg["yaw_rate"][inner], yaw_rate[inner], atol=2e-4)
