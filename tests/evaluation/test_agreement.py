@@ -46,6 +46,8 @@ def _drive(
     nan_every: int = 0,
     antenna_x_m: float = 0.0,
     declared_antenna_x_m: float = 0.0,
+    antenna_y_m: float = 0.0,
+    lateral_m_s2: float = 3.0,
 ) -> np.ndarray:
     rng = np.random.default_rng(seed)
     bins = agreement.AgreementBins(RN, LT, lever_arm_x_m=declared_antenna_x_m)
@@ -55,11 +57,11 @@ def _drive(
     def speed(tt: Any) -> Any:
         return 20.0 + 6.0 * np.sin(2 * math.pi * tt / 90.0)
 
-    fy = 3.0 * np.sin(2 * math.pi * t / 23.0)
+    fy = lateral_m_s2 * np.sin(2 * math.pi * t / 23.0)
     yaw = fy / speed(t)
     # the path: heading and position by the trapezoidal rule on a 10-ms grid
     tf = np.arange(-1.0, t[-1] + 0.01, 0.01)
-    yaw_f = 3.0 * np.sin(2 * math.pi * tf / 23.0) / speed(tf)
+    yaw_f = lateral_m_s2 * np.sin(2 * math.pi * tf / 23.0) / speed(tf)
     psi = np.concatenate([[0.0], np.cumsum(0.5 * (yaw_f[1:] + yaw_f[:-1]) * 0.01)])
     vel_f = speed(tf)[:, None] * np.column_stack([np.cos(psi), np.sin(psi)])
     pos_f = np.vstack([np.zeros(2), np.cumsum(0.5 * (vel_f[1:] + vel_f[:-1]) * 0.01, axis=0)])
@@ -80,9 +82,12 @@ def _drive(
     # an antenna ahead of the rear axle moves sideways at yaw rate x its offset
     heading = np.interp(t - velocity_latency_s, tf, psi)
     vel += (yaw * antenna_x_m)[:, None] * np.column_stack([-np.sin(heading), np.cos(heading)])
+    # ... and one to the left of it along the track at minus yaw rate x its offset
+    vel -= (yaw * antenna_y_m)[:, None] * np.column_stack([np.cos(heading), np.sin(heading)])
     fix = at(pos_f, t - fix_latency_s) + rng.normal(0.0, 0.3, (t.size, 2))
     fix_heading = np.interp(t - fix_latency_s, tf, psi)
     fix += antenna_x_m * np.column_stack([np.cos(fix_heading), np.sin(fix_heading)])
+    fix += antenna_y_m * np.column_stack([-np.sin(fix_heading), np.cos(fix_heading)])
     if nan_every:
         vel[::nan_every] = np.nan
     for k in range(t.size):
@@ -200,6 +205,21 @@ def test_a_small_effect_is_significant_but_not_material() -> None:
     fit = _fit(_drive(wheel_offset_s=0.01, minutes=20.0))["speed"]["time_alignment"]
     assert abs(fit["t"]) >= SCORE_THRESHOLD
     assert fit["relative_rms"] < agreement.MATERIAL_FRACTION
+    assert not fit["significant"]
+
+
+def test_a_lateral_antenna_offset_fails_the_verdict_by_its_size_in_gentle_turns(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # 0.3 m right of the axle in 0.5 m/s^2 turns: the wheel speeds change by less than the
+    # material 0.05 %, the pose by 0.3 m
+    fit = _fit(_drive(antenna_y_m=-0.3, lateral_m_s2=0.5))["speed"]["gnss_lever_arm_y"]
+    assert fit["estimate"] == pytest.approx(-0.3, abs=0.05)
+    assert abs(fit["t"]) >= SCORE_THRESHOLD
+    assert fit["relative_rms"] < agreement.MATERIAL_FRACTION
+    assert fit["significant"]
+    monkeypatch.setattr(agreement, "MATERIAL_LEVER_ARM_M", 0.4)
+    fit = _fit(_drive(antenna_y_m=-0.3, lateral_m_s2=0.5))["speed"]["gnss_lever_arm_y"]
     assert not fit["significant"]
 
 

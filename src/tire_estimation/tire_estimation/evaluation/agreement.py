@@ -34,7 +34,9 @@ least the residual analysis' threshold **and** it changes a wheel's speed by at 
 :data:`MATERIAL_FRACTION` (RMS over the bins, beyond its mean over a block, which the block's
 radius absorbs), the 0.05 % the radii are meant to reach: an effect below it is reported with
 its size but does not fail the verdict (the rear brake slip of a car braking gently, about
-0.03 %). The coefficients are sizes in the configuration's units,
+0.03 %). A lateral antenna offset also fails it from :data:`MATERIAL_LEVER_ARM_M`: whatever it
+does to the radii, it moves the published pose. The coefficients are sizes in the
+configuration's units,
 so the verdict names and sizes an effect in one pass.
 """
 
@@ -60,6 +62,10 @@ HAC_LAGS = 3
 #: RMS relative wheel-speed change below which a significant effect does not fail the verdict:
 #: the radius accuracy the estimator aims at, 0.05 % (0.15 mm on a 0.31 m tyre)
 MATERIAL_FRACTION = 5e-4
+#: size of a lateral antenna offset that fails the verdict (when significant) whatever it
+#: changes the wheel speeds, m: it moves the published pose across the track by that much, a
+#: decimetre being about how well an antenna is placed by hand
+MATERIAL_LEVER_ARM_M = 0.1
 #: bins with used samples below which a relation is not tested
 MIN_BINS = 30
 
@@ -254,10 +260,18 @@ def _blocks(t_s: F64, per: F64 | None = None) -> list[F64]:
     return cols
 
 
-def _entry(b: float, se: float, relative: F64, t_s: F64, score_threshold: float) -> dict[str, Any]:
+def _entry(
+    b: float,
+    se: float,
+    relative: F64,
+    t_s: F64,
+    score_threshold: float,
+    material_size: float = math.inf,
+) -> dict[str, Any]:
     """Size, t statistic and RMS relative wheel-speed change of one fitted effect
     (``relative``: its relative speed change per bin; the part constant over a block is taken
-    out, since the block's radius absorbs it)."""
+    out, since the block's radius absorbs it). A significant effect matters when that change
+    reaches :data:`MATERIAL_FRACTION` or its size ``|b|`` reaches ``material_size``."""
     blk = np.floor(t_s / BLOCK_S).astype(int)
     _, inv, counts = np.unique(blk, return_inverse=True, return_counts=True)
     dev = relative - (np.bincount(inv, relative) / counts)[inv]
@@ -267,7 +281,9 @@ def _entry(b: float, se: float, relative: F64, t_s: F64, score_threshold: float)
         "estimate": float(b),
         "t": float(t),
         "relative_rms": rel,
-        "significant": bool(abs(t) >= score_threshold and rel >= MATERIAL_FRACTION),
+        "significant": bool(
+            abs(t) >= score_threshold and (rel >= MATERIAL_FRACTION or abs(b) >= material_size)
+        ),
     }
 
 
@@ -341,7 +357,8 @@ def _speed(
     res: dict[str, Any] = {"bins": n}
     for i, name in enumerate(names):
         j = nb + i
-        res[name] = _entry(b[j], se[j], b[j] * regs[name] / u, t, score_threshold)
+        size = MATERIAL_LEVER_ARM_M if name == "gnss_lever_arm_y" else math.inf
+        res[name] = _entry(b[j], se[j], b[j] * regs[name] / u, t, score_threshold, size)
     return res
 
 
