@@ -231,3 +231,14 @@ def test_a_scale_beyond_a_plausible_radius_error_is_refused_and_said() -> None:
     # 20 % is a tyre size, not a unit: rescaled
     factors = [check.add(k, 24.0, 20.0, 0.0, RADIUS_M) for k in range(2 * WINDOW)]
     assert factors[-1] == pytest.approx(1.2) and check.rescales == [pytest.approx(1.2)]
+
+
+def test_the_wheel_heading_integrates_every_step_in_or_out_of_a_run() -> None:
+    """The heading the wheel speeds turn through counts every step: turning (no run), slow
+    (no run) and straight alike."""
+    runs = StraightRuns()
+    for _ in range(100):
+        runs.roll(0.01, 60.0, 0.5, 20.0)  # 0.5 rad/s: too much turning for a run
+    for _ in range(100):
+        runs.roll(0.01, 1.0, -0.2, 0.3)  # too slow for a run
+    assert runs.wheel_yaw_rad == pytest.approx(0.5 - 0.2)

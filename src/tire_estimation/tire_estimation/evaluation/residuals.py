@@ -126,25 +126,24 @@ def regressors_at(
     trace_t_ns: NDArray[np.int64],
     pose: F64,
     speed_m_s: F64,
-    yaw_rate_rad_s: F64 | None = None,
+    wheel_yaw_rad: F64 | None = None,
 ) -> dict[str, F64]:
     """Candidate regressors at the innovation times from the estimator's own trace.
 
-    The yaw rate is the wheel speeds' (``yaw_rate_rad_s``, eq. 6b, per trace sample) averaged
-    over about a second; without it, the derivative of the estimated heading. The heading
-    after each fix carries that fix's correction, which follows its innovation: regressed on
-    that derivative, the cross-track innovations of clean positions-only drives showed a slope
-    on ``v a_y`` of one sign (|t| 4.1 / 5.4 on two 10-min drives; 0.1 / 1.9 on the
-    true yaw rate), read as a load-dependent radius.
+    The yaw rate is the derivative over about a second of ``wheel_yaw_rad`` (per trace sample,
+    the heading the wheel speeds alone turn through, eq. 6b); without it, of the estimated
+    heading. The heading after each fix carries that fix's correction, which follows its
+    innovation: regressed on that derivative, the cross-track innovations of clean
+    positions-only drives showed a slope on ``v a_y`` of one sign (|t| 4.1 / 5.4 on two 10-min
+    drives; 0.1 / 1.9 on the true yaw rate), read as a load-dependent radius.
     """
     t_tr = (trace_t_ns - trace_t_ns[0]) * 1e-9
     t_in = (innov_t_ns - trace_t_ns[0]) * 1e-9
     yaw = np.unwrap(pose[:, 2])
-    if yaw_rate_rad_s is not None and yaw_rate_rad_s.shape == trace_t_ns.shape:
-        # mean over the window of the heading the wheel speeds alone turn through
-        yaw_rate = _smooth_derivative(t_tr, _cumtrapz(t_tr, yaw_rate_rad_s[:, None])[:, 0])
-    else:
-        yaw_rate = _smooth_derivative(t_tr, yaw)
+    turned = yaw
+    if wheel_yaw_rad is not None and wheel_yaw_rad.shape == trace_t_ns.shape:
+        turned = wheel_yaw_rad
+    yaw_rate = _smooth_derivative(t_tr, turned)
     ax = _smooth_derivative(t_tr, speed_m_s)
     v = np.interp(t_in, t_tr, speed_m_s)
     r = np.interp(t_in, t_tr, yaw_rate)
@@ -212,7 +211,7 @@ def analyze(
     rear_brake_decel_m_s2: F64 | None = None,
     sensor_agreement: Mapping[str, Any] | None = None,
     since_t_ns: int | None = None,
-    yaw_rate_rad_s: F64 | None = None,
+    wheel_yaw_rad: F64 | None = None,
 ) -> dict[str, Any]:
     """The ``residuals`` block of metrics.json: consistency tests, regressions, ranked effects.
 
@@ -228,8 +227,8 @@ def analyze(
     the sensors, not attenuated by the filter, significant only when it also matters
     (``tests.agreement``). Fixes stamped before ``since_t_ns`` (the estimator's latest change
     to its own model, ``RadiusEstimate.model_change_t_ns``) are left out: a model no longer in
-    use predicted them (``tests.fixes_before_model_change``). ``yaw_rate_rad_s`` (per trace
-    sample, the wheel speeds' yaw rate) gives the regressors their yaw rate
+    use predicted them (``tests.fixes_before_model_change``). ``wheel_yaw_rad`` (per trace
+    sample, the heading the wheel speeds turn through) gives the regressors their yaw rate
     (:func:`regressors_at`).
     """
     skipped = 0
@@ -245,7 +244,7 @@ def analyze(
     if trace_t_ns.size < 3:
         return _untested(base)
     ok = accepted & np.isfinite(nis) & (innov_t_ns >= trace_t_ns[0]) & (nis > 0)
-    reg = regressors_at(innov_t_ns[ok], trace_t_ns, pose, speed_m_s, yaw_rate_rad_s)
+    reg = regressors_at(innov_t_ns[ok], trace_t_ns, pose, speed_m_s, wheel_yaw_rad)
     if road_grade_rad is not None and road_grade_rad.shape == trace_t_ns.shape:
         t_in = (innov_t_ns[ok] - trace_t_ns[0]) * 1e-9
         t_tr = (trace_t_ns - trace_t_ns[0]) * 1e-9
@@ -547,7 +546,7 @@ def analyze_trace(trace: Any) -> dict[str, Any]:
         rear_brake_decel_m_s2=a.get("rear_brake_decel_m_s2"),
         sensor_agreement=agree,
         since_t_ns=getattr(trace, "model_change_t_ns", None),
-        yaw_rate_rad_s=a.get("yaw_rate_rad_s"),
+        wheel_yaw_rad=a.get("wheel_yaw_rad"),
     )
 
 

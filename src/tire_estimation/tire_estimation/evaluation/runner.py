@@ -64,8 +64,8 @@ class RadiusTrace:
     pose: list[NDArray[np.float64]] = field(default_factory=list)
     pose_var: list[NDArray[np.float64]] = field(default_factory=list)
     speed_m_s: list[float] = field(default_factory=list)
-    #: the yaw rate of the wheel speeds with the learned radii (eq. 6b), rad/s
-    yaw_rate_rad_s: list[float] = field(default_factory=list)
+    #: the heading change of the wheel speeds' yaw rate since the start (eq. 6b), rad
+    wheel_yaw_rad: list[float] = field(default_factory=list)
     n_eff: list[float] = field(default_factory=list)
     state: list[str] = field(default_factory=list)
     reason: list[str] = field(default_factory=list)
@@ -131,7 +131,7 @@ class RadiusTrace:
             "pose": stack(self.pose, (3,)),
             "pose_var": stack(self.pose_var, (3,)),
             "speed_m_s": np.asarray(self.speed_m_s, dtype=float),
-            "yaw_rate_rad_s": np.asarray(self.yaw_rate_rad_s, dtype=float),
+            "wheel_yaw_rad": np.asarray(self.wheel_yaw_rad, dtype=float),
             "n_eff": np.asarray(self.n_eff, dtype=float),
             "baseline_radius_error_m": stack(self.baseline_radius_error_m, (w,)),
             "baseline_radius_error_std_m": stack(self.baseline_radius_error_std_m, (w,)),
@@ -339,7 +339,7 @@ def _record(trace: RadiusTrace, estimator: RadiusEstimator, upd: Any, t_ns: int)
     trace.pose.append(np.asarray(est.pose, dtype=float))
     trace.pose_var.append(np.diag(np.asarray(est.pose_cov, dtype=float)).copy())
     trace.speed_m_s.append(float(est.speed_m_s))
-    trace.yaw_rate_rad_s.append(float(est.yaw_rate_rad_s))
+    trace.wheel_yaw_rad.append(float(est.wheel_yaw_rad))
     trace.road_grade_rad.append(float(getattr(est, "road_grade_rad", 0.0)))
     trace.road_grade_counts = dict(getattr(est, "road_grade_counts", {}))
     trace.road_grade_imu_offset_rad = float(getattr(est, "road_grade_imu_offset_rad", 0.0))

@@ -94,6 +94,8 @@ class RadiusEstimate:
             from what the data showed (the rear radii rescaled, the fix covariance scaled), ns;
             None when it made none. The innovations before it were judged by a model no longer
             in use: the residual verdict leaves them out.
+        wheel_yaw_rad: the heading change of the rear wheel speeds' yaw rate (eq. 6b with the
+            learned radii) integrated since the start, no fix correcting it, rad.
         rear_radius_error_cov_m2: (2, 2) posterior covariance of the rear radius errors
             (wheel_rl, wheel_rr; the diagonal is ``radius_error_std_m`` squared), m^2; None
             when not given.
@@ -128,6 +130,7 @@ class RadiusEstimate:
     fix_covariance_scale: float = 1.0
     fix_covariance_changes: tuple[float, ...] = ()
     model_change_t_ns: int | None = None
+    wheel_yaw_rad: float = 0.0
 
 
 #: wheel samples kept to align a GNSS velocity with the wheel speeds (2.56 s at 100 Hz)
@@ -250,6 +253,7 @@ class Reporting:
             road_grade_imu_offset_rad=math.asin(self.grade.imu_offset),
             wheel_speed_lag_s=self.timing.lag_s,
             drive_slip=self.drive_slip.summary() if self.drive_slip.enabled else {},
+            wheel_yaw_rad=self.speed_scale.runs.wheel_yaw_rad,
             radius_rescales=tuple(self.speed_scale.rescales),
             radius_rescale_sources=tuple(self.speed_scale.rescale_sources),
             radius_rescales_refused=tuple(self.speed_scale.refused),

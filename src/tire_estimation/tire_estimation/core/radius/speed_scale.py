@@ -100,6 +100,9 @@ class StraightRuns:
         self._points: list[tuple[float, float, float]] = []
         #: runs that ended long enough but bent or uneven in speed (not used)
         self.rejected = 0
+        #: the heading change the wheel speeds' yaw rate gives since the start (no fix
+        #: corrects it), rad: the turn regressor of the residual analysis
+        self.wheel_yaw_rad = 0.0
 
     def roll(
         self, dt_s: float, omega_rad_s: float, yaw_rate_rad_s: float, speed_m_s: float
@@ -107,6 +110,7 @@ class StraightRuns:
         """One wheel-speed step: the rear wheels' mean speed (rad/s), the yaw rate and the
         speed (any sign: a reversing run counts the same)."""
         speed = abs(speed_m_s)
+        self.wheel_yaw_rad += yaw_rate_rad_s * dt_s
         # the yaw rate low-passed over YAW_SMOOTHING_S: one wheel sample's speed quantization
         # reads as a yaw rate of several 0.01 rad/s
         self._yaw_lp += (yaw_rate_rad_s - self._yaw_lp) * min(1.0, dt_s / YAW_SMOOTHING_S)
