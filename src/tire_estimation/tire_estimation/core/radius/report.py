@@ -95,7 +95,8 @@ class RadiusEstimate:
             None when it made none. The innovations before it were judged by a model no longer
             in use: the residual verdict leaves them out.
         wheel_yaw_rad: the heading change of the rear wheel speeds' yaw rate (eq. 6b with the
-            learned radii) integrated since the start, no fix correcting it, rad.
+            learned radii; the gyro's while the rear axle is locked) integrated since the
+            start, no fix correcting it, rad.
         rear_radius_error_cov_m2: (2, 2) posterior covariance of the rear radius errors
             (wheel_rl, wheel_rr; the diagonal is ``radius_error_std_m`` squared), m^2; None
             when not given.
