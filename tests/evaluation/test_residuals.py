@@ -625,6 +625,13 @@ def test_explain_says_why_in_words() -> None:
     assert all(e.words for e in rs.EFFECTS) and set(rs.DEFAULT_GRIDS) == set(rs.BY_NAME)
     report["suspected_effects"] = [{"effect": "road_grade", "score": 1.0}]
     assert rs.explain(report)[0].startswith("no known effect is significant; the closest is")
+    # a lateral antenna offset found by the sensors: what it does to the pose, then the speed
+    offset = {"effect": "gnss_lever_arm_y", "score": 8.9, "estimate": -0.452}
+    offset |= {"source": "sensor agreement", "relation": "speed", "relative_rms": 2.8e-4}
+    report["suspected_effects"] = [offset]
+    line = rs.explain(report)[0]
+    assert "sized -0.452 m" in line and "the published pose 0.45 m to the side" in line
+    assert "0.028 % of the speed" in line
 
 
 @pytest.mark.parametrize(

@@ -452,11 +452,15 @@ def explain(report: Mapping[str, Any]) -> list[str]:
         if eff["score"] >= SCORE_THRESHOLD and eff.get("source") == "sensor agreement":
             e = BY_NAME[eff["effect"]]
             what = _AGREEMENT_WORDS.get(eff.get("relation", ""), "the sensors disagree")
+            moved = ""
+            if eff["effect"] == "gnss_lever_arm_y":
+                # what it matters by (agreement.MATERIAL_LEVER_ARM_M): the pose it moves
+                moved = f"the published pose {abs(eff['estimate']):.2f} m to the side, "
             lines.append(
                 f"{what} as {words} would make them: score {eff['score']:.1f} (significant from "
                 f"{SCORE_THRESHOLD:g}), sized {eff['estimate']:.3g} {e.unit} "
-                f"(`radius.{e.config_field}`), {100 * eff['relative_rms']:.3f} % of the speed, "
-                "RMS"
+                f"(`radius.{e.config_field}`), {moved}{100 * eff['relative_rms']:.3f} % of the "
+                "speed, RMS"
             )
         elif eff["score"] >= SCORE_THRESHOLD:
             lines.append(
