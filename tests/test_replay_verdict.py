@@ -71,6 +71,8 @@ def test_the_summary_names_a_lost_wheel_a_reversing_car_and_a_failed_initializat
     assert radii["signal_lost_s"] == {} and radii["failed_initializations"]["count"] == 0
     assert radii["wheels_not_reported"] == []
     assert abs(radii["wheel_speed_lag_s"] - 0.005) < 1e-6  # half the 100 Hz period
+    # at highway speed the ABS unit sees edges in every period: no held value, no pitch
+    assert radii["wheel_speed_tooth_pitch_rad"] == 0.0
     assert metrics["clock_check"]["lag_s"] == 0.0 and metrics["clock_check"]["offset"] is False
     plain = ReplayReport(out, metrics).summary()
     assert "WHEEL SIGNAL LOST" not in plain and "POSE NOT INITIALIZED" not in plain

@@ -475,6 +475,8 @@ def test_gnss_velocity_is_subscribed_used_and_bad_ones_are_counted(
     assert int(values["road_grade.fixes.none"]) > 200
     # half the 10 ms wheel-speed period is brought back before the prediction
     assert values["wheel_speeds.lag_ms"] == "5.0"
+    # a constant speed holds no value at the tooth rate: no ABS pitch read off
+    assert values["wheel_speeds.teeth"] == "0"
     # a front-driven car (the default vehicle): no traction slip on the rear wheels
     assert "drive_slip.source" not in values
     # the GNSS speed agrees with the wheels': no rescaling of the radii

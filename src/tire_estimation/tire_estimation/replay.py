@@ -1044,6 +1044,9 @@ def build_metrics(
     }
     # half the wheel speeds' median sample period, brought back before the prediction
     radii["wheel_speed_lag_s"] = trace.wheel_speed_lag_s
+    # an edge-timed ABS unit's tooth pitch read off its held values (0: none held); below
+    # pitch / (T / 2) the lag brought back is a tooth period
+    radii["wheel_speed_tooth_pitch_rad"] = trace.wheel_speed_tooth_pitch_rad
     # the traction slip removed from driven rear wheels (empty: the rear wheels roll freely)
     radii["drive_slip"] = dict(trace.drive_slip)
     # the factors both rear radii were scaled by when the GNSS showed a gross error, and

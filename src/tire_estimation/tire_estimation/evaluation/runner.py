@@ -89,6 +89,7 @@ class RadiusTrace:
     road_grade_imu_offset_rad: float = 0.0
     #: the wheel speeds' compensated lag at the latest sample, s
     wheel_speed_lag_s: float = 0.0
+    wheel_speed_tooth_pitch_rad: float = 0.0
     #: the traction-slip correction of driven rear wheels, at the latest sample (empty: none)
     drive_slip: dict[str, Any] = field(default_factory=dict)
     #: the factors the rear radii were scaled by for a gross scale error, at the latest sample
@@ -344,6 +345,7 @@ def _record(trace: RadiusTrace, estimator: RadiusEstimator, upd: Any, t_ns: int)
     trace.road_grade_counts = dict(getattr(est, "road_grade_counts", {}))
     trace.road_grade_imu_offset_rad = float(getattr(est, "road_grade_imu_offset_rad", 0.0))
     trace.wheel_speed_lag_s = float(getattr(est, "wheel_speed_lag_s", 0.0))
+    trace.wheel_speed_tooth_pitch_rad = float(getattr(est, "wheel_speed_tooth_pitch_rad", 0.0))
     trace.drive_slip = dict(getattr(est, "drive_slip", {}))
     trace.radius_rescales = list(getattr(est, "radius_rescales", ()))
     trace.radius_rescale_sources = list(getattr(est, "radius_rescale_sources", ()))

@@ -91,6 +91,8 @@ def run_one(
         "z": (err / np.maximum(std, 1e-12)).tolist(),
         "learned_s": pipeline.radius.active_time_s,
         "odometry_bias_pct": odometry_bias_pct(sim),
+        # the ABS unit's tooth pitch read off its held values (0: not found)
+        "tooth_pitch_rad": pipeline.radius.timing.tooth_pitch_rad,
     }
 
 

@@ -88,6 +88,10 @@ def statuses(
             values[f"road_grade.fixes.{source}"] = str(count)
         # the wheel speeds' lag brought back before the prediction (half their sample period)
         values["wheel_speeds.lag_ms"] = f"{1e3 * est.wheel_speed_lag_s:.1f}"
+        # an edge-timed ABS unit's teeth, from the values it holds at low speed (0: not seen);
+        # there the lag brought back is a tooth period
+        pitch = est.wheel_speed_tooth_pitch_rad
+        values["wheel_speeds.teeth"] = f"{2.0 * math.pi / pitch:.1f}" if pitch else "0"
         # gross scale errors of the radii seen in the GNSS speed, corrected by rescaling
         values["speed_scale.rescales"] = str(len(est.radius_rescales))
         # the fixes' stated covariance scaled as their innovations have shown it

@@ -15,6 +15,7 @@ from tire_estimation.core.arrays import F64
 from tire_estimation.core.input_checks import checked_covariance
 from tire_estimation.core.radius.fix_scale import across_track
 from tire_estimation.core.radius.inputs import finite, is_int
+from tire_estimation.core.radius.wheel_timing import speeds_at
 from tire_estimation.core.samples import MAX_ABS_ALTITUDE_M
 from tire_estimation.errors import InputError
 
@@ -48,6 +49,11 @@ GNSS_LEARN_TIMEOUT_MIN_S = 1.0
 
 #: fix spacings above this are outages, not the receiver's period, s
 GNSS_PERIOD_MAX_S = 5.0
+
+#: the acceleration gate of a GNSS velocity reads the wheel speeds up to this long before its
+#: stamp, s: longer than a tooth takes to pass above 1 m/s, so that the gate and the compared
+#: speeds share no sensor error
+GATE_LEAD_S = 0.1
 
 #: std of each horizontal velocity component used when a GNSS velocity has no covariance, m/s
 #: (the Doppler accuracy of a consumer receiver)
@@ -394,12 +400,12 @@ class GnssHandling:
         if not self._active:
             return GnssVelocityUpdate(t_ns, zeros2, r, 0.0, False, f"paused ({self._reason})")
         # the velocity describes the wheels' time t - latency + offset: rear wheel speeds there
-        # (linear interpolation of the recent samples, held at the ends)
+        # (a line through the samples of the 0.2 s before it, wheel_timing.speeds_at)
         target = t_ns + round(self._velocity_shift_s * 1e9)
-        # the newest samples back to the first one at or before 0.2 s before the earlier of
-        # target and stamp (the interpolations below read nothing older; the whole history
-        # when it is shorter)
-        lo_ns = min(target, t_ns) - 200_000_000
+        # the newest samples back to the first one at or before 0.3 s before the earlier of
+        # target and stamp (the fits and interpolations below read nothing older; the whole
+        # history when it is shorter)
+        lo_ns = min(target, t_ns) - 300_000_000
         hist: list[tuple[int, float, float]] = []
         for h in reversed(self._speed_hist):
             hist.append(h)
@@ -412,8 +418,8 @@ class GnssHandling:
         x = (target - int(ts[-1])) * 1e-9
         w3s = np.fromiter((h[1] for h in hist), float, n_h)
         w4s = np.fromiter((h[2] for h in hist), float, n_h)
-        w3 = float(np.interp(x, rel, w3s))
-        w4 = float(np.interp(x, rel, w4s))
+        (w3, w4), fit_var = speeds_at(x, rel, np.column_stack([w3s, w4s]))
+        w3, w4 = float(w3), float(w4)
         sums = w3s + w4s
         r_half = 0.5 * self.model.nominal_radius_m
 
@@ -425,17 +431,21 @@ class GnssHandling:
 
         # at the target: an error of the latency by std s adds (a s)^2 to the speed's variance
         accel = accel_before(x, w3 + w4)
-        # the gate reads the acceleration over the 0.2 s before the velocity's stamp, not its
-        # compensated time: which velocities are used is then a property of the data, the same
-        # for every latency or time offset a residual profile re-runs with (else the joint
-        # likelihood of those re-runs would sum over different sets of velocities)
-        x_g = (t_ns - int(ts[-1])) * 1e-9
+        # the gate reads the acceleration over 0.2 s of wheel speeds before the velocity's
+        # stamp, not its compensated time: which velocities are used is then a property of the
+        # data, the same for every latency or time offset a residual profile re-runs with (else
+        # the joint likelihood of those re-runs would sum over different sets of velocities);
+        # the 0.2 s end GATE_LEAD_S before the stamp, so that the gate shares no sample error
+        # with the speeds compared (gating on their own error keeps the velocities whose wheel
+        # speeds read low while accelerating: a radius too large)
+        x_g = (t_ns - int(ts[-1])) * 1e-9 - GATE_LEAD_S
         gate_accel = accel_before(x_g, float(np.interp(x_g, rel, sums)))
         if abs(gate_accel) > c.gnss_velocity_max_accel_m_s2:
             # an unknown latency tau biases the speed by tau a while accelerating: not used
             self.velocity_skipped_accel += 1
             return GnssVelocityUpdate(t_ns, zeros2, r, 0.0, False, "accelerating")
-        along_var = (accel * GNSS_VELOCITY_LATENCY_STD_S) ** 2
+        # ... and the line's own error: var(v) = (a s)^2 + (r_n / 2)^2 var(w3 + w4)
+        along_var = (accel * GNSS_VELOCITY_LATENCY_STD_S) ** 2 + r_half**2 * fit_var
         wheel_speed, yaw_rate = self._rear_speed_yaw_rate(w3, w4)
         # eq. (4b), the yaw rate with the nominal radii: a gross error of the learned split
         # would read as turning

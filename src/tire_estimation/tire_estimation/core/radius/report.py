@@ -78,6 +78,9 @@ class RadiusEstimate:
             time for the residual signature, m/s^2.
         wheel_speed_lag_s: the wheel speeds' lag brought back before the prediction (half their
             median sample period, ``core/radius/wheel_timing.py``), s; 0 until it is known.
+        wheel_speed_tooth_pitch_rad: the tooth pitch of an edge-timed ABS unit, read off the
+            values it holds at low speed, rad; there the lag brought back is a tooth period
+            ``pitch / |omega|``; 0 until found (none is found when no value is held).
         drive_slip: what the traction-slip correction of driven rear wheels did
             (``core/radius/drive_slip.py``, :meth:`DriveSlip.summary`); empty when the rear
             wheels are not driven.
@@ -124,6 +127,7 @@ class RadiusEstimate:
     road_grade_counts: Mapping[str, int] = field(default_factory=dict)
     road_grade_imu_offset_rad: float = 0.0
     wheel_speed_lag_s: float = 0.0
+    wheel_speed_tooth_pitch_rad: float = 0.0
     drive_slip: Mapping[str, Any] = field(default_factory=dict)
     radius_rescales: tuple[float, ...] = ()
     radius_rescale_sources: tuple[str, ...] = ()
@@ -253,6 +257,7 @@ class Reporting:
             road_grade_counts=dict(self.grade.counts),
             road_grade_imu_offset_rad=math.asin(self.grade.imu_offset),
             wheel_speed_lag_s=self.timing.lag_s,
+            wheel_speed_tooth_pitch_rad=self.timing.tooth_pitch_rad,
             drive_slip=self.drive_slip.summary() if self.drive_slip.enabled else {},
             wheel_yaw_rad=self.speed_scale.runs.wheel_yaw_rad,
             radius_rescales=tuple(self.speed_scale.rescales),
