@@ -63,6 +63,7 @@ PERIOD_MIN_INTERVALS = 16
 #: octaves, :data:`PITCH_BINS` of them (to 0.64 rad: 64 rad/s at 100 Hz)
 PITCH_BIN_BASE_RAD = 0.005
 PITCH_BINS = 7
+PITCH_TOP_RAD = PITCH_BIN_BASE_RAD * 2**PITCH_BINS
 
 #: share of changed values below which a bin is in the hold regime (at most one edge per
 #: sample period: the share is ``omega dt / pitch``)
@@ -166,9 +167,11 @@ class WheelSpeedTiming:
     def _note_changes(self, vals: list[float], dt: float) -> None:
         """Bins each moving wheel's angle over the interval and whether its value changed."""
         prev = self._prev
+        # past the last bin (and NaN) nothing is binned: one comparison per wheel at speed
+        top = PITCH_TOP_RAD / dt
         for i in range(4):
             w = vals[i]
-            if not w or not prev[i] or not math.isfinite(w):
+            if not 0.0 < abs(w) < top or not prev[i]:
                 continue
             angle = abs(w) * dt
             # octave of the angle: frexp gives angle / base = m 2^e, 0.5 <= m < 1
